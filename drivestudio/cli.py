@@ -1,0 +1,37 @@
+"""`drivestudio VERB ...`: the user's jobs as verbs of one command."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .errors import input_errors
+
+VERBS = ("probe", "render", "demo")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, not a usage dump
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="drivestudio", description="Headless driving world with exact DeepDriving "
+                     "affordances, the models that read them and the loop that drives from them.")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB", parser_class=_Parser)
+    sub.required = True
+    for verb in VERBS:
+        importlib.import_module(f"drivestudio.commands.{verb}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except input_errors() as e:
+        print(f"drivestudio {args.verb}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"drivestudio {args.verb}: interrupted", file=sys.stderr)
+        return 130

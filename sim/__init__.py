@@ -1,0 +1,7 @@
+"""The world: tracks, scenes, cameras, ego dynamics, SUMO traffic and ground truth."""
+try:  # the Gymnasium id; the environment module itself loads only on gymnasium.make
+    from gymnasium.envs.registration import register as _register
+
+    _register(id="drivestudio/Highway-v0", entry_point="sim.gym_env:HighwayEnv")
+except ImportError:  # pragma: no cover - gymnasium is a declared dependency
+    pass

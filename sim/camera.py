@@ -1,0 +1,62 @@
+"""The host car's first-person camera: where it sits, what it sees, and the OpenGL matrices for it."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    width: int = 280            # [px]
+    height: int = 210           # [px]
+    fov_deg: float = 60.0       # vertical field of view [deg]
+    eye_height: float = 1.2     # [m] driver's eye above the road
+    eye_forward: float = 0.3    # [m] ahead of the car's centre
+    pitch_deg: float = -2.0     # [deg] negative looks down
+    near: float = 0.3           # [m]
+    far: float = 300.0          # [m]
+    cull_distance: float = 220.0  # [m] nothing farther is drawn
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    @property
+    def hfov(self) -> float:
+        """Horizontal field of view [rad]."""
+        return 2 * math.atan(math.tan(math.radians(self.fov_deg) / 2) * self.aspect)
+
+    def horizon_row(self) -> float:
+        """Image row (0 = top) where a level, infinitely distant ground meets the sky."""
+        y_ndc = math.tan(-math.radians(self.pitch_deg)) / math.tan(math.radians(self.fov_deg) / 2)
+        return (1 - y_ndc) / 2 * self.height
+
+    def eye(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """Eye position and unit viewing direction for a car at (x, y) [m] with yaw [rad]."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        eye = np.array([x + self.eye_forward * c, y + self.eye_forward * s, self.eye_height])
+        p = math.radians(self.pitch_deg)
+        return eye, np.array([math.cos(p) * c, math.cos(p) * s, math.sin(p)])
+
+    def view_matrix(self, x: float, y: float, yaw: float) -> list[float]:
+        """Column-major 4x4 view matrix (OpenGL lookAt)."""
+        eye, f = self.eye(x, y, yaw)
+        side = np.cross(f, [0.0, 0.0, 1.0])
+        side /= np.linalg.norm(side)
+        up = np.cross(side, f)
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = side, up, -f
+        m[:3, 3] = -m[:3, :3] @ eye
+        return m.T.reshape(-1).tolist()
+
+    def projection_matrix(self) -> list[float]:
+        """Column-major 4x4 perspective projection (OpenGL)."""
+        f = 1.0 / math.tan(math.radians(self.fov_deg) / 2)
+        n, fa = self.near, self.far
+        m = np.zeros((4, 4))
+        m[0, 0], m[1, 1] = f / self.aspect, f
+        m[2, 2], m[2, 3] = (fa + n) / (n - fa), 2 * fa * n / (n - fa)
+        m[3, 2] = -1.0
+        return m.T.reshape(-1).tolist()

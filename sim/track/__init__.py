@@ -1,0 +1,7 @@
+"""Track geometry (the one owner of it) and the track file format."""
+from .segments import Arc, Segment, Straight, wrap_angle
+from .track import VERGE_WIDTH, Track
+from .trackfile import MAX_LANES, TrackError, load_track, preset_names, track_from_spec, write_track
+
+__all__ = ["Arc", "Segment", "Straight", "wrap_angle", "Track", "VERGE_WIDTH", "MAX_LANES", "TrackError",
+           "load_track", "preset_names", "track_from_spec", "write_track"]

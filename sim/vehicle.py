@@ -1,0 +1,67 @@
+"""The host car: a kinematic bicycle integrated in track (Frenet) coordinates.
+
+Driven by TORCS-style commands (shm_bridge.vocabulary.Action). Integrating in (s, d, heading relative to the
+tangent) keeps the ground truth exact: no projection from world coordinates is needed each step.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from shm_bridge.vocabulary import STEER_LOCK_RAD, Action
+
+from .track import Track
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    wheelbase: float = 2.7           # [m]
+    rear_to_cg: float = 1.35         # [m] rear axle to centre of gravity (the reference point)
+    length: float = 4.6              # [m] body, for collisions
+    width: float = 1.9               # [m]
+    steer_lock: float = STEER_LOCK_RAD  # [rad] wheel angle at steer = 1
+    steer_rate: float = 2.0          # [rad/s] how fast the wheels follow the command
+    max_accel: float = 4.5           # [m/s^2] at standstill, falling linearly to 0 at top speed
+    top_speed: float = 50.0          # [m/s]
+    max_brake: float = 9.0           # [m/s^2]
+    drag: float = 4.0e-4             # [1/m] aerodynamic deceleration = drag * v^2
+    rolling: float = 0.15            # [m/s^2]
+    max_lateral_accel: float = 9.0   # [m/s^2] grip; beyond it the car runs wide (understeer)
+    substep: float = 0.01            # [s] integration step
+
+
+@dataclass
+class VehicleState:
+    s: float = 0.0          # [m]
+    d: float = 0.0          # [m] positive left
+    heading: float = 0.0    # [rad] yaw minus the track tangent, counter-clockwise positive
+    speed: float = 0.0      # [m/s]
+    wheel_angle: float = 0.0  # [rad] front wheel angle, positive left
+
+
+def step_vehicle(state: VehicleState, action: Action, dt: float, track: Track,
+                 p: VehicleParams = VehicleParams()) -> VehicleState:
+    """Advance the host car by dt [s] under a constant command."""
+    a = action.clipped()
+    target = a.steer * p.steer_lock
+    s, d, psi, v, delta = state.s, state.d, state.heading, state.speed, state.wheel_angle
+    n = max(1, int(math.ceil(dt / p.substep - 1e-9)))
+    h = dt / n
+    for _ in range(n):
+        delta += max(-p.steer_rate * h, min(p.steer_rate * h, target - delta))
+        accel = a.accel * p.max_accel * max(0.0, 1.0 - v / p.top_speed)
+        decel = a.brake * p.max_brake + p.drag * v * v + (p.rolling if v > 0 else 0.0)
+        v = max(0.0, v + (accel - decel) * h)
+        # path curvature of the kinematic bicycle at the CG, capped by the grip available at this speed
+        beta = math.atan(p.rear_to_cg * math.tan(delta) / p.wheelbase)
+        kappa_car = math.cos(beta) * math.tan(delta) / p.wheelbase
+        if v > 1.0:
+            cap = p.max_lateral_accel / (v * v)
+            kappa_car = max(-cap, min(cap, kappa_car))
+        kappa = track.curvature(s)
+        s_dot = v * math.cos(psi + beta) / (1.0 - kappa * d)
+        d += v * math.sin(psi + beta) * h
+        psi += (v * kappa_car - kappa * s_dot) * h
+        s += s_dot * h
+    psi = (psi + math.pi) % (2 * math.pi) - math.pi
+    return VehicleState(track.wrap_s(s), d, psi, v, delta)
