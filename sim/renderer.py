@@ -55,9 +55,9 @@ class Renderer:
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
         """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad]."""
         visible = self.in_view(self._centres, self._radii, x, y, yaw)
-        car_visible = self.in_view(np.c_[cars.x, cars.y], np.full(len(cars), CAR_RADIUS), x, y, yaw)
+        car_visible = self.in_view(np.stack([cars.x, cars.y], axis=1), np.full(len(cars), CAR_RADIUS), x, y, yaw)
         self._objects.set_visible_chunks(visible)
-        self._objects.set_cars(np.c_[cars.x, cars.y, cars.yaw], cars.models, cars.paints, car_visible)
+        self._objects.set_cars(np.stack([cars.x, cars.y, cars.yaw], axis=1), cars.models, cars.paints, car_visible)
         frame = self._backdrop.copy()
         self._painter.paint(frame, visible, x, y, yaw)
         rgb, drawn = self._objects.render(x, y, yaw)

@@ -36,11 +36,11 @@ class CarStates:
 
     def poses(self) -> np.ndarray:
         """(n, 5): x, y, yaw, s, d."""
-        return np.c_[self.x, self.y, self.yaw, self.s, self.d].reshape(-1, 5)
+        return np.stack([self.x, self.y, self.yaw, self.s, self.d], axis=1).reshape(-1, 5)
 
     def boxes(self) -> np.ndarray:
         """(n, 5): x, y, yaw, length, width."""
-        return np.c_[self.x, self.y, self.yaw, self.length, self.width].reshape(-1, 5)
+        return np.stack([self.x, self.y, self.yaw, self.length, self.width], axis=1).reshape(-1, 5)
 
 
 def assign_looks(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +65,7 @@ class ScriptedTraffic:
     def reset(self) -> None:
         self.s = self.track.wrap_s(self._s0.copy())
 
-    def step(self, dt: float, ego=None) -> None:
+    def step(self, dt: float, ego=None, ego_speed: float = 0.0) -> None:
         self.s = self.track.wrap_s(self.s + self.speed * dt)
 
     def states(self) -> CarStates:

@@ -23,7 +23,7 @@ class VehicleParams:
     steer_rate: float = 2.0          # [rad/s] how fast the wheels follow the command
     max_accel: float = 4.5           # [m/s^2] at standstill, falling linearly to 0 at top speed
     top_speed: float = 50.0          # [m/s]
-    max_brake: float = 9.0           # [m/s^2]
+    max_brake: float = 11.0          # [m/s^2] about 1.1 g, a TORCS car's: the Chen follow law brakes late
     drag: float = 4.0e-4             # [1/m] aerodynamic deceleration = drag * v^2
     rolling: float = 0.15            # [m/s^2]
     max_lateral_accel: float = 9.0   # [m/s^2] grip; beyond it the car runs wide (understeer)

@@ -89,7 +89,8 @@ class World:
         if self.config.cars == 0:
             return ScriptedTraffic(self.track, [], [], [], seed=self.seed)
         from .sumo_traffic import SumoTraffic  # SUMO starts only when AI cars are asked for
-        return SumoTraffic(self.track, self.config.cars, seed=self.seed, dt=self.config.dt, ego=self.ego_pose())
+        return SumoTraffic(self.track, self.config.cars, seed=self.seed, dt=self.config.dt, ego=self.ego_pose(),
+                           ego_speed=self.ego.speed)
 
     def close(self) -> None:
         if self._traffic is not None:
@@ -118,7 +119,7 @@ class World:
         t0 = time.perf_counter()
         self.ego = step_vehicle(self.ego, action, self.config.dt, self.track, self.config.vehicle)
         t1 = time.perf_counter()
-        self._traffic.step(self.config.dt, self.ego_pose())
+        self._traffic.step(self.config.dt, self.ego_pose(), self.ego.speed)
         self.timings["physics"] += t1 - t0
         self.timings["traffic"] += time.perf_counter() - t1
         self.t += self.config.dt

@@ -13,8 +13,13 @@ import numpy as np
 
 
 def wrap_angle(a):
-    """Wrap an angle [rad] into (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=np.float64), 2 * np.pi)
+    """Wrap an angle [rad] into (-pi, pi]; angles already in range come back unchanged, bit for bit."""
+    if np.ndim(a) == 0:
+        r = math.remainder(float(a), 2 * math.pi)
+        return math.pi if r == -math.pi else r
+    a = np.asarray(a, dtype=np.float64)
+    wrapped = np.pi - np.mod(np.pi - a, 2 * np.pi)
+    return np.where((a > -np.pi) & (a <= np.pi), a, wrapped)
 
 
 class Segment(ABC):

@@ -41,6 +41,8 @@ class Track:
     # --- arc length -----------------------------------------------------------------------------------
     def wrap_s(self, s):
         """s [m] wrapped into [0, length)."""
+        if isinstance(s, (float, int)):
+            return float(s) % self.length
         return np.mod(s, self.length) if np.ndim(s) else float(s) % self.length
 
     def gap(self, s_from, s_to):
@@ -78,15 +80,35 @@ class Track:
 
     def curvature(self, s):
         """Signed curvature [1/m] at s (positive turning left)."""
-        if np.ndim(s) == 0:
+        if isinstance(s, float) or np.ndim(s) == 0:
             return self.segments[bisect.bisect_right(self._starts_list, float(s) % self.length) - 1].curvature
         idx, _ = self.locate(s)
         return self._kappa[idx]
 
-    def frenet(self, x, y):
-        """(s [m], d [m]) of world points: the projection onto the nearest part of the centreline."""
+    def frenet(self, x, y, s_hint=None):
+        """(s [m], d [m]) of world points: the projection onto the nearest part of the centreline.
+
+        With s_hint (an array like x: a recent s of each point, e.g. a car's s one step ago), each point is
+        first projected onto the segment of its hint only, which keeps per-step car tracking cheap; points
+        that fall outside that segment are searched everywhere.
+        """
         scalar = np.ndim(x) == 0 and np.ndim(y) == 0
         x, y = np.atleast_1d(np.asarray(x, dtype=np.float64)), np.atleast_1d(np.asarray(y, dtype=np.float64))
+        if s_hint is not None:
+            s_out, d_out = np.zeros_like(x), np.zeros_like(x)
+            found = np.zeros(len(x), dtype=bool)
+            seg_idx, _ = self.locate(np.atleast_1d(np.asarray(s_hint, dtype=np.float64)))
+            for i in np.unique(seg_idx):
+                sel = np.flatnonzero(seg_idx == i)
+                seg = self.segments[int(i)]
+                t, d = seg.local_coordinates(x[sel], y[sel])
+                # a point near a joint may belong to the neighbour segment: those go to the full search
+                ok = (t >= 0.0) & (t <= seg.length) & (np.abs(d) < 0.5 / max(abs(seg.curvature), 1e-9))
+                s_out[sel[ok]], d_out[sel[ok]], found[sel[ok]] = self.starts[i] + t[ok], d[ok], True
+            if not found.all():
+                s_out[~found], d_out[~found] = self.frenet(x[~found], y[~found])
+            s_out = self.wrap_s(s_out)
+            return (float(s_out[0]), float(d_out[0])) if scalar else (s_out, d_out)
         best_s = np.zeros_like(x)
         best_d = np.full_like(x, np.inf)
         for seg, s0 in zip(self.segments, self.starts):
@@ -98,21 +120,21 @@ class Track:
         lost = ~np.isfinite(best_d)
         if lost.any():  # outside every segment's normal range (the seam's closure gap): nearest sample
             ss = np.arange(0.0, self.length, 0.5)
-            px, py, _ = self.pose(ss)
+            px, py, ph = self.pose(ss)
             for i in np.flatnonzero(lost):
                 k = int(np.argmin(np.hypot(px - x[i], py - y[i])))
                 best_s[i] = ss[k]
-                best_d[i] = -(x[i] - px[k]) * math.sin(self.heading(ss[k])) + (y[i] - py[k]) * math.cos(
-                    self.heading(ss[k]))
+                best_d[i] = -(x[i] - px[k]) * math.sin(ph[k]) + (y[i] - py[k]) * math.cos(ph[k])
         best_s = self.wrap_s(best_s)
         return (float(best_s[0]), float(best_d[0])) if scalar else (best_s, best_d)
 
     # --- cross-section ------------------------------------------------------------------------------------
     def lane_of(self, d):
         """Lane index (0 = leftmost) of a lateral offset d [m]; off-road counts in the outermost lane."""
+        if np.ndim(d) == 0:  # the hot path: one car at a time
+            return min(max(math.floor((self.markings[0] - float(d)) / self.lane_width), 0), self.lanes - 1)
         k = np.floor((self.markings[0] - np.asarray(d, dtype=np.float64)) / self.lane_width)
-        k = np.clip(k, 0, self.lanes - 1).astype(int)
-        return int(k) if np.ndim(d) == 0 else k
+        return np.clip(k, 0, self.lanes - 1).astype(int)
 
     def on_road(self, d, margin: float = 0.0) -> bool:
         """True when |d| [m] is within the road's edges widened by `margin` [m]."""

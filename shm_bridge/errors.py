@@ -1,0 +1,26 @@
+"""The bridge's exceptions. Their messages are single lines meant for a user (the CLI prints them on stderr)."""
+from __future__ import annotations
+
+
+class BridgeError(RuntimeError):
+    """Anything that stops the bridge: a missing segment, a refused attach, a timeout, a dead peer."""
+
+
+class PeerGone(BridgeError):
+    """The other process died, stopped responding, or left the run.
+
+    pid: the peer's process id (0 when unknown); orderly: True when it detached or closed on purpose.
+    """
+
+    def __init__(self, message: str, pid: int = 0, orderly: bool = False):
+        super().__init__(message)
+        self.pid = pid
+        self.orderly = orderly
+
+
+class ProtocolMismatch(BridgeError):
+    """The segment is not a bridge segment, or speaks another protocol version or layout."""
+
+
+class BridgeTimeout(BridgeError, TimeoutError):
+    """A wait with a timeout ran out (no driver attached, no frame, no action)."""

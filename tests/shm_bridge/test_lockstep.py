@@ -1,0 +1,142 @@
+"""Lock-step exchange between real, separate processes: a Python driver process, a Python world process, and the
+C driver printed in docs/shm-protocol.md."""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shm_bridge import layout
+from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
+from shm_bridge.vocabulary import Action
+
+REPO = Path(__file__).resolve().parents[2]
+N_FRAMES = 1000
+
+
+@pytest.fixture
+def name():
+    n = f"dstest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    yield n
+    path = f"/dev/shm/{n}"
+    leaked = os.path.exists(path)
+    if leaked:
+        os.unlink(path)
+    assert not leaked, f"{path} was left behind"
+
+
+def spawn(function: str, *args) -> subprocess.Popen:
+    """Run `function(*args)` of this module in a new Python process; its return value is the exit status."""
+    code = f"import sys; from tests.shm_bridge.test_lockstep import {function} as f; sys.exit(f(*sys.argv[1:]))"
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def frame_for(seq: int, h: int = 210, w: int = 280) -> np.ndarray:
+    return np.full((h, w, 3), seq % 256, dtype=np.uint8)
+
+
+def truth_for(seq: int) -> np.ndarray:
+    t = np.linspace(-1.0, 1.0, layout.TRUTH_LEN) * seq
+    t[layout.TRUTH_INDEX["t"]] = seq * 0.1
+    return t
+
+
+def action_for(seq: int) -> Action:
+    return Action(steer=(seq % 256) / 255.0, accel=seq * 0.1, brake=0.0)
+
+
+def driver_main(name: str) -> int:
+    """A driver process: every frame must come, in order, intact; answer each with action_for(seq)."""
+    with DriverEndpoint(name, attach_timeout=10) as driver:
+        last = 0
+        while (msg := driver.wait_frame(timeout=10)) is not None:
+            if msg.seq != last + 1:
+                print(f"skipped from {last} to {msg.seq}", file=sys.stderr)
+                return 3
+            if not (msg.frame == msg.seq % 256).all() or not np.array_equal(msg.truth, truth_for(msg.seq)):
+                print(f"frame {msg.seq} is not the one published", file=sys.stderr)
+                return 4
+            driver.send_action(msg.seq, action_for(msg.seq), msg.truth[:14] * 2)
+            last = msg.seq
+    print(last)
+    return 0
+
+
+def world_main(name: str, n: str) -> int:
+    """A world process: publish n frames lock-step and check every answer."""
+    with WorldEndpoint(name) as world:
+        world.wait_for_driver(timeout=10)
+        for seq in range(1, int(n) + 1):
+            assert world.publish(frame_for(seq), truth_for(seq)) == seq
+            act = world.wait_action(seq, timeout=10)
+            if act.seq != seq or act.action != action_for(seq):
+                print(f"wrong answer {act} to frame {seq}", file=sys.stderr)
+                return 3
+    return 0
+
+
+def test_lockstep_with_a_driver_process(name):
+    with WorldEndpoint(name, lockstep=True) as world:
+        proc = spawn("driver_main", name)
+        try:
+            world.wait_for_driver(timeout=20)
+            assert world.driver_pid == proc.pid
+            for seq in range(1, N_FRAMES + 1):
+                assert world.publish(frame_for(seq), truth_for(seq)) == seq
+                act = world.wait_action(seq, timeout=10)
+                assert act.seq == seq and act.action == action_for(seq)
+                np.testing.assert_array_equal(act.estimate, truth_for(seq)[:14] * 2)
+                assert world.driver_seen_seq == seq
+        finally:
+            world.close()
+            out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    assert out.strip() == str(N_FRAMES)
+
+
+def test_lockstep_with_a_world_process(name):
+    proc = spawn("world_main", name, N_FRAMES)
+    try:
+        with DriverEndpoint(name, attach_timeout=20) as driver:
+            assert driver.lockstep and (driver.height, driver.width) == (210, 280)
+            seqs = []
+            while (msg := driver.wait_frame(timeout=10)) is not None:
+                assert (msg.frame == msg.seq % 256).all()
+                driver.send_action(msg.seq, action_for(msg.seq))
+                seqs.append(msg.seq)
+        assert seqs == list(range(1, N_FRAMES + 1))
+    finally:
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+def test_the_documented_c_driver(name, tmp_path):
+    text = (REPO / "docs" / "shm-protocol.md").read_text(encoding="utf-8")
+    example = re.search(r"<!-- example ds_driver.c -->\n```c\n(.*?)```", text, re.S).group(1)
+    (tmp_path / "ds_bridge.h").write_text(layout.c_header())
+    (tmp_path / "ds_driver.c").write_text(example)
+    subprocess.run(["cc", "-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-o", "ds_driver", "ds_driver.c"],
+                   cwd=tmp_path, check=True)
+    with WorldEndpoint(name) as world:
+        proc = subprocess.Popen([str(tmp_path / "ds_driver"), name], stderr=subprocess.PIPE, text=True)
+        try:
+            world.wait_for_driver(timeout=10)
+            for seq in range(1, 301):
+                world.publish(frame_for(seq), truth_for(seq))
+                act = world.wait_action(seq, timeout=10)
+                assert act.seq == seq
+                assert act.action == Action((seq % 256) / 255.0, seq * 0.1, 0.0)
+                np.testing.assert_array_equal(act.estimate, truth_for(seq)[:14])
+        finally:
+            world.close()
+            _, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
