@@ -127,6 +127,14 @@ class ChenController:
         """Sum of the last steer_history steering commands."""
         return float(sum(self._steers))
 
+    def begin_lane_change(self, direction: str) -> None:
+        """Start a lane change now, whatever the lane timers say (the data-collection expert's forced changes).
+        The caller checks that the target lane exists; the state machine then runs as for any change."""
+        if direction not in ("left", "right"):
+            raise ValueError(f"direction must be 'left' or 'right', got {direction!r}")
+        if self._state == KEEP:
+            self._begin_change(LEFT_1 if direction == "left" else RIGHT_1, overtaking=False)
+
     # --- one frame ------------------------------------------------------------------------------------------
     def act(self, indicators, speed: float) -> Action:
         """One 10 Hz frame: the 14 indicators in canonical order (13 accepted, then fast = 0), speed [m/s]."""

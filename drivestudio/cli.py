@@ -8,7 +8,7 @@ import sys
 
 from .errors import input_errors
 
-VERBS = ("probe", "render", "demo")
+VERBS = ("probe", "render", "generate", "stats", "demo")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -7,7 +7,8 @@ class UsageError(ValueError):
 
 
 def input_errors() -> tuple[type[BaseException], ...]:
+    from perception.shards import DatasetError
     from sim.errors import RendererError, TrafficError
     from sim.scenario import ScenarioError
     from sim.track import TrackError
-    return (UsageError, TrackError, ScenarioError, RendererError, TrafficError)
+    return (UsageError, TrackError, ScenarioError, RendererError, TrafficError, DatasetError)

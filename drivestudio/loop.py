@@ -73,12 +73,12 @@ class StepRecord:
 
 def run_loop(world: World, exchange: Exchange, seconds: float, render: bool = True,
              metrics: ClosedLoopMetrics | None = None, realtime: bool = False,
-             on_step: Callable[[StepRecord], None] | None = None, stop_when_lost: bool = True) -> Observation:
+             on_step: Callable[[StepRecord], None] | None = None, when_lost: str = "stop") -> Observation:
     """Drive `world` for `seconds` of simulated time (10 Hz steps); returns the last observation.
 
     realtime paces the loop to wall-clock time; otherwise it runs as fast as it can. on_step sees every
-    observation with the action taken on it (recording, video). The run ends early if the host car is lost
-    off the road.
+    observation with the action taken on it (recording, video). If the host car gets lost off the road the
+    run ends (when_lost="stop") or the car is put back on the nearest lane (when_lost="recover").
     """
     dt = world.config.dt
     steps = int(round(seconds / dt))
@@ -98,8 +98,11 @@ def run_loop(world: World, exchange: Exchange, seconds: float, render: bool = Tr
             ahead = (n + 1) * dt - (time.perf_counter() - t_start)
             if ahead > 0:
                 time.sleep(ahead)
-        if stop_when_lost and obs.lost:
-            break
+        if obs.lost:
+            if when_lost == "stop":
+                break
+            world.recover_ego()
+            obs = world.observe(render)
     if metrics is not None:
         metrics.wall_time += time.perf_counter() - t_start
         for stage in ("render", "physics", "traffic", "truth"):

@@ -40,12 +40,17 @@ class CameraConfig:
         p = math.radians(self.pitch_deg)
         return eye, np.array([math.cos(p) * c, math.cos(p) * s, math.sin(p)])
 
+    def basis(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """Eye position and the camera's (right, up, forward) unit vectors as rows of a 3x3 matrix."""
+        eye, f = self.eye(x, y, yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
+        side = np.array([s, -c, 0.0])  # forward x world-up, for a camera that never rolls
+        up = np.array([-f[2] * c, -f[2] * s, f[0] * c + f[1] * s])  # side x forward
+        return eye, np.stack([side, up, f])
+
     def view_matrix(self, x: float, y: float, yaw: float) -> list[float]:
         """Column-major 4x4 view matrix (OpenGL lookAt)."""
-        eye, f = self.eye(x, y, yaw)
-        side = np.cross(f, [0.0, 0.0, 1.0])
-        side /= np.linalg.norm(side)
-        up = np.cross(side, f)
+        eye, (side, up, f) = self.basis(x, y, yaw)
         m = np.eye(4)
         m[0, :3], m[1, :3], m[2, :3] = side, up, -f
         m[:3, 3] = -m[:3, :3] @ eye

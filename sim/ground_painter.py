@@ -37,13 +37,6 @@ class GroundPainter:
         f = 1.0 / math.tan(math.radians(camera.fov_deg) / 2)
         self._fx, self._fy = f / camera.aspect * camera.width / 2, f * camera.height / 2
 
-    def _basis(self, x: float, y: float, yaw: float):
-        eye, fwd = self.camera.eye(x, y, yaw)
-        side = np.cross(fwd, [0.0, 0.0, 1.0])
-        side /= np.linalg.norm(side)
-        up = np.cross(side, fwd)
-        return eye, np.stack([side, up, fwd])
-
     def _to_pixels(self, cam: np.ndarray) -> np.ndarray:
         """Camera-space points (n, 3: right, up, forward) to cv2 fixed-point pixel coordinates."""
         w, h = self.camera.width, self.camera.height
@@ -53,18 +46,19 @@ class GroundPainter:
         return np.clip(np.stack([u, v], axis=1) * scale, -2e8, 2e8).astype(np.int32)
 
     def _clip_near(self, cam: np.ndarray) -> np.ndarray:
-        """Sutherland-Hodgman against the near plane (forward >= near)."""
+        """Sutherland-Hodgman against the near plane (forward >= near), on plain floats: a few polygons a
+        frame, where numpy's per-call overhead would dominate."""
         near = self.camera.near
+        pts = cam.tolist()
         out = []
-        n = len(cam)
-        for i in range(n):
-            a, b = cam[i], cam[(i + 1) % n]
+        for i, a in enumerate(pts):
+            b = pts[i - len(pts) + 1]
             a_in, b_in = a[2] >= near, b[2] >= near
             if a_in:
                 out.append(a)
             if a_in != b_in:
                 t = (near - a[2]) / (b[2] - a[2])
-                out.append(a + t * (b - a))
+                out.append([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), near])
         return np.array(out).reshape(-1, 3)
 
     def paint(self, frame: np.ndarray, visible: np.ndarray, x: float, y: float, yaw: float) -> None:
@@ -75,7 +69,7 @@ class GroundPainter:
         offsets = np.cumsum([0] + [len(self._verts[i]) for i in idx])
         verts = np.concatenate([self._verts[i] for i in idx])
         table = np.concatenate([self._tables[i] + [0, o, o] for i, o in zip(idx, offsets[:-1])])
-        eye, basis = self._basis(x, y, yaw)
+        eye, basis = self.camera.basis(x, y, yaw)
         cam = (verts - eye) @ basis.T
         near = self.camera.near
         lo = np.minimum.reduceat(cam[:, 2], table[:, 1])

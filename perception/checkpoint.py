@@ -1,0 +1,93 @@
+"""The checkpoint format: one torch file holding plain data only, loaded with `weights_only=True` (no pickled
+code runs), written atomically (a temporary file renamed into place, so a crash leaves the previous one).
+
+    format, version   "drivestudio-perception", 1
+    spec              the model (perception/models.py): name, labels, options, input statistics, normalisation
+    state_dict        the model's tensors
+    train             progress and settings: config (JSON-able), iteration, epoch, step_in_epoch, history
+    optimizer, scheduler, rng    what resuming needs (absent from fitted GIST models)
+    data              the training data's manifest summary: root, frames per split, manifest fields
+"""
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import torch
+
+FORMAT = "drivestudio-perception"
+VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint (or weights file) that cannot be used: missing, not ours, truncated, or not the model asked for."""
+
+
+def atomic_write(path, data: bytes) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # the permissions of an ordinary new file, not mkstemp's 0600
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_checkpoint(path, payload: dict) -> None:
+    buf = io.BytesIO()
+    torch.save({"format": FORMAT, "version": VERSION, **payload}, buf)
+    atomic_write(path, buf.getvalue())
+
+
+def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu") -> dict:
+    """Read and check a checkpoint; `model` and `labels`, when given, must be the ones it was trained for."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"no checkpoint at {path}")
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    except (RuntimeError, EOFError, zipfile.BadZipFile, OSError) as e:
+        text = str(e).splitlines()[0] if str(e) else type(e).__name__
+        if "zip archive" in text or "central directory" in text or isinstance(e, EOFError):
+            raise CheckpointError(f"{path} is truncated or corrupt ({text})") from None
+        raise CheckpointError(f"{path} is not a drivestudio checkpoint ({text[:120]})") from None
+    except Exception as e:  # e.g. an UnpicklingError: a file with pickled code, or no torch file at all
+        raise CheckpointError(f"{path} is not a drivestudio checkpoint ({type(e).__name__})") from None
+    if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not a drivestudio checkpoint")
+    if ckpt.get("version") != VERSION:
+        raise CheckpointError(f"{path} has checkpoint version {ckpt.get('version')}; this reader reads {VERSION}")
+    spec = ckpt.get("spec")
+    if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
+            not {"name", "labels", "input", "normalisation"} <= set(spec):
+        raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
+    if model is not None and spec["name"] != model:
+        raise CheckpointError(f"{path} holds a {spec['name']} model, not {model}")
+    if labels is not None and tuple(spec["labels"]) != tuple(labels):
+        raise CheckpointError(f"{path} predicts {len(spec['labels'])} indicators ({', '.join(spec['labels'])}), "
+                              f"not the {len(tuple(labels))} asked for ({', '.join(labels)})")
+    return ckpt
+
+
+def load_model(path, model: str | None = None, labels=None, device="cpu"):
+    """The model of a checkpoint, in eval mode on `device`: (Regressor, checkpoint dict)."""
+    from .models import Regressor, check_normalisation
+
+    ckpt = load_checkpoint(path, model=model, labels=labels)
+    check_normalisation(ckpt["spec"], str(path))
+    net = Regressor(ckpt["spec"])
+    try:
+        net.load_state_dict(ckpt["state_dict"])
+    except RuntimeError as e:
+        raise CheckpointError(f"{path}: the weights do not fit its {ckpt['spec']['name']} model "
+                              f"({str(e).splitlines()[0]})") from None
+    return net.to(device).eval(), ckpt

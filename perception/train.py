@@ -1,0 +1,444 @@
+"""Training: one readable loop (nanoGPT's train.py is the model), configured by the dataclass below.
+
+The defaults are seed 002's (§6.1, §6.3): SGD with momentum 0.9, learning rate x0.9 every 1000 iterations,
+AlexNet from scratch at lr 1e-2 with batches of 15 for 10,000 iterations, VGG-16 (conv frozen) at lr 1e-4 with
+batches of 10 for 15,000 iterations, Euclidean loss L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to
+about [0.1, 0.9]; no dropout, no output sigmoid. GIST is fitted in closed form instead (perception/gist.py).
+
+The checkpoint at `out` is written atomically at every validation, at the end and on Ctrl-C; running the same
+training again continues from it (same data order, same optimiser state). Loss curves go beside it as
+`<out>.loss.csv` and `<out>.loss.png`.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import sys
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from shm_bridge.vocabulary import label_set
+
+from .checkpoint import CheckpointError, atomic_write, load_checkpoint, save_checkpoint
+from .datasets import FrameDataset, FrameStream
+from .models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_normalisation, describe, load_trunk, make_spec
+from .shards import Dataset, DatasetError
+
+PAPER = {  # seed 002 §6.1 and §6.3
+    "alexnet": {"iterations": 10_000, "batch_size": 15, "lr": 1e-2},
+    "vgg16": {"iterations": 15_000, "batch_size": 10, "lr": 1e-4},
+    "gist": {"iterations": 0, "batch_size": 32, "lr": 0.0},
+}
+
+
+class TrainingError(ValueError):
+    """Training that cannot go on: the loss diverged, or the run's settings contradict its checkpoint."""
+
+
+@dataclass
+class TrainConfig:
+    data: str = "out/dataset"
+    model: str = "alexnet"            # alexnet | vgg16 | gist
+    out: str = "runs/alexnet.pt"
+    iterations: int | None = None     # None: the paper's for the model (or from `epochs`)
+    epochs: float | None = None       # alternative to iterations: passes over the training split
+    batch_size: int | None = None     # None: the paper's (15 AlexNet, 10 VGG-16)
+    lr: float | None = None           # None: the paper's (1e-2 AlexNet, 1e-4 VGG-16)
+    lr_step: int = 1000               # iterations between learning-rate decays
+    lr_gamma: float = 0.9
+    optimizer: str = "sgd"            # sgd (the paper's, momentum 0.9) | adam
+    momentum: float = 0.9
+    weight_decay: float = 0.0
+    device: str = "auto"              # auto | cpu | cuda | cuda:N
+    amp: bool = True                  # mixed precision on CUDA (bf16 where supported, else fp16)
+    workers: int = 1                  # DataLoader processes decoding frames
+    shuffle_buffer: int = 16384       # frames mixed across episodes before batching
+    val_every: int = 500              # iterations between validations (and checkpoints)
+    val_frames: int = 1000            # at most this many validation frames, evenly spread over the split
+    log_every: int = 10               # iterations per row of the loss curve
+    unfreeze: bool = False            # VGG-16: train the convolutional layers too
+    batch_norm: bool = False          # VGG-16: vgg16_bn
+    weights: str | None = None        # torchvision ImageNet state dict for the trunk (never downloaded)
+    fast: bool = False                # predict `fast` too (14 outputs)
+    lanes_left: bool = False          # predict lanes_left too (seed 002 §6.5's proposed fix)
+    regressor: str = "ridge"          # GIST: ridge | rbf
+    seed: int = 0
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return label_set(fast=self.fast, lanes_left=self.lanes_left)
+
+
+def euclidean_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Caffe's EuclideanLoss: 1/(2m) sum_i ||y_hat_i - y_i||^2."""
+    return ((pred.float() - target.float()) ** 2).sum(1).mean() / 2
+
+
+def resolve_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    device = torch.device(name)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise TrainingError(f"--device {name}: no CUDA device is available here")
+    return device
+
+
+def data_summary(data: Dataset) -> dict:
+    """What a checkpoint records of its training data: where, how much per split, and the manifest's fields."""
+    return {"root": str(data.root.resolve()),
+            "frames": {s: data.frames(s) for s in ("train", "val", "test")},
+            "episodes": len(data.shards),
+            "manifest": {k: v for k, v in data.manifest.items() if k != "shards"}}
+
+
+def spread(n: int, k: int) -> list[int]:
+    """k indices evenly spread over range(n)."""
+    return sorted(set(np.linspace(0, n - 1, num=min(n, k)).round().astype(int).tolist())) if n else []
+
+
+def load_frames(root, split: str, labels, limit: int, normalised: bool = True):
+    """Up to `limit` frames of a split, evenly spread over it, as (uint8 images, targets) tensors."""
+    ds = FrameDataset(root, split, labels, normalised=normalised)
+    items = [ds[i] for i in spread(len(ds), limit)]
+    return torch.stack([x for x, _ in items]), torch.stack([y for _, y in items])
+
+
+def input_statistics(root, frames: int = 512) -> tuple[list[float], list[float]]:
+    """Per-channel mean and standard deviation of training frames in [0, 1] (seed 002 §5.1's mean file)."""
+    images, _ = load_frames(root, "train", ("angle",), frames)
+    x = images.float().div_(255).permute(1, 0, 2, 3).reshape(3, -1)
+    return x.mean(1).tolist(), x.std(1).clamp_min(1e-3).tolist()
+
+
+# --- curves -------------------------------------------------------------------------------------------------
+def curve_paths(out) -> tuple[Path, Path]:
+    out = Path(out)
+    return out.with_name(out.name + ".loss.csv"), out.with_name(out.name + ".loss.png")
+
+
+def write_curves(out, history: list[dict], x: str = "iteration", title: str = "") -> None:
+    """The loss history as CSV and as a PNG plot (log scale), both beside the checkpoint, atomically."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    csv_path, png_path = curve_paths(out)
+    columns = list(dict.fromkeys(k for row in history for k in row))
+    text = io.StringIO()
+    w = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+    w.writeheader()
+    w.writerows({k: ("" if row.get(k) is None else row[k]) for k in columns} for row in history)
+    atomic_write(csv_path, text.getvalue().encode())
+
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=100)
+    for key, style in (("train_loss", "-"), ("val_loss", "o-")):
+        pts = [(r[x], r[key]) for r in history if r.get(key) is not None]
+        if pts:
+            ax.plot(*zip(*pts), style, label=key.replace("_", " "), markersize=3)
+    ax.set_xlabel(x)
+    ax.set_ylabel("Euclidean loss (normalised targets)")
+    if x == "alpha":
+        ax.set_xscale("log")
+    if any(r.get("train_loss") for r in history):
+        ax.set_yscale("log")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    atomic_write(png_path, buf.getvalue())
+
+
+# --- validation ---------------------------------------------------------------------------------------------
+@torch.no_grad()
+def validate(model: Regressor, images: torch.Tensor, targets: torch.Tensor, device, batch: int = 50) -> dict:
+    """Euclidean loss (normalised) and mean absolute error per label (in the labels' units)."""
+    was_training = model.training
+    model.eval()
+    preds = torch.cat([model(images[i:i + batch].to(device)).float().cpu() for i in range(0, len(images), batch)])
+    model.train(was_training)
+    mae = np.abs(model.denormalise(preds) - model.denormalise(targets)).mean(0)
+    return {"val_loss": float(euclidean_loss(preds, targets)),
+            "val_mae": {n: float(v) for n, v in zip(model.labels, mae)}}
+
+
+# --- the loop -----------------------------------------------------------------------------------------------
+def train(cfg: TrainConfig, log=print) -> dict:
+    """Train (or continue training) `cfg.model` on `cfg.data`; returns the final checkpoint's `train` record."""
+    if cfg.model == "gist":
+        return fit_gist(cfg, log)
+    paper = PAPER[cfg.model]
+    labels = cfg.labels
+    device = resolve_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    data = Dataset(Path(cfg.data))
+    stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
+                         buffer=min(cfg.shuffle_buffer, data.frames("train")))
+    batch_size = cfg.batch_size or paper["batch_size"]
+    if len(stream) < batch_size:
+        raise DatasetError(f"the training split of {cfg.data} has {len(stream)} frames, fewer than one batch "
+                           f"of {batch_size}")
+    if cfg.epochs is not None:
+        iterations = max(1, math.ceil(cfg.epochs * len(stream) / batch_size))
+    else:
+        iterations = cfg.iterations if cfg.iterations is not None else paper["iterations"]
+    lr = cfg.lr if cfg.lr is not None else paper["lr"]
+    out = Path(cfg.out)
+
+    ckpt = None
+    if out.exists():
+        ckpt = load_checkpoint(out, model=cfg.model, labels=labels)
+        check_normalisation(ckpt["spec"], str(out))
+        if "optimizer" not in ckpt:
+            raise CheckpointError(f"{out} holds no training state to continue from")
+    if ckpt is not None:
+        spec = ckpt["spec"]
+        o = spec["options"]
+        if cfg.model == "vgg16" and o.get("frozen") == cfg.unfreeze:
+            raise CheckpointError(f"{out} was trained {'without' if o.get('frozen') else 'with'} --unfreeze; use "
+                                  "the same options to continue it, or another --out")
+        if cfg.model == "vgg16" and bool(o.get("batch_norm")) != cfg.batch_norm:
+            raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
+                                  "use the same options to continue it, or another --out")
+        old = ckpt["train"]["config"]
+        if old.get("optimizer") != cfg.optimizer:
+            raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
+                                  "optimiser to continue it, or another --out")
+    else:
+        if cfg.model == "vgg16" and cfg.weights:
+            mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
+        else:
+            log("computing the per-channel input mean and deviation of the training frames ...")
+            mean, std = input_statistics(cfg.data)
+            weights = None
+        options = {"frozen": not cfg.unfreeze, "batch_norm": cfg.batch_norm, "weights": weights} \
+            if cfg.model == "vgg16" else {}
+        spec = make_spec(cfg.model, labels, mean=mean, std=std, **options)
+
+    model = Regressor(spec)
+    if ckpt is not None:
+        model.load_state_dict(ckpt["state_dict"])
+    elif cfg.model == "vgg16":
+        if cfg.weights:
+            n = load_trunk(model, cfg.weights)
+            log(f"VGG-16 trunk: {n} tensors of ImageNet weights from {cfg.weights}")
+        else:
+            log("VGG-16 trunk: no --weights given, so the convolutional layers start from RANDOM initialisation "
+                "(nothing is downloaded; pass --weights vgg16-397923af.pth for the paper's ImageNet start)"
+                + ("; they stay frozen, so only the head learns" if not cfg.unfreeze else ""))
+    elif cfg.weights:
+        raise TrainingError("--weights applies to --model vgg16 (AlexNet is trained from scratch as in the paper)")
+    model.to(device)
+    model.train()
+
+    params = [p for p in model.parameters() if p.requires_grad]
+    if cfg.optimizer == "sgd":
+        opt = torch.optim.SGD(params, lr=lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    elif cfg.optimizer == "adam":
+        opt = torch.optim.Adam(params, lr=lr, weight_decay=cfg.weight_decay)
+    else:
+        raise TrainingError(f"unknown optimizer '{cfg.optimizer}' (sgd or adam)")
+    sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
+    amp_dtype = None
+    if cfg.amp and device.type == "cuda":
+        amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
+    scaler = torch.amp.GradScaler("cuda", enabled=amp_dtype == torch.float16)
+
+    state = {"iteration": 0, "epoch": 0, "step_in_epoch": 0, "history": [], "seconds": 0.0}
+    if ckpt is not None:
+        opt.load_state_dict(ckpt["optimizer"])
+        sched.load_state_dict(ckpt["scheduler"])
+        for group in opt.param_groups:  # the schedule continues from the stored rate
+            group["initial_lr"] = group.get("initial_lr", lr)
+        if "scaler" in ckpt and scaler.is_enabled():
+            scaler.load_state_dict(ckpt["scaler"])
+        if "rng" in ckpt:
+            torch.set_rng_state(ckpt["rng"])
+        state.update({k: ckpt["train"][k] for k in state})
+        if ckpt["data"]["frames"] != data_summary(data)["frames"]:
+            log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
+                f"continuing on {cfg.data} with {data_summary(data)['frames']}")
+        if state["iteration"] >= iterations:
+            log(f"{out} has already trained {state['iteration']} of {iterations} iterations: nothing to do "
+                "(raise --iterations to train further)")
+            return ckpt["train"]
+        log(f"continuing {out} from iteration {state['iteration']} of {iterations}")
+
+    if data.frames("val"):
+        val_images, val_targets = load_frames(cfg.data, "val", labels, cfg.val_frames)
+    else:
+        val_images = val_targets = None
+        log(f"note: {cfg.data} has no validation split (episodes 8, 18, ...); training without validation")
+
+    def save(final: bool = False) -> None:
+        config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
+        config.update(iterations=iterations, batch_size=batch_size, lr=lr)
+        payload = {"spec": spec, "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
+                   "scheduler": sched.state_dict(), "rng": torch.get_rng_state(),
+                   "train": {**state, "config": config, "device": str(device), "finished": final},
+                   "data": data_summary(data)}
+        if scaler.is_enabled():
+            payload["scaler"] = scaler.state_dict()
+        save_checkpoint(out, payload)
+        write_curves(out, state["history"], title=f"{describe(spec)} on {data.root.name}: {cfg.optimizer}, "
+                                                  f"lr {lr:g}, batch {batch_size}")
+
+    def run_validation(row: dict) -> None:
+        if val_images is None:
+            return
+        v = validate(model, val_images, val_targets, device)
+        row["val_loss"] = v["val_loss"]
+        row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
+        tqdm.write(f"iteration {state['iteration']}: train loss {row.get('train_loss', float('nan')):.4f}, "
+                   f"val loss {v['val_loss']:.4f}, val MAE angle {v['val_mae']['angle']:.3f} rad, "
+                   f"toMarking_ML {v['val_mae']['toMarking_ML']:.2f} m, dist_MM {v['val_mae']['dist_MM']:.1f} m",
+                   file=sys.stderr)
+
+    log(f"training {describe(spec)} ({sum(p.numel() for p in params):,} trainable parameters) on "
+        f"{len(stream)} frames of {cfg.data} on {device}: {iterations} iterations of {batch_size}, "
+        f"{cfg.optimizer} lr {lr:g} x{cfg.lr_gamma} every {cfg.lr_step}" + (f", {amp_dtype}" if amp_dtype else ""))
+    loader_kw = dict(batch_size=batch_size, num_workers=cfg.workers, drop_last=True,
+                     pin_memory=device.type == "cuda")
+    if cfg.workers:
+        loader_kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
+    loader = torch.utils.data.DataLoader(stream, **loader_kw)
+    bar = tqdm(total=iterations, initial=state["iteration"], unit="it", dynamic_ncols=True, file=sys.stderr,
+               mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=cfg.model)
+    losses, t_row, t_start = [], time.perf_counter(), time.perf_counter() - state["seconds"]
+    try:
+        while state["iteration"] < iterations:
+            stream.set_epoch(state["epoch"])
+            skip = state["step_in_epoch"]
+            for step, (x, y) in enumerate(loader):
+                if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
+                    continue
+                x, y = x.to(device, non_blocking=True), y.to(device, non_blocking=True)
+                with torch.autocast(device.type, dtype=amp_dtype or torch.float32, enabled=amp_dtype is not None):
+                    pred = model(x)
+                loss = euclidean_loss(pred, y)
+                if not torch.isfinite(loss):
+                    raise TrainingError(f"the loss diverged ({loss.item()}) at iteration {state['iteration']}; "
+                                        f"lower --lr (now {lr:g}) or use --optimizer adam")
+                opt.zero_grad(set_to_none=True)
+                scaler.scale(loss).backward()
+                scaler.step(opt)
+                scaler.update()
+                sched.step()
+                state["iteration"] += 1
+                state["step_in_epoch"] = step + 1
+                losses.append(loss.item())
+                it = state["iteration"]
+                bar.update(1)
+                if it % cfg.log_every == 0 or it == iterations or it % cfg.val_every == 0:
+                    now = time.perf_counter()
+                    state["seconds"] = now - t_start
+                    row = {"iteration": it, "epoch": round(it * batch_size / len(stream), 3),
+                           "train_loss": float(np.mean(losses)), "lr": opt.param_groups[0]["lr"],
+                           "samples_per_s": round(len(losses) * batch_size / max(now - t_row, 1e-9), 2),
+                           "elapsed_s": round(state["seconds"], 1)}
+                    losses, t_row = [], now
+                    bar.set_postfix(loss=f"{row['train_loss']:.4f}", lr=f"{row['lr']:.2g}",
+                                    fps=f"{row['samples_per_s']:.0f}", refresh=False)
+                    if it % cfg.val_every == 0 or it == iterations:
+                        run_validation(row)
+                        state["history"].append(row)
+                        save(final=it == iterations)
+                        t_row = time.perf_counter()  # validation and saving are not training time
+                    else:
+                        state["history"].append(row)
+                if it >= iterations:
+                    break
+            else:
+                state["epoch"] += 1
+                state["step_in_epoch"] = 0
+    except KeyboardInterrupt:
+        bar.close()
+        state["seconds"] = time.perf_counter() - t_start
+        save()
+        log(f"interrupted: saved {out} at iteration {state['iteration']}; run the same command to continue")
+        raise
+    bar.close()
+    log(f"saved {out} ({state['iteration']} iterations, {state['seconds'] / 60:.1f} min); loss curves in "
+        f"{', '.join(str(p) for p in curve_paths(out))}")
+    return {**state, "finished": True}
+
+
+def _one_thread(_worker_id: int) -> None:  # decoding workers leave the cores to the training process
+    torch.set_num_threads(1)
+
+
+# --- GIST ---------------------------------------------------------------------------------------------------
+@torch.no_grad()
+def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32, limit: int | None = None,
+                     desc: str = "") -> tuple[torch.Tensor, torch.Tensor]:
+    """GIST descriptors and normalised targets of a split (every frame, or `limit` spread over it)."""
+    if limit is not None:
+        images, targets = load_frames(root, split, labels, limit)
+        chunks = [(images[i:i + batch], targets[i:i + batch]) for i in range(0, len(images), batch)]
+        total = len(images)
+    else:
+        stream = FrameStream(root, split, labels, shuffle=False)
+        chunks = torch.utils.data.DataLoader(stream, batch_size=batch, num_workers=0)
+        total = len(stream)
+    feats, targets = [], []
+    with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+              mininterval=1.0 if sys.stderr.isatty() else 30.0) as bar:
+        for x, y in chunks:
+            feats.append(model.net.descriptor(x.float() / 255.0))
+            targets.append(y)
+            bar.update(len(x))
+    return torch.cat(feats), torch.cat(targets)
+
+
+def fit_gist(cfg: TrainConfig, log=print) -> dict:
+    """GIST + ridge: descriptors of every training frame, one closed-form solve per ridge strength, the
+    strength chosen on the validation split (or on 10% of the training frames when there is none)."""
+    labels, out = cfg.labels, Path(cfg.out)
+    if out.exists():
+        ckpt = load_checkpoint(out, model="gist", labels=labels)
+        log(f"{out} is a fitted GIST model already: nothing to do (remove it to fit again)")
+        return ckpt["train"]
+    data = Dataset(Path(cfg.data))
+    if not data.frames("train"):
+        raise DatasetError(f"dataset {cfg.data} has no frames in split 'train'")
+    spec = make_spec("gist", labels, regressor=cfg.regressor, seed=cfg.seed)
+    model = Regressor(spec).eval()
+    t0 = time.perf_counter()
+    log(f"fitting {describe(spec)} on {data.frames('train')} frames of {cfg.data}")
+    feats, targets = gist_descriptors(model, cfg.data, "train", labels, desc="GIST train")
+    if data.frames("val"):
+        val_feats, val_targets = gist_descriptors(model, cfg.data, "val", labels, limit=cfg.val_frames * 2,
+                                                  desc="GIST val")
+    else:
+        log(f"note: {cfg.data} has no validation split; choosing the ridge strength on 10% of the training "
+            "frames")
+        held = torch.arange(len(feats)) % 10 == 9
+        val_feats, val_targets, feats, targets = feats[held], targets[held], feats[~held], targets[~held]
+    sweep = model.net.fit(feats, targets, val_feats, val_targets)
+    best = min(sweep, key=lambda r: r["val_loss"])
+    seconds = time.perf_counter() - t0
+    log(f"ridge strength {best['alpha']:g}: train loss {best['train_loss']:.4f}, val loss {best['val_loss']:.4f} "
+        f"({seconds:.0f} s)")
+    config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
+    record = {"iteration": 0, "epoch": 1, "step_in_epoch": 0, "history": sweep, "seconds": seconds,
+              "config": config, "device": "cpu", "finished": True, "alpha": best["alpha"]}
+    save_checkpoint(out, {"spec": spec, "state_dict": model.state_dict(), "train": record,
+                          "data": data_summary(data)})
+    write_curves(out, sweep, x="alpha", title=f"{describe(spec)} on {data.root.name}: ridge strength sweep")
+    log(f"saved {out}; ridge sweep in {', '.join(str(p) for p in curve_paths(out))}")
+    return record
+
+
+def config_from(**kwargs) -> TrainConfig:
+    """A TrainConfig from keyword arguments, ignoring those that are not its fields (e.g. argparse extras)."""
+    names = {f.name for f in fields(TrainConfig)}
+    return TrainConfig(**{k: v for k, v in kwargs.items() if k in names})
+

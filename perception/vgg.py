@@ -1,0 +1,51 @@
+"""Seed 002's VGG-16 regressor: torchvision's VGG-16 trunk, fully connected layers replaced by 4096-256-N.
+
+By default the thirteen convolutional layers are frozen and only the new head learns (§6: "fixing the
+pre-trained weights for all convolutional layers"); `frozen=False` fine-tunes everything (the paper's first
+item of future work) and `batch_norm=True` uses vgg16_bn (its second). No dropout, no output sigmoid.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+from torchvision.models import vgg16 as tv_vgg16
+from torchvision.models import vgg16_bn as tv_vgg16_bn
+
+
+class VGGRegressor(nn.Module):
+    def __init__(self, num_outputs: int = 13, batch_norm: bool = False, frozen: bool = True) -> None:
+        super().__init__()
+        trunk = (tv_vgg16_bn if batch_norm else tv_vgg16)(weights=None)
+        self.features = trunk.features
+        self.avgpool = trunk.avgpool  # 210x280 input ends in 6x8 cells, pooled to torchvision's 7x7
+        self.regressor = nn.Sequential(
+            nn.Linear(512 * 7 * 7, 4096),
+            nn.ReLU(inplace=True),
+            nn.Linear(4096, 256),
+            nn.ReLU(inplace=True),
+            nn.Linear(256, num_outputs),
+        )
+        for m in self.regressor:  # torchvision's initialisation of VGG's fully connected layers
+            if isinstance(m, nn.Linear):
+                nn.init.normal_(m.weight, 0, 0.01)
+                nn.init.constant_(m.bias, 0)
+        nn.init.constant_(self.regressor[-1].bias, 0.5)  # middle of the normalised range
+        self.frozen = frozen
+        self.features.requires_grad_(not frozen)
+
+    def train(self, mode: bool = True) -> "VGGRegressor":
+        super().train(mode)
+        if self.frozen:  # a frozen trunk keeps its batch-norm statistics too
+            self.features.eval()
+        return self
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.features(x)
+        x = self.avgpool(x)
+        x = torch.flatten(x, 1)
+        return self.regressor(x)
+
+
+def vgg16(num_outputs: int = 13, batch_norm: bool = False, frozen: bool = True) -> VGGRegressor:
+    """VGG-16 (or VGG-16-BN) for `num_outputs` indicators; load ImageNet trunk weights with models.load_trunk."""
+    return VGGRegressor(num_outputs, batch_norm=batch_norm, frozen=frozen)

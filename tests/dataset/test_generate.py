@@ -1,0 +1,142 @@
+"""Dataset generation with real workers, real SUMO and real rendering; kill and resume with real processes."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from perception.shards import Dataset, DatasetError, ShardReader, read_manifest, split_of
+
+SMALL = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,hairpins", "--lanes", "2,3",
+         "--cars", "6", "--width", "140", "--height", "105"]
+
+
+def generate(out, *extra, workers=1, check=True):
+    cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", str(workers),
+           "--quiet", *extra]
+    return subprocess.run(cmd, capture_output=True, text=True, check=check, timeout=300)
+
+
+def content(root: Path) -> dict:
+    """episode -> (labels table as python, image bytes) for comparing datasets."""
+    out = {}
+    for s in Dataset(root).shards:
+        table = pq.read_table(root / s.file)
+        out[s.episode] = table.to_pylist()
+    return out
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ref") / "ds"
+    generate(root, workers=2)
+    return root
+
+
+def test_generate_writes_the_frames_and_a_manifest(reference):
+    m = read_manifest(reference)
+    assert m["complete"] and m["frames"] == 60 and len(m["shards"]) == 3
+    assert m["renderer"] == "tiny" and m["software"]["pybullet"] and m["config"]["seed"] == 0
+    ds = Dataset(reference)
+    assert [s.episode for s in ds.shards] == [0, 1, 2]
+    assert [s.lanes for s in ds.shards] == [2, 3, 2] and [s.track for s in ds.shards] == ["oval", "oval", "hairpins"]
+    img, rec = ShardReader(reference / ds.shards[1].file).row(7)
+    assert img.shape == (105, 140, 3) and img.dtype == np.uint8
+    assert rec["episode"] == 1 and rec["step"] == 7 and rec["lanes"] == 3 and len(rec["ego"]) == 5
+    assert len(rec["action"]) == 3 and rec["track"] == "oval"
+    assert not list(reference.glob(".*.tmp"))
+
+
+def test_split_is_by_whole_episode():
+    assert [split_of(k) for k in range(12)] == ["train"] * 8 + ["val", "test", "train", "train"]
+
+
+def test_same_options_same_dataset(reference, tmp_path):
+    again = tmp_path / "again"
+    generate(again, workers=1)
+    assert content(again) == content(reference)
+
+
+def _wait_for(predicate, timeout):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _children_of(pid: int) -> list[int]:
+    out = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True).stdout
+    return [int(x) for x in out.split()]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_killed_run_resumes_without_loss_or_duplicates(reference, tmp_path, sig):
+    out = tmp_path / "ds"
+    cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", "2", "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert _wait_for(lambda: any(out.glob("shard-*.parquet")) or any(out.glob(".shard-*.tmp")), 120)
+    workers = _children_of(proc.pid)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130 and "interrupted" in err
+    # no worker outlives the run
+    assert workers and _wait_for(lambda: not any(Path(f"/proc/{w}").exists() for w in workers), 10)
+    r = generate(out, workers=2)
+    assert "60 frames in 3 episodes" in r.stdout
+    m = read_manifest(out)
+    assert m["complete"] and sorted(s["episode"] for s in m["shards"]) == [0, 1, 2]
+    assert content(out) == content(reference)
+    assert not list(out.glob(".*.tmp"))
+
+
+def test_other_options_refuse_to_continue(reference, tmp_path):
+    out = tmp_path / "ds"
+    generate(out)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--seed", "5",
+                        "--quiet"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "other options (seed differ)" in r.stderr
+
+
+def test_corrupt_shard_is_named(reference, tmp_path):
+    import shutil
+    broken = tmp_path / "broken"
+    shutil.copytree(reference, broken)
+    shard = broken / "shard-000001.parquet"
+    shard.write_bytes(shard.read_bytes()[: shard.stat().st_size // 2])
+    with pytest.raises(DatasetError, match="shard-000001.parquet is corrupt or truncated"):
+        ShardReader(shard)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(broken)], capture_output=True, text=True)
+    assert r.returncode == 2 and "shard-000001.parquet" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--frames", "0"], "--frames must be at least 1"),
+    (["--lanes", "2,7"], "--lanes must list lane counts from 1 to 4"),
+    (["--cars", "x"], "expected N or A-B"),
+    (["--tracks", "nowhere"], "unknown track preset 'nowhere'"),
+])
+def test_bad_options_get_one_line(tmp_path, args, message):
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(tmp_path / "x"), *args],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_stats_reports_coverage_and_writes_histograms(reference, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(reference), "--out", str(tmp_path)],
+                       capture_output=True, text=True, check=True)
+    assert "| frames | 60 |" in r.stdout and "lane changes" in r.stdout
+    summary = json.loads((tmp_path / "stats.json").read_text())
+    assert summary["frames"] == 60 and summary["episodes"] == 3
+    shares = summary["share_in_lane_only"] + summary["share_on_marking_only"] + summary["share_overlap"]
+    assert shares == pytest.approx(1.0, abs=0.01)  # every frame is in at least one system
+    assert (tmp_path / "histograms.png").stat().st_size > 1000 and (tmp_path / "hist-dist_MM.png").exists()

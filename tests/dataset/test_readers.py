@@ -1,0 +1,72 @@
+"""The PyTorch readers on a real generated dataset."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from perception.datasets import FrameDataset, FrameStream
+from perception.shards import DatasetError
+from shm_bridge.vocabulary import PAPER_INDICATORS, denormalise, label_set
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("readers") / "ds"
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(root), "--frames", "200",
+                    "--episode-frames", "20", "--tracks", "oval", "--lanes", "3", "--cars", "6", "--workers", "2",
+                    "--quiet"], check=True, capture_output=True, timeout=300)
+    return root
+
+
+def test_map_style_random_access(data):
+    ds = FrameDataset(data, split="train", labels=label_set(fast=True))
+    assert len(ds) == 160  # episodes 0-7 of 10
+    img, target = ds[37]
+    assert img.shape == (3, 210, 280) and img.dtype == torch.uint8
+    assert target.shape == (14,) and target.dtype == torch.float32
+    raw_img, record = ds.record(37)
+    np.testing.assert_array_equal(img.numpy().transpose(1, 2, 0), raw_img)
+    values = denormalise(target.numpy(), label_set(fast=True))
+    for name, v in zip(label_set(fast=True), values):
+        expected = record[name]
+        if name == "angle" and abs(expected) > 0.55:
+            continue  # angle's normalisation clips beyond ±0.55 rad
+        assert v == pytest.approx(expected, abs=1e-3), name
+    # neighbouring indices in one shard and across shards
+    for i in (0, 19, 20, 159):
+        assert ds[i][0].shape == (3, 210, 280)
+    with pytest.raises(IndexError):
+        ds[160]
+
+
+def test_splits_partition_the_frames(data):
+    sizes = {s: len(FrameDataset(data, split=s)) for s in ("train", "val", "test")}
+    assert sizes == {"train": 160, "val": 20, "test": 20}
+
+
+def test_stream_yields_every_frame_once_in_shuffled_order(data):
+    stream = FrameStream(data, split="train", labels=PAPER_INDICATORS, seed=1, buffer=64)
+    targets = [t for _, t in stream]
+    assert len(targets) == 160
+    ordered = FrameDataset(data, split="train")
+    reference = {tuple(np.round(ordered[i][1].numpy(), 5)) for i in range(len(ordered))}
+    assert {tuple(np.round(t.numpy(), 5)) for t in targets} == reference
+    first = [tuple(np.round(t.numpy(), 5)) for _, t in FrameStream(data, split="train", seed=1, buffer=64)]
+    assert first != [tuple(np.round(ordered[i][1].numpy(), 5)) for i in range(len(ordered))]  # shuffled
+
+
+def test_stream_splits_shards_across_dataloader_workers(data):
+    loader = torch.utils.data.DataLoader(FrameStream(data, split="train", seed=0), batch_size=16, num_workers=2)
+    images = torch.cat([x for x, _ in loader])
+    assert images.shape == (160, 3, 210, 280)
+
+
+def test_missing_labels_and_split_are_errors(data):
+    with pytest.raises(DatasetError, match="no labels"):
+        FrameDataset(data, labels=("angle", "colour"))
+    with pytest.raises(DatasetError, match="unknown split"):
+        FrameDataset(data, split="holdout")
+    with pytest.raises(DatasetError, match="not a dataset"):
+        FrameDataset(data.parent)
