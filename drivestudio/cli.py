@@ -6,9 +6,9 @@ import importlib
 import os
 import sys
 
-from .errors import input_errors
+from .errors import input_errors, runtime_errors
 
-VERBS = ("probe", "render", "generate", "stats", "demo")
+VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "serve", "drive", "demo")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -33,6 +33,9 @@ def main(argv: list[str] | None = None) -> int:
     except input_errors() as e:
         print(f"drivestudio {args.verb}: error: {e}", file=sys.stderr)
         return 2
+    except runtime_errors() as e:
+        print(f"drivestudio {args.verb}: error: {e}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"drivestudio {args.verb}: interrupted", file=sys.stderr)
         return 130

@@ -1,14 +1,35 @@
-"""Errors that mean bad input: the CLI reports them in one line on stderr and exits with status 2."""
+"""Errors that mean bad input (one line on stderr, exit status 2) or a failed run (one line, exit status 1)."""
 from __future__ import annotations
+
+import sys
 
 
 class UsageError(ValueError):
     """A bad combination of options, found after parsing."""
 
 
+# (module, class) of the errors that are the user's to fix; looked up only among modules already imported,
+# since an exception of a class can exist only once its module is loaded (and the error path must not pay for
+# importing torch)
+_INPUT = (("sim.track.trackfile", "TrackError"), ("sim.scenario", "ScenarioError"), ("sim.errors", "RendererError"),
+          ("sim.errors", "TrafficError"), ("perception.shards", "DatasetError"),
+          ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"))
+_RUNTIME = (("shm_bridge.errors", "BridgeError"),)
+
+
+def _loaded(pairs) -> tuple[type[BaseException], ...]:
+    out = []
+    for module, name in pairs:
+        mod = sys.modules.get(module)
+        if mod is not None and hasattr(mod, name):
+            out.append(getattr(mod, name))
+    return tuple(out)
+
+
 def input_errors() -> tuple[type[BaseException], ...]:
-    from perception.shards import DatasetError
-    from sim.errors import RendererError, TrafficError
-    from sim.scenario import ScenarioError
-    from sim.track import TrackError
-    return (UsageError, TrackError, ScenarioError, RendererError, TrafficError, DatasetError)
+    return (UsageError,) + _loaded(_INPUT)
+
+
+def runtime_errors() -> tuple[type[BaseException], ...]:
+    """Failures of a run rather than of its input (a peer process died)."""
+    return _loaded(_RUNTIME)

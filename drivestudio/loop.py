@@ -74,39 +74,44 @@ class StepRecord:
 def run_loop(world: World, exchange: Exchange, seconds: float, render: bool = True,
              metrics: ClosedLoopMetrics | None = None, realtime: bool = False,
              on_step: Callable[[StepRecord], None] | None = None, when_lost: str = "stop") -> Observation:
-    """Drive `world` for `seconds` of simulated time (10 Hz steps); returns the last observation.
+    """Drive `world` for `seconds` of simulated time (10 Hz steps; inf: until interrupted); returns the last
+    observation.
 
     realtime paces the loop to wall-clock time; otherwise it runs as fast as it can. on_step sees every
     observation with the action taken on it (recording, video). If the host car gets lost off the road the
     run ends (when_lost="stop") or the car is put back on the nearest lane (when_lost="recover").
     """
     dt = world.config.dt
-    steps = int(round(seconds / dt))
+    steps = int(round(seconds / dt)) if seconds != float("inf") else None
     obs = world.observe(render)
     t_start = time.perf_counter()
     before = dict(world.timings)
-    for n in range(steps):
-        action, estimate = exchange(obs)
-        if on_step is not None:
-            on_step(StepRecord(obs, action, estimate))
-        obs = world.step(action, render)
+    n = 0
+    try:
+        while steps is None or n < steps:
+            action, estimate = exchange(obs)
+            if on_step is not None:
+                on_step(StepRecord(obs, action, estimate))
+            obs = world.step(action, render)
+            n += 1
+            if metrics is not None:
+                t = obs.truth
+                gaps = world.track.gap(t.ego[3], t.cars[:, 3]) if len(t.cars) else np.zeros(0)
+                metrics.update(t.speed, t.lanes_left, t.in_lane, obs.collision, obs.off_road, gaps)
+            if realtime:
+                ahead = n * dt - (time.perf_counter() - t_start)
+                if ahead > 0:
+                    time.sleep(ahead)
+            if obs.lost:
+                if when_lost == "stop":
+                    break
+                world.recover_ego()
+                obs = world.observe(render)
+    finally:  # an interrupted run still accounts for what it did
         if metrics is not None:
-            t = obs.truth
-            gaps = world.track.gap(t.ego[3], t.cars[:, 3]) if len(t.cars) else np.zeros(0)
-            metrics.update(t.speed, t.lanes_left, t.in_lane, obs.collision, obs.off_road, gaps)
-        if realtime:
-            ahead = (n + 1) * dt - (time.perf_counter() - t_start)
-            if ahead > 0:
-                time.sleep(ahead)
-        if obs.lost:
-            if when_lost == "stop":
-                break
-            world.recover_ego()
-            obs = world.observe(render)
-    if metrics is not None:
-        metrics.wall_time += time.perf_counter() - t_start
-        for stage in ("render", "physics", "traffic", "truth"):
-            metrics.add_time(stage, world.timings[stage] - before[stage])
+            metrics.wall_time += time.perf_counter() - t_start
+            for stage in ("render", "physics", "traffic", "truth"):
+                metrics.add_time(stage, world.timings[stage] - before[stage])
     return obs
 
 

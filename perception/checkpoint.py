@@ -58,7 +58,7 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     except (RuntimeError, EOFError, zipfile.BadZipFile, OSError) as e:
         text = str(e).splitlines()[0] if str(e) else type(e).__name__
         if "zip archive" in text or "central directory" in text or isinstance(e, EOFError):
-            raise CheckpointError(f"{path} is truncated or corrupt ({text})") from None
+            raise CheckpointError(f"{path} is truncated or corrupt (not a complete torch archive)") from None
         raise CheckpointError(f"{path} is not a drivestudio checkpoint ({text[:120]})") from None
     except Exception as e:  # e.g. an UnpicklingError: a file with pickled code, or no torch file at all
         raise CheckpointError(f"{path} is not a drivestudio checkpoint ({type(e).__name__})") from None
@@ -71,11 +71,21 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
             not {"name", "labels", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
     if model is not None and spec["name"] != model:
-        raise CheckpointError(f"{path} holds a {spec['name']} model, not {model}")
+        raise CheckpointError(f"{path} holds a '{spec['name']}' model, not '{model}'")
     if labels is not None and tuple(spec["labels"]) != tuple(labels):
-        raise CheckpointError(f"{path} predicts {len(spec['labels'])} indicators ({', '.join(spec['labels'])}), "
-                              f"not the {len(tuple(labels))} asked for ({', '.join(labels)})")
+        raise CheckpointError(f"{path} predicts {describe_labels(spec['labels'])}, not the "
+                              f"{describe_labels(labels)} asked for (--fast / --lanes-left must match)")
     return ckpt
+
+
+def describe_labels(labels) -> str:
+    """"13 indicators (the paper's)", "14 indicators (the paper's 13 + fast)", ..."""
+    labels = tuple(labels)
+    extra = [n for n in labels[13:]]
+    from shm_bridge.vocabulary import PAPER_INDICATORS
+    if labels[:13] == PAPER_INDICATORS:
+        return f"{len(labels)} indicators (the paper's 13{''.join(' + ' + n for n in extra)})"
+    return f"{len(labels)} outputs ({', '.join(labels)})"
 
 
 def load_model(path, model: str | None = None, labels=None, device="cpu"):

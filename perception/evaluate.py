@@ -198,6 +198,8 @@ def markdown(ev: Evaluation) -> str:
             for name, m in masks(ev, r, by):
                 groups.setdefault(name, []).append((r, m))
         for name, items in groups.items():
+            if not items[0][1].any():
+                continue
             out += [f"### {name}: {int(items[0][1].sum())} frames", "",
                     _table([(r.name, r.mae(m)) for r, m in items], cols), ""]
     out += ["## Speed", "",

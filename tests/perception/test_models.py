@@ -1,0 +1,98 @@
+"""Each model family maps a batch of 210x280 frames to 13, 14 or 15 outputs; GIST descriptors are 512 numbers
+that depend on the frame only."""
+import pytest
+import torch
+
+from perception.gist import GistDescriptor, gabor_bank
+from perception.models import IMAGENET_MEAN, build, describe, make_spec
+from shm_bridge.vocabulary import label_set
+
+LABEL_SETS = [label_set(), label_set(fast=True), label_set(fast=True, lanes_left=True)]
+
+
+@pytest.fixture(scope="module")
+def frames():
+    g = torch.Generator().manual_seed(0)
+    return torch.randint(0, 256, (2, 3, 210, 280), dtype=torch.uint8, generator=g)
+
+
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+def test_alexnet_outputs_one_value_per_label(frames, labels):
+    with torch.no_grad():
+        assert build("alexnet", labels)(frames).shape == (2, len(labels))
+
+
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+def test_gist_outputs_one_value_per_label(frames, labels):
+    with torch.no_grad():
+        assert build("gist", labels)(frames).shape == (2, len(labels))
+
+
+def test_alexnet_is_five_convs_then_4096_4096_256_n_without_dropout_or_sigmoid():
+    net = build("alexnet", label_set()).net
+    convs = [m for m in net.features if isinstance(m, torch.nn.Conv2d)]
+    linears = [m for m in net.regressor if isinstance(m, torch.nn.Linear)]
+    assert len(convs) == 5
+    assert [m.out_features for m in linears] == [4096, 4096, 256, 13]
+    kinds = {type(m) for m in net.modules()}
+    assert torch.nn.Dropout not in kinds and torch.nn.Sigmoid not in kinds
+
+
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+def test_vgg16_frozen_outputs_one_value_per_label_and_trains_only_the_head(frames, labels):
+    model = build("vgg16", labels, frozen=True, batch_norm=False)
+    head = [m for m in model.net.regressor if isinstance(m, torch.nn.Linear)]
+    assert [m.out_features for m in head] == [4096, 256, len(labels)]
+    assert not any(p.requires_grad for p in model.net.features.parameters())
+    model.train()
+    loss = model(frames[:1]).square().sum()
+    loss.backward()
+    assert all(p.grad is not None for p in model.net.regressor.parameters())
+    assert all(p.grad is None for p in model.net.features.parameters())
+
+
+def test_vgg16_unfrozen_with_batch_norm_trains_everything(frames):
+    model = build("vgg16", label_set(), frozen=False, batch_norm=True, mean=IMAGENET_MEAN)
+    assert any(isinstance(m, torch.nn.BatchNorm2d) for m in model.net.features)
+    assert all(p.requires_grad for p in model.parameters())
+    model.train()
+    model(frames).square().sum().backward()
+    assert model.net.features[0].weight.grad is not None
+    assert "VGG-16-BN (all layers trained" in describe(model.spec)
+
+
+def test_input_handling_is_part_of_the_model(frames):
+    spec = make_spec("alexnet", label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2))
+    model = build("alexnet", label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2)).eval()
+    assert spec["input"] == {"height": 210, "width": 280, "mean": [0.4, 0.5, 0.6], "std": [0.2, 0.2, 0.2]}
+    with torch.no_grad():
+        a = model(frames)
+        b = model(frames.float() / 255.0)  # float frames are taken as already in [0, 1]
+    torch.testing.assert_close(a, b)
+    assert "mean" in dict(model.named_buffers()) and "std" in dict(model.named_buffers())
+
+
+def test_gist_descriptor_is_4_scales_by_8_orientations_by_4x4_cells(frames):
+    d = GistDescriptor()
+    assert d.gabor.shape[0] == 32 and d.dim == 512
+    f = d(frames.float() / 255)
+    assert f.shape == (2, 512)
+    assert torch.isfinite(f).all() and (f >= 0).all()
+
+
+def test_gist_descriptor_is_deterministic_and_depends_on_the_frame(frames):
+    a = GistDescriptor()(frames.float() / 255)
+    b = GistDescriptor()(frames.float() / 255)
+    torch.testing.assert_close(a, b)
+    assert not torch.allclose(a[0], a[1])
+
+
+def test_gabor_filters_peak_at_their_scale_frequency():
+    bank = gabor_bank(64, 64)
+    assert bank.shape == (32, 64, 64)
+    assert float(bank.max()) == pytest.approx(1.0, abs=0.05)
+    # the finest scale responds at 0.3 cycles/pixel, the coarsest at 0.3 / 1.85^3
+    fine, coarse = bank[0], bank[24]
+    fx = torch.fft.fftfreq(64)
+    assert abs(float(fx[fine[0].argmax()]) - 0.3) < 0.02
+    assert abs(float(fx[coarse[0].argmax()]) - 0.3 / 1.85 ** 3) < 0.02

@@ -1,0 +1,92 @@
+"""Short real training runs on generated frames: the loss goes down, checkpoints resume where they stopped."""
+import csv
+
+import numpy as np
+import pytest
+import torch
+
+from perception.checkpoint import load_checkpoint
+from perception.datasets import FrameDataset
+from perception.train import PAPER, TrainConfig, curve_paths, euclidean_loss, train
+from shm_bridge.vocabulary import label_set
+
+from .frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
+
+
+def test_paper_settings_are_the_defaults():
+    cfg = TrainConfig()
+    assert (cfg.optimizer, cfg.momentum, cfg.lr_step, cfg.lr_gamma) == ("sgd", 0.9, 1000, 0.9)
+    assert PAPER["alexnet"] == {"iterations": 10_000, "batch_size": 15, "lr": 1e-2}
+    assert PAPER["vgg16"] == {"iterations": 15_000, "batch_size": 10, "lr": 1e-4}
+
+
+def test_euclidean_loss_is_half_the_mean_squared_norm():
+    pred, target = torch.tensor([[1.0, 2.0], [0.0, 0.0]]), torch.tensor([[0.0, 0.0], [0.0, 3.0]])
+    assert float(euclidean_loss(pred, target)) == pytest.approx((5 + 9) / (2 * 2))
+
+
+def test_alexnet_training_lowers_the_loss_on_real_frames():
+    path, record = alexnet_checkpoint()
+    history = record["history"]
+    assert record["iteration"] == 8
+    assert history[-1]["train_loss"] < 0.8 * history[0]["train_loss"]
+    vals = [r["val_loss"] for r in history if r.get("val_loss") is not None]
+    assert len(vals) == 2 and vals[-1] < history[0]["train_loss"]
+
+
+def test_alexnet_checkpoint_carries_everything_needed_to_use_and_resume_it():
+    path, _ = alexnet_checkpoint()
+    ckpt = load_checkpoint(path, model="alexnet", labels=label_set())
+    assert ckpt["spec"]["name"] == "alexnet" and ckpt["spec"]["labels"] == list(label_set())
+    assert len(ckpt["spec"]["input"]["mean"]) == 3 and ckpt["spec"]["normalisation"]["dist_MM"][1] == 0.12
+    assert {"optimizer", "scheduler", "rng", "train", "data"} <= set(ckpt)
+    assert ckpt["data"]["frames"]["train"] == FrameDataset(dataset(), "train").__len__()
+    assert ckpt["train"]["config"]["optimizer"] == "sgd" and ckpt["train"]["finished"]
+
+
+def test_loss_curves_are_written_beside_the_checkpoint():
+    path, _ = alexnet_checkpoint()
+    csv_path, png_path = curve_paths(path)
+    rows = list(csv.DictReader(csv_path.open()))
+    assert [int(r["iteration"]) for r in rows] == [2, 4, 6, 8]
+    assert rows[1]["val_loss"] and not rows[0]["val_loss"]
+    assert png_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_rerunning_the_same_training_continues_from_the_checkpoint():
+    """6 iterations, then the same command with --iterations 10, equals nothing but a 10-iteration run's end
+    state (same data order, same optimiser state)."""
+    a, b = workdir() / "resume_a.pt", workdir() / "resume_b.pt"
+    kw = dict(batch_size=2, val_every=3, log_every=1, optimizer="adam", lr=1e-4)
+    train(tiny_config("alexnet", a, iterations=3, **kw), log=lambda *x: None)
+    first = load_checkpoint(a)
+    assert first["train"]["iteration"] == 3
+    train(tiny_config("alexnet", a, iterations=5, **kw), log=lambda *x: None)
+    train(tiny_config("alexnet", b, iterations=5, **kw), log=lambda *x: None)
+    resumed, straight = load_checkpoint(a), load_checkpoint(b)
+    assert resumed["train"]["iteration"] == 5
+    assert [r["iteration"] for r in resumed["train"]["history"]] == [1, 2, 3, 4, 5]
+    for k in ("net.regressor.6.weight", "net.features.0.weight"):
+        torch.testing.assert_close(resumed["state_dict"][k], straight["state_dict"][k], rtol=1e-4, atol=1e-6)
+    # a finished run has nothing left to do
+    again = train(tiny_config("alexnet", a, iterations=5, **kw), log=lambda *x: None)
+    assert again["iteration"] == 5
+
+
+def test_gist_fit_beats_predicting_the_training_mean():
+    path, record = gist_checkpoint()
+    sweep = record["history"]
+    assert len(sweep) > 3 and all({"alpha", "train_loss", "val_loss"} <= set(r) for r in sweep)
+    train_targets = torch.stack([y for _, y in FrameDataset(dataset(), "train")])
+    val_targets = torch.stack([y for _, y in FrameDataset(dataset(), "val")])
+    constant = euclidean_loss(train_targets.mean(0).expand_as(val_targets), val_targets)
+    assert min(r["val_loss"] for r in sweep) < float(constant)
+    assert curve_paths(path)[0].exists() and curve_paths(path)[1].exists()
+
+
+def test_gist_checkpoint_has_no_pickled_code_and_no_optimiser():
+    path, _ = gist_checkpoint()
+    ckpt = torch.load(path, weights_only=True)
+    assert ckpt["spec"]["name"] == "gist" and ckpt["spec"]["options"]["regressor"] == "ridge"
+    assert "optimizer" not in ckpt
+    assert ckpt["state_dict"]["net.weight"].shape == (512, 13)
