@@ -18,9 +18,31 @@ from sim.world import World, WorldConfig
 from .bridge_loop import ShmExchange, serve_driver
 from .errors import UsageError
 from .loop import Driver, in_process, run_loop
-from .outputs import write_json, write_text
+from .outputs import VideoWriter, write_json, write_text
+from .overlays import overlay_observation
 
 ATTACH_SLICE = 0.25  # [s] while waiting for a driver we started, check it is still alive this often
+
+
+class _Recorder:
+    """drive --record: every step's overlay (truth and the driver's estimate) into an mp4."""
+
+    def __init__(self, path: str | None, world: World, label: str):
+        self.writer = VideoWriter(path) if path else None
+        self.world, self.label = world, label
+
+    def __call__(self, rec) -> None:
+        if self.writer is not None:
+            t = rec.obs.truth
+            title = f"t {rec.obs.t:5.1f} s  {self.world.track.name}, {t.lanes} lanes, {t.speed:4.1f} m/s"
+            estimate = None if self.label == "oracle" else rec.estimate
+            self.writer.write(overlay_observation(rec.obs, estimate, self.world.track, title, label=self.label))
+
+    def close(self, ok: bool) -> None:
+        if self.writer is not None:
+            (self.writer.close if ok else self.writer.abort)()
+            if ok:
+                print(f"recorded {self.writer.frames} overlays to {self.writer.path}")
 
 
 def _finish(metrics: ClosedLoopMetrics, out: Path, extra: dict) -> None:
@@ -57,11 +79,18 @@ def run_world_side(args, cfg: WorldConfig, out: Path, driver_proc: subprocess.Po
                   f"waiting for a driver", file=sys.stderr, flush=True)
             _wait_for_driver(ep, getattr(args, "wait", 120.0), driver_proc)
             exchange = ShmExchange(ep)
+            recorder = _Recorder(getattr(args, "record", None), world, getattr(args, "model", "driver"))
+            ok = False
             try:
-                run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime)
+                run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
+                         on_step=recorder)
+                ok = True
             except KeyboardInterrupt:
                 if args.seconds is not None:
                     raise  # a bounded run was cut short
+                ok = True
+            finally:
+                recorder.close(ok)
     extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": args.model
              if hasattr(args, "model") else "external", "track": world.track.name, "lanes": world.track.lanes,
              "cars": cfg.cars}
@@ -107,8 +136,14 @@ def run_in_process(args, cfg: WorldConfig, perception, out: Path) -> int:
     driver = Driver(perception)
     with exit_on_sigterm(), World(cfg) as world:
         metrics = ClosedLoopMetrics(world.track.length, cfg.dt)
-        run_loop(world, in_process(driver), args.seconds, render=cfg.render, metrics=metrics,
-                 realtime=args.realtime)
+        recorder = _Recorder(args.record, world, args.model if args.model == "oracle" else driver.name)
+        ok = False
+        try:
+            run_loop(world, in_process(driver), args.seconds, render=cfg.render, metrics=metrics,
+                     realtime=args.realtime, on_step=recorder)
+            ok = True
+        finally:
+            recorder.close(ok)
         extra = {"transport": "in process", "driver": args.model, "track": world.track.name,
                  "lanes": world.track.lanes, "cars": cfg.cars}
     for stage, seconds in driver.timings.items():

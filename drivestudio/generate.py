@@ -84,11 +84,11 @@ def plan(cfg: GenerateConfig) -> list[Episode]:
     return episodes
 
 
-def _record(ep: Episode, step: int, obs, action, label: str, track_name: str) -> dict:
+def _record(ep: Episode, step: int, obs, action, label: str) -> dict:
     t = obs.truth
     rec = {name: float(v) for name, v in zip(INDICATORS, t.indicators)}
     rec.update(lanes_left=t.lanes_left, lanes=t.lanes, speed=t.speed, lane_width=t.lane_width, in_lane=t.in_lane,
-               on_marking=t.on_marking, episode=ep.index, step=step, t=obs.t, track=track_name, seed=ep.seed,
+               on_marking=t.on_marking, episode=ep.index, step=step, t=obs.t, track=ep.track, seed=ep.seed,
                perturbation=label, ego=t.ego.tolist(), cars=t.cars.astype(np.float32).tolist(),
                action=[action.steer, action.accel, action.brake])
     return rec
@@ -118,7 +118,7 @@ def record_episode(ep: Episode, cfg: GenerateConfig, out: str, progress=None) ->
         writer = ShardWriter(Path(out) / shard_name(ep.index), cfg.encoding, cfg.quality)
 
         def on_step(rec) -> None:
-            writer.add(rec.obs.frame, _record(ep, len(writer), rec.obs, rec.action, label[0], world.track.name))
+            writer.add(rec.obs.frame, _record(ep, len(writer), rec.obs, rec.action, label[0]))
             if progress is not None and len(writer) % PROGRESS_EVERY == 0:
                 progress.put(PROGRESS_EVERY)
 

@@ -55,6 +55,16 @@ NORMALISATION: dict[str, tuple[float, float]] = {
 STEER_LOCK_RAD = 0.541052  # full lock of the host car; steer = 1 means this wheel angle, to the left
 
 
+def markings(lanes: int, lane_width: float) -> np.ndarray:
+    """Lateral offsets [m] of the markings m_j = (N/2 - j) w, j = 0..N: the left edge first (d positive left)."""
+    return (lanes / 2 - np.arange(lanes + 1)) * lane_width
+
+
+def lane_centres(lanes: int, lane_width: float) -> np.ndarray:
+    """Lateral offsets [m] of the lane centres c_k = (N/2 - k - 1/2) w, k = 0..N-1: the leftmost lane first."""
+    return (lanes / 2 - np.arange(lanes) - 0.5) * lane_width
+
+
 def label_set(fast: bool = False, lanes_left: bool = False) -> tuple[str, ...]:
     """The regression targets of a model: the paper's 13, optionally `fast` and `lanes_left`."""
     names = PAPER_INDICATORS + (("fast",) if fast else ()) + (("lanes_left",) if lanes_left else ())

@@ -22,6 +22,7 @@ def register(sub) -> None:
     p.add_argument("--free-running", action="store_true",
                    help="the world never waits for the driver (default: lock-step)")
     p.add_argument("--in-process", action="store_true", help="one process, no shared memory")
+    p.add_argument("--record", help="write the run's box overlays (truth and estimate) as this .mp4")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/drive-TIME)")
     p.add_argument("--stats-out", help=__import__("argparse").SUPPRESS)  # driver side: timings for the parent
     p.set_defaults(func=run)
@@ -32,12 +33,13 @@ def run(args) -> int:
     from .common import load_perception
 
     world_given = any(getattr(args, k) is not None for k in ("track", "lanes"))
-    if args.shm and (world_given or args.in_process):
-        raise UsageError("with --shm the world runs elsewhere: --track, --lanes and --in-process do not apply")
+    if args.shm and (world_given or args.in_process or args.record):
+        raise UsageError("with --shm the world runs elsewhere: --track, --lanes, --in-process and --record do "
+                         "not apply")
     perception = load_perception(args.model, args.device)
     if args.shm:
         return drive_session.run_driver_side(args.shm, perception, args.stats_out)
-    cfg = world_config(args, render=args.model != "oracle" or not args.in_process)
+    cfg = world_config(args, render=args.model != "oracle" or not args.in_process or bool(args.record))
     out = run_dir(args.out, "drive")
     if args.in_process:
         return drive_session.run_in_process(args, cfg, perception, out)

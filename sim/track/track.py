@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from shm_bridge.vocabulary import lane_centres, markings
+
 from .segments import Segment, wrap_angle
 
 VERGE_WIDTH = 2.0  # [m] shoulder beside each edge; the on-marking system covers it (docs/affordances.md)
@@ -31,8 +33,8 @@ class Track:
         self.starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])  # [m] s at each segment's start
         self.length = float(lengths.sum())                               # [m]
         n, w = self.lanes, self.lane_width
-        self.markings = (n / 2 - np.arange(n + 1)) * w                   # [m] m_j, left edge first
-        self.lane_centres = (n / 2 - np.arange(n) - 0.5) * w             # [m] c_k, leftmost first
+        self.markings = markings(n, w)                                    # [m] m_j, left edge first
+        self.lane_centres = lane_centres(n, w)                            # [m] c_k, leftmost first
         self.half_width = n * w / 2                                      # [m] centreline to an edge
         self._fast_straight = self._straight_runs()
         self._kappa = np.array([seg.curvature for seg in self.segments])
