@@ -52,7 +52,7 @@ def _num(obj: dict, key: str, where: str, default=None) -> float:
 
 def _check_on_road(track: Track, d: float, where: str) -> None:
     if not track.on_road(d, margin=EDGE_OUTSIDE):
-        raise ScenarioError(f"{where}: d = {d} m is off the road (the road and its verges span "
+        raise ScenarioError(f"{where}: d = {d:g} m is off the road (the road and its verges span "
                             f"±{track.half_width + EDGE_OUTSIDE:g} m)")
 
 
