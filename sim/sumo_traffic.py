@@ -11,13 +11,12 @@ libsumo holds one simulation per process; a second SumoTraffic while one is open
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from .car_models import car_models
 from .errors import TrafficError
-from .sumo_network import SPEED_LIMIT, SumoNetwork, network_for
+from .sumo_network import SumoNetwork, network_for
 from .track import Track
 from .traffic import CarStates, assign_looks
 

@@ -1,7 +1,6 @@
 """drivestudio demo: the main job on built-in defaults, small enough for a laptop, written to one folder."""
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 

@@ -1,6 +1,5 @@
 """Dataset generation with real workers, real SUMO and real rendering; kill and resume with real processes."""
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -140,3 +139,11 @@ def test_stats_reports_coverage_and_writes_histograms(reference, tmp_path):
     shares = summary["share_in_lane_only"] + summary["share_on_marking_only"] + summary["share_overlap"]
     assert shares == pytest.approx(1.0, abs=0.01)  # every frame is in at least one system
     assert (tmp_path / "histograms.png").stat().st_size > 1000 and (tmp_path / "hist-dist_MM.png").exists()
+
+
+def test_ray_backend_produces_the_same_shards(reference, tmp_path):
+    pytest.importorskip("ray", reason="the Ray backend is optional: pip install 'drivestudio[cluster]'")
+    out = tmp_path / "ray"
+    r = generate(out, "--backend", "ray", check=False)
+    assert r.returncode == 0, r.stderr
+    assert content(out) == content(reference)

@@ -4,7 +4,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import gymnasium as gym
@@ -140,3 +139,37 @@ def test_a_controller_drives_the_gymnasium_environment():
         assert not terminated and not info["collision"]
     assert total > 150 * 0.1 * 10  # faster than 10 m/s on average
     env.close()
+
+
+DRIVER_SCRIPT = r'''
+import sys, time
+from shm_bridge.endpoints import DriverEndpoint
+from shm_bridge.vocabulary import Action
+name = sys.argv[1]
+with DriverEndpoint(name, attach_timeout=60) as ep:
+    ep.driver_mode = "manual"          # an expert takes over: our (absurd) commands must not steer the car
+    n = 0
+    while (msg := ep.wait_frame()) is not None:
+        n += 1
+        if n == 20:
+            ep.paused = True           # the world must hold still while paused
+            time.sleep(1.0)
+            print("t at pause", msg.t, flush=True)
+            ep.paused = False
+        ep.send_action(msg.seq, Action(steer=1.0, accel=1.0, brake=0.0))
+    print("frames", n, flush=True)
+'''
+
+
+def test_manual_mode_and_pause_flags_are_honoured(tmp_path):
+    name = f"ds-flags-{os.getpid()}"
+    serve = subprocess.Popen([sys.executable, "-m", "drivestudio", "serve", "--shm", name, *WORLD, "--seconds", "8",
+                              "--out", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    driver = subprocess.run([sys.executable, "-c", DRIVER_SCRIPT, name], capture_output=True, text=True, timeout=120)
+    serve.communicate(timeout=120)
+    assert driver.returncode == 0, driver.stderr
+    assert "frames 80" in driver.stdout
+    m = metrics_of(tmp_path)
+    assert m["off_road_events"] == 0 and m["collisions"] == 0  # full left lock would have left the road
+    assert time.time() - t0 > 1.0

@@ -104,9 +104,9 @@ def data(tmp_path_factory):
 
 
 def test_overlay_pngs_and_video_from_a_dataset(data, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "overlay", "--data", str(data), "--model", "oracle",
-                        "--split", "all", "--select", "random", "-n", "3", "--out", str(tmp_path / "png")],
-                       capture_output=True, text=True, check=True)
+    subprocess.run([sys.executable, "-m", "drivestudio", "overlay", "--data", str(data), "--model", "oracle",
+                    "--split", "all", "--select", "random", "-n", "3", "--out", str(tmp_path / "png")],
+                   capture_output=True, text=True, check=True)
     pngs = sorted((tmp_path / "png").glob("overlay-*.png"))
     assert len(pngs) == 3 and cv2.imread(str(pngs[0])).shape == (660, 880, 3)
     video = tmp_path / "ep.mp4"

@@ -3,32 +3,16 @@ and no frame the driver takes is torn (every pixel of frame seq equals seq % 256
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 import time
-import uuid
-from pathlib import Path
 
 import numpy as np
-import pytest
 
 from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
 from shm_bridge.vocabulary import Action
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.shm_bridge.processes import spawn
 
-
-@pytest.fixture
-def name():
-    n = f"dstest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    yield n
-    path = f"/dev/shm/{n}"
-    leaked = os.path.exists(path)
-    if leaked:
-        os.unlink(path)
-    assert not leaked, f"{path} was left behind"
 
 
 def truth_for(seq: int) -> np.ndarray:
@@ -64,17 +48,11 @@ def driver_main(name: str, pause: str) -> int:
     return 0
 
 
-def spawn(function: str, *args) -> subprocess.Popen:
-    code = f"import sys; from tests.shm_bridge.test_free_running import {function} as f; sys.exit(f(*sys.argv[1:]))"
-    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-
-
 def _run_world(name: str, duration: float, driver_pause: float) -> tuple[dict, int, list]:
     frame = np.empty((210, 280, 3), dtype=np.uint8)
     answers = []
     with WorldEndpoint(name, lockstep=False) as world:
-        proc = spawn("driver_main", name, driver_pause)
+        proc = spawn("test_free_running", "driver_main", name, driver_pause)
         try:
             world.wait_for_driver(timeout=20)
             end = time.monotonic() + duration

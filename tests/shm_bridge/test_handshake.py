@@ -8,7 +8,6 @@ import stat
 import subprocess
 import sys
 import time
-import uuid
 
 import numpy as np
 import pytest
@@ -17,17 +16,6 @@ from shm_bridge import layout
 from shm_bridge.endpoints import (ActionMsg, BridgeError, BridgeTimeout, DriverEndpoint, PeerGone, ProtocolMismatch,
                                   WorldEndpoint)
 from shm_bridge.vocabulary import Action
-
-
-@pytest.fixture
-def name():
-    n = f"dstest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    yield n
-    path = f"/dev/shm/{n}"
-    leaked = os.path.exists(path)
-    if leaked:
-        os.unlink(path)
-    assert not leaked, f"{path} was left behind"
 
 
 def _frame(value: int, h: int = 210, w: int = 280) -> np.ndarray:

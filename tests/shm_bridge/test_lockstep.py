@@ -2,13 +2,10 @@
 C driver printed in docs/shm-protocol.md."""
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess
 import sys
-import uuid
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,26 +14,9 @@ from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
 from shm_bridge.vocabulary import Action
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.shm_bridge.processes import REPO, spawn
+
 N_FRAMES = 1000
-
-
-@pytest.fixture
-def name():
-    n = f"dstest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    yield n
-    path = f"/dev/shm/{n}"
-    leaked = os.path.exists(path)
-    if leaked:
-        os.unlink(path)
-    assert not leaked, f"{path} was left behind"
-
-
-def spawn(function: str, *args) -> subprocess.Popen:
-    """Run `function(*args)` of this module in a new Python process; its return value is the exit status."""
-    code = f"import sys; from tests.shm_bridge.test_lockstep import {function} as f; sys.exit(f(*sys.argv[1:]))"
-    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
 
 
 def frame_for(seq: int, h: int = 210, w: int = 280) -> np.ndarray:
@@ -85,7 +65,7 @@ def world_main(name: str, n: str) -> int:
 
 def test_lockstep_with_a_driver_process(name):
     with WorldEndpoint(name, lockstep=True) as world:
-        proc = spawn("driver_main", name)
+        proc = spawn("test_lockstep", "driver_main", name)
         try:
             world.wait_for_driver(timeout=20)
             assert world.driver_pid == proc.pid
@@ -103,7 +83,7 @@ def test_lockstep_with_a_driver_process(name):
 
 
 def test_lockstep_with_a_world_process(name):
-    proc = spawn("world_main", name, N_FRAMES)
+    proc = spawn("test_lockstep", "world_main", name, N_FRAMES)
     try:
         with DriverEndpoint(name, attach_timeout=20) as driver:
             assert driver.lockstep and (driver.height, driver.width) == (210, 280)

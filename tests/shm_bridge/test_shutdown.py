@@ -5,11 +5,8 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
 import sys
 import time
-import uuid
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,26 +15,10 @@ from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEnd
 from shm_bridge.signals import exit_on_sigterm
 from shm_bridge.vocabulary import Action
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.shm_bridge.processes import spawn
+
 FRAME = np.zeros((210, 280, 3), dtype=np.uint8)
 TRUTH = np.zeros(28)
-
-
-@pytest.fixture
-def name():
-    n = f"dstest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    yield n
-    path = f"/dev/shm/{n}"
-    leaked = os.path.exists(path)
-    if leaked:
-        os.unlink(path)
-    assert not leaked, f"{path} was left behind"
-
-
-def spawn(function: str, *args) -> subprocess.Popen:
-    code = f"import sys; from tests.shm_bridge.test_shutdown import {function} as f; sys.exit(f(*sys.argv[1:]))"
-    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
 
 
 def _application(body) -> int:
@@ -95,7 +76,7 @@ def _lockstep(world: WorldEndpoint, frames: int) -> int:
 
 @pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 128 + signal.SIGTERM)])
 def test_interrupted_world_process_removes_the_segment(name, sig, status):
-    proc = spawn("world_forever", name)
+    proc = spawn("test_shutdown", "world_forever", name)
     try:
         with DriverEndpoint(name, attach_timeout=20) as driver:
             for _ in range(50):
@@ -115,7 +96,7 @@ def test_interrupted_world_process_removes_the_segment(name, sig, status):
 
 def test_sigterm_of_the_driver_process_is_an_orderly_detach(name):
     with WorldEndpoint(name) as world:
-        proc = spawn("driver_forever", name)
+        proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)
             _lockstep(world, 50)
@@ -133,7 +114,7 @@ def test_sigterm_of_the_driver_process_is_an_orderly_detach(name):
 
 def test_sigkill_of_the_driver(name):
     with WorldEndpoint(name) as world:
-        proc = spawn("driver_forever", name)
+        proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)
             seq = _lockstep(world, 50)
@@ -150,7 +131,7 @@ def test_sigkill_of_the_driver(name):
 
 
 def test_sigkill_of_the_world(name):
-    proc = spawn("world_forever", name)
+    proc = spawn("test_shutdown", "world_forever", name)
     try:
         with DriverEndpoint(name, attach_timeout=20) as driver:
             for _ in range(50):
@@ -170,8 +151,8 @@ def test_sigkill_of_the_world(name):
 
 
 def test_driver_application_reports_a_killed_world_in_one_line(name):
-    world = spawn("world_forever", name)
-    driver = spawn("driver_forever", name)
+    world = spawn("test_shutdown", "world_forever", name)
+    driver = spawn("test_shutdown", "driver_forever", name)
     try:
         deadline = time.monotonic() + 20
         while not os.path.exists(f"/dev/shm/{name}") and time.monotonic() < deadline:
@@ -193,7 +174,7 @@ def test_driver_application_reports_a_killed_world_in_one_line(name):
 
 def test_busy_driver_is_not_declared_dead(name):
     with WorldEndpoint(name, peer_timeout=0.6) as world:
-        proc = spawn("driver_forever", name, 1.5)   # 1.5 s of pure-Python work on the first frame
+        proc = spawn("test_shutdown", "driver_forever", name, 1.5)   # 1.5 s of pure-Python work on the first frame
         try:
             world.wait_for_driver(timeout=20)
             t0 = time.monotonic()
@@ -207,7 +188,7 @@ def test_busy_driver_is_not_declared_dead(name):
 
 def test_frozen_driver_is_declared_dead(name):
     with WorldEndpoint(name, peer_timeout=0.5) as world:
-        proc = spawn("driver_forever", name)
+        proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)
             _lockstep(world, 5)
@@ -223,7 +204,7 @@ def test_frozen_driver_is_declared_dead(name):
 
 
 def test_driver_closing_after_an_unnoticed_world_death_removes_the_segment(name):
-    proc = spawn("world_forever", name)
+    proc = spawn("test_shutdown", "world_forever", name)
     try:
         driver = DriverEndpoint(name, attach_timeout=20)
         driver.wait_frame(timeout=10)
