@@ -1,6 +1,5 @@
-"""Small, versioned assets: track files, car meshes, SUMO templates."""
+"""Small, versioned assets: the track presets (car models are made with trimesh, see sim/car_models.py)."""
 from pathlib import Path
 
 ASSETS_DIR = Path(__file__).resolve().parent
 TRACKS_DIR = ASSETS_DIR / "tracks"
-CARS_DIR = ASSETS_DIR / "cars"

@@ -14,8 +14,12 @@ from torchvision.models import alexnet as tv_alexnet
 class AlexNetRegressor(nn.Module):
     def __init__(self, num_outputs: int = 13) -> None:
         super().__init__()
-        trunk = tv_alexnet(weights=None)
-        self.features = trunk.features
+        with torch.device("meta"):  # torchvision's layers without allocating its 1000-way classifier
+            trunk = tv_alexnet(weights=None)
+        self.features = trunk.features.to_empty(device="cpu")
+        for m in self.features:
+            if isinstance(m, nn.Conv2d):
+                m.reset_parameters()
         self.avgpool = trunk.avgpool
         self.regressor = nn.Sequential(
             nn.Linear(256 * 6 * 6, 4096),

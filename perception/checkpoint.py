@@ -10,10 +10,9 @@ code runs), written atomically (a temporary file renamed into place, so a crash 
 """
 from __future__ import annotations
 
-import io
 import os
+import pickle
 import tempfile
-import zipfile
 from pathlib import Path
 
 import torch
@@ -26,13 +25,14 @@ class CheckpointError(ValueError):
     """A checkpoint (or weights file) that cannot be used: missing, not ours, truncated, or not the model asked for."""
 
 
-def atomic_write(path, data: bytes) -> None:
+def _replace_atomically(path, write) -> None:
+    """Call write(file) on a hidden temporary file beside `path`, then rename it into place."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            write(f)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # the permissions of an ordinary new file, not mkstemp's 0600
@@ -42,10 +42,12 @@ def atomic_write(path, data: bytes) -> None:
         raise
 
 
+def atomic_write(path, data: bytes) -> None:
+    _replace_atomically(path, lambda f: f.write(data))
+
+
 def save_checkpoint(path, payload: dict) -> None:
-    buf = io.BytesIO()
-    torch.save({"format": FORMAT, "version": VERSION, **payload}, buf)
-    atomic_write(path, buf.getvalue())
+    _replace_atomically(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
 
 
 def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu") -> dict:
@@ -53,14 +55,17 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"no checkpoint at {path}")
+    with path.open("rb") as f:
+        is_archive = f.read(4) == b"PK\x03\x04"  # torch.save's zip format
     try:
-        ckpt = torch.load(path, map_location=map_location, weights_only=True)
-    except (RuntimeError, EOFError, zipfile.BadZipFile, OSError) as e:
-        text = str(e).splitlines()[0] if str(e) else type(e).__name__
-        if "zip archive" in text or "central directory" in text or isinstance(e, EOFError):
-            raise CheckpointError(f"{path} is truncated or corrupt (not a complete torch archive)") from None
-        raise CheckpointError(f"{path} is not a drivestudio checkpoint ({text[:120]})") from None
-    except Exception as e:  # e.g. an UnpicklingError: a file with pickled code, or no torch file at all
+        # mmap: tensors are read when used, so a predictor does not read a training checkpoint's optimiser state
+        ckpt = torch.load(path, map_location=map_location, weights_only=True, mmap=is_archive)
+    except pickle.UnpicklingError:  # pickled code (refused by weights_only), or a file of another kind
+        raise CheckpointError(f"{path} is not a drivestudio checkpoint (it holds pickled objects or is no "
+                              "torch file)") from None
+    except Exception as e:
+        if is_archive:
+            raise CheckpointError(f"{path} is truncated or corrupt (an incomplete torch archive)") from None
         raise CheckpointError(f"{path} is not a drivestudio checkpoint ({type(e).__name__})") from None
     if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a drivestudio checkpoint")

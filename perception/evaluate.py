@@ -110,7 +110,7 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
         images.append(img.permute(1, 2, 0).numpy())
         if len(images) >= min(latency_frames, frames):
             break
-    for img in images[:5]:
+    for img in images[:2]:
         predictor(img)  # warm-up
     lat = []
     for img in images:

@@ -3,8 +3,8 @@
 A model is described by a `spec`, a plain JSON-able dict that a checkpoint stores beside the weights:
     name           "alexnet" | "vgg16" | "gist"
     labels         the regression targets in output order (shm_bridge.vocabulary.label_set)
-    options        family options: batch_norm, frozen, weights ("imagenet" or None) for vgg16;
-                   regressor ("ridge" | "rbf") for gist
+    options        family options: weights ("imagenet" or None: where the trunk started) for alexnet and
+                   vgg16; batch_norm, frozen for vgg16; regressor ("ridge" | "rbf") and seed for gist
     input          {"height", "width", "mean", "std"}: frames are scaled to [0, 1], then (x - mean) / std
                    per channel; mean and std are the training frames' own (seed 002 §5.1 subtracts the
                    dataset's mean) or ImageNet's when the trunk starts from ImageNet weights
@@ -46,7 +46,7 @@ def describe(spec: dict) -> str:
     """A short human name: "AlexNet", "VGG-16 (conv frozen, ImageNet)", "GIST + ridge", with extra labels."""
     o, name = spec.get("options", {}), spec["name"]
     if name == "alexnet":
-        text = "AlexNet"
+        text = "AlexNet" + (" (ImageNet init)" if o.get("weights") else "")
     elif name == "vgg16":
         bits = ["conv frozen" if o.get("frozen", True) else "all layers trained"]
         bits.append("ImageNet init" if o.get("weights") else "random init")

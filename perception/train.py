@@ -212,30 +212,32 @@ def train(cfg: TrainConfig, log=print) -> dict:
         if old.get("optimizer") != cfg.optimizer:
             raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
                                   "optimiser to continue it, or another --out")
+        if old.get("lr") != lr or old.get("batch_size") != batch_size:
+            log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
+                f"batch {old.get('batch_size')}); the settings of this run are ignored")
+            lr, batch_size = old.get("lr", lr), old.get("batch_size", batch_size)
     else:
-        if cfg.model == "vgg16" and cfg.weights:
+        if cfg.weights:  # ImageNet weights expect ImageNet's input statistics
             mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
         else:
             log("computing the per-channel input mean and deviation of the training frames ...")
             mean, std = input_statistics(cfg.data)
             weights = None
-        options = {"frozen": not cfg.unfreeze, "batch_norm": cfg.batch_norm, "weights": weights} \
-            if cfg.model == "vgg16" else {}
+        options = {"weights": weights}
+        if cfg.model == "vgg16":
+            options.update(frozen=not cfg.unfreeze, batch_norm=cfg.batch_norm)
         spec = make_spec(cfg.model, labels, mean=mean, std=std, **options)
 
     model = Regressor(spec)
     if ckpt is not None:
         model.load_state_dict(ckpt["state_dict"])
-    elif cfg.model == "vgg16":
-        if cfg.weights:
-            n = load_trunk(model, cfg.weights)
-            log(f"VGG-16 trunk: {n} tensors of ImageNet weights from {cfg.weights}")
-        else:
-            log("VGG-16 trunk: no --weights given, so the convolutional layers start from RANDOM initialisation "
-                "(nothing is downloaded; pass --weights vgg16-397923af.pth for the paper's ImageNet start)"
-                + ("; they stay frozen, so only the head learns" if not cfg.unfreeze else ""))
     elif cfg.weights:
-        raise TrainingError("--weights applies to --model vgg16 (AlexNet is trained from scratch as in the paper)")
+        n = load_trunk(model, cfg.weights)
+        log(f"{cfg.model} trunk: {n} tensors of ImageNet weights from {cfg.weights}")
+    elif cfg.model == "vgg16":
+        log("VGG-16 trunk: no --weights given, so the convolutional layers start from RANDOM initialisation "
+            "(nothing is downloaded; pass --weights vgg16-397923af.pth for the paper's ImageNet start)"
+            + ("; they stay frozen, so only the head learns" if not cfg.unfreeze else ""))
     model.to(device)
     model.train()
 
@@ -256,8 +258,6 @@ def train(cfg: TrainConfig, log=print) -> dict:
     if ckpt is not None:
         opt.load_state_dict(ckpt["optimizer"])
         sched.load_state_dict(ckpt["scheduler"])
-        for group in opt.param_groups:  # the schedule continues from the stored rate
-            group["initial_lr"] = group.get("initial_lr", lr)
         if "scaler" in ckpt and scaler.is_enabled():
             scaler.load_state_dict(ckpt["scaler"])
         if "rng" in ckpt:
@@ -404,6 +404,9 @@ def fit_gist(cfg: TrainConfig, log=print) -> dict:
     labels, out = cfg.labels, Path(cfg.out)
     if out.exists():
         ckpt = load_checkpoint(out, model="gist", labels=labels)
+        if ckpt["spec"]["options"].get("regressor") != cfg.regressor:
+            raise CheckpointError(f"{out} holds GIST + {ckpt['spec']['options'].get('regressor')}, not + "
+                                  f"{cfg.regressor}; use another --out")
         log(f"{out} is a fitted GIST model already: nothing to do (remove it to fit again)")
         return ckpt["train"]
     data = Dataset(Path(cfg.data))

@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import torch
 from torch import nn
-from torchvision.models import vgg16 as tv_vgg16
-from torchvision.models import vgg16_bn as tv_vgg16_bn
+from torchvision.models.vgg import cfgs, make_layers
 
 
 class VGGRegressor(nn.Module):
     def __init__(self, num_outputs: int = 13, batch_norm: bool = False, frozen: bool = True) -> None:
         super().__init__()
-        trunk = (tv_vgg16_bn if batch_norm else tv_vgg16)(weights=None)
-        self.features = trunk.features
-        self.avgpool = trunk.avgpool  # 210x280 input ends in 6x8 cells, pooled to torchvision's 7x7
+        self.features = make_layers(cfgs["D"], batch_norm=batch_norm)  # torchvision's VGG-16 ("D") trunk
+        self.avgpool = nn.AdaptiveAvgPool2d((7, 7))  # 210x280 input ends in 6x8 cells, pooled to 7x7 as in torchvision
         self.regressor = nn.Sequential(
             nn.Linear(512 * 7 * 7, 4096),
             nn.ReLU(inplace=True),
@@ -25,8 +23,14 @@ class VGGRegressor(nn.Module):
             nn.ReLU(inplace=True),
             nn.Linear(256, num_outputs),
         )
-        for m in self.regressor:  # torchvision's initialisation of VGG's fully connected layers
-            if isinstance(m, nn.Linear):
+        for m in self.modules():  # torchvision's VGG initialisation
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
+                nn.init.constant_(m.bias, 0)
+            elif isinstance(m, nn.BatchNorm2d):
+                nn.init.constant_(m.weight, 1)
+                nn.init.constant_(m.bias, 0)
+            elif isinstance(m, nn.Linear):
                 nn.init.normal_(m.weight, 0, 0.01)
                 nn.init.constant_(m.bias, 0)
         nn.init.constant_(self.regressor[-1].bias, 0.5)  # middle of the normalised range

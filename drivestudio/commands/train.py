@@ -33,8 +33,8 @@ def register(sub) -> None:
     p.add_argument("--val-frames", type=int, default=1000, help="validation frames used (default 1000)")
     p.add_argument("--unfreeze", action="store_true", help="vgg16: train the convolutional layers too")
     p.add_argument("--batch-norm", action="store_true", help="vgg16: use VGG-16 with batch normalisation")
-    p.add_argument("--weights", help="vgg16: torchvision ImageNet state dict for the trunk (e.g. "
-                   "vgg16-397923af.pth); nothing is downloaded")
+    p.add_argument("--weights", help="torchvision ImageNet state dict for the convolutional trunk (e.g. "
+                   "vgg16-397923af.pth, alexnet-owt-7be5be79.pth) that you already have; nothing is downloaded")
     p.add_argument("--fast", action="store_true", help="also predict the 14th indicator, fast")
     p.add_argument("--lanes-left", action="store_true", help="also predict lanes_left (seed 002 §6.5's fix)")
     p.add_argument("--regressor", choices=("ridge", "rbf"), default="ridge",
@@ -54,8 +54,10 @@ def run(args) -> int:
         raise UsageError("--lr must be positive")
     if args.workers < 0:
         raise UsageError("--workers must not be negative")
-    if args.model != "vgg16" and (args.unfreeze or args.batch_norm or args.weights):
-        raise UsageError("--unfreeze, --batch-norm and --weights go with --model vgg16")
+    if args.model != "vgg16" and (args.unfreeze or args.batch_norm):
+        raise UsageError("--unfreeze and --batch-norm go with --model vgg16")
+    if args.model == "gist" and args.weights:
+        raise UsageError("--weights goes with --model vgg16 or alexnet")
     if args.model != "gist" and args.regressor != "ridge":
         raise UsageError("--regressor goes with --model gist")
 

@@ -86,10 +86,26 @@ def test_imagenet_weights_must_match_the_trunk(tmp_path):
     torch.save({"features.0.weight": torch.zeros(64, 3, 3, 3)}, tmp_path / "partial.pth")
     with pytest.raises(CheckpointError, match="not a torchvision VGG-16 ImageNet state dict"):
         load_trunk(model, tmp_path / "partial.pth")
-    donor = build("vgg16", label_set(), frozen=True).net
-    torch.save({f"features.{k}": v for k, v in donor.features.state_dict().items()}, tmp_path / "vgg16.pth")
+    donor = {f"features.{k}": v + 1.0 for k, v in model.net.features.state_dict().items()}
+    torch.save(donor, tmp_path / "vgg16.pth")
     assert load_trunk(model, tmp_path / "vgg16.pth") == 26
-    torch.testing.assert_close(model.net.features[0].weight, donor.features[0].weight)
+    torch.testing.assert_close(model.net.features[0].weight, donor["features.0.weight"])
+
+
+def test_alexnet_takes_a_torchvision_alexnet_trunk(tmp_path):
+    model = build("alexnet", label_set())
+    donor = {f"features.{k}": v + 1.0 for k, v in model.net.features.state_dict().items()}
+    donor["classifier.1.weight"] = torch.zeros(4096, 9216)  # torchvision's head is ignored
+    torch.save(donor, tmp_path / "alexnet.pth")
+    assert load_trunk(model, tmp_path / "alexnet.pth") == 10
+    with pytest.raises(CheckpointError, match="not a torchvision AlexNet"):
+        load_trunk(build("alexnet", label_set()), _vgg_trunk(tmp_path))
+
+
+def _vgg_trunk(tmp_path):
+    path = tmp_path / "vgg-like.pth"
+    torch.save({"features.0.weight": torch.zeros(64, 3, 3, 3), "features.0.bias": torch.zeros(64)}, path)
+    return path
 
 
 def test_cli_reports_bad_checkpoints_in_one_line_with_status_2(tmp_path, capsys):

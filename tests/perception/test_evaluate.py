@@ -12,14 +12,14 @@ from perception.evaluate import TABLE3, evaluate
 from perception.predictor import load_predictor
 from shm_bridge.vocabulary import PAPER_INDICATORS
 
-from .frames import alexnet_checkpoint, dataset, gist_checkpoint, workdir
+from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
 
 
 @pytest.fixture(scope="module")
 def report():
     out = workdir() / "evaluation"
     rc = main(["evaluate", "--data", str(dataset()), "--model", str(alexnet_checkpoint()[0]),
-               "--model", str(gist_checkpoint()[0]), "--out", str(out), "--latency-frames", "5"])
+               "--model", str(gist_checkpoint()[0]), "--out", str(out), "--latency-frames", "3"])
     assert rc == 0
     return out
 
@@ -68,13 +68,8 @@ def test_bar_chart_speed_and_json_are_written(report):
     assert summary["paper_table3"]["AlexNet"]["dist_R"] == 8.927
 
 
-def test_models_with_extra_outputs_get_extra_columns(tmp_path):
-    from perception.train import train
-    from .frames import tiny_config
-
-    path = tmp_path / "gist15.pt"
-    train(tiny_config("gist", path, fast=True, lanes_left=True), log=lambda *a: None)
-    ev = evaluate(dataset(), [path, gist_checkpoint()[0]], latency_frames=2)
+def test_models_with_extra_outputs_get_extra_columns():
+    ev = evaluate(dataset(), [gist15_checkpoint(), gist_checkpoint()[0]], latency_frames=2)
     assert "| fast | lanes_left |" in ev.markdown
     rows = list(csv.reader(ev.files["mae.csv"].splitlines()))
     assert rows[0][-2:] == ["fast", "lanes_left"] and rows[2][-2:] == ["", ""]

@@ -54,23 +54,22 @@ def test_loss_curves_are_written_beside_the_checkpoint():
 
 
 def test_rerunning_the_same_training_continues_from_the_checkpoint():
-    """6 iterations, then the same command with --iterations 10, equals nothing but a 10-iteration run's end
-    state (same data order, same optimiser state)."""
-    a, b = workdir() / "resume_a.pt", workdir() / "resume_b.pt"
-    kw = dict(batch_size=2, val_every=3, log_every=1, optimizer="adam", lr=1e-4)
-    train(tiny_config("alexnet", a, iterations=3, **kw), log=lambda *x: None)
-    first = load_checkpoint(a)
-    assert first["train"]["iteration"] == 3
-    train(tiny_config("alexnet", a, iterations=5, **kw), log=lambda *x: None)
-    train(tiny_config("alexnet", b, iterations=5, **kw), log=lambda *x: None)
-    resumed, straight = load_checkpoint(a), load_checkpoint(b)
-    assert resumed["train"]["iteration"] == 5
-    assert [r["iteration"] for r in resumed["train"]["history"]] == [1, 2, 3, 4, 5]
+    """4 iterations, then the same training to 8, ends where the straight 8-iteration run ended (same data
+    order, same optimiser state, same learning-rate schedule)."""
+    straight, _ = alexnet_checkpoint()
+    path = workdir() / "resumed.pt"
+    train(tiny_config("alexnet", path, iterations=4), log=lambda *x: None)
+    assert load_checkpoint(path)["train"]["iteration"] == 4
+    train(tiny_config("alexnet", path, iterations=8), log=lambda *x: None)
+    resumed, ref = load_checkpoint(path), load_checkpoint(straight)
+    assert resumed["train"]["iteration"] == 8
+    assert [r["iteration"] for r in resumed["train"]["history"]] == [2, 4, 6, 8]
     for k in ("net.regressor.6.weight", "net.features.0.weight"):
-        torch.testing.assert_close(resumed["state_dict"][k], straight["state_dict"][k], rtol=1e-4, atol=1e-6)
+        torch.testing.assert_close(resumed["state_dict"][k], ref["state_dict"][k], rtol=1e-4, atol=1e-5)
+    assert resumed["scheduler"]["last_epoch"] == 8
     # a finished run has nothing left to do
-    again = train(tiny_config("alexnet", a, iterations=5, **kw), log=lambda *x: None)
-    assert again["iteration"] == 5
+    again = train(tiny_config("alexnet", path, iterations=8), log=lambda *x: None)
+    assert again["iteration"] == 8
 
 
 def test_gist_fit_beats_predicting_the_training_mean():
@@ -90,3 +89,14 @@ def test_gist_checkpoint_has_no_pickled_code_and_no_optimiser():
     assert ckpt["spec"]["name"] == "gist" and ckpt["spec"]["options"]["regressor"] == "ridge"
     assert "optimizer" not in ckpt
     assert ckpt["state_dict"]["net.weight"].shape == (512, 13)
+
+
+@pytest.mark.slow
+def test_vgg16_frozen_trains_its_head_from_a_random_trunk_and_says_so(tmp_path):
+    said = []
+    record = train(tiny_config("vgg16", tmp_path / "vgg.pt", iterations=4, batch_size=2, lr=1e-4),
+                   log=said.append)
+    assert any("RANDOM initialisation" in line for line in said)
+    assert record["iteration"] == 4
+    ckpt = load_checkpoint(tmp_path / "vgg.pt", model="vgg16")
+    assert ckpt["spec"]["options"] == {"weights": None, "frozen": True, "batch_norm": False}
