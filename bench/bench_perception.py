@@ -85,7 +85,7 @@ def main() -> None:
             infer_rate = 32 / timed(lambda: model(xb), max(2, args.steps // 2), device)
             latency = timed(lambda: model(xb[:1]), args.steps * 4, device, warmup=3)
         print(f"{key:16s} {train_rate:16.1f} {batch:6d} {infer_rate:20.1f} {latency * 1e3:15.1f}", flush=True)
-        del model
+        model = step = opt = None  # free this model before the next is built
 
 
 if __name__ == "__main__":

@@ -181,7 +181,7 @@ def masks(ev: Evaluation, r: ModelResult, by: str) -> list[tuple[str, np.ndarray
 
 def markdown(ev: Evaluation) -> str:
     cols = columns(ev)
-    out = [f"# Perception: mean absolute error per indicator",
+    out = ["# Perception: mean absolute error per indicator",
            "",
            f"Split `{ev.split}` of `{ev.data}`: {ev.frames} frames in {ev.episodes} episodes. MAE in the "
            "indicators' units (angle in rad, toMarking_* and dist_* in m), laid out as seed 002's Table 3. "

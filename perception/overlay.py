@@ -174,23 +174,33 @@ def draw_topdown(lanes: int, lane_width: float, ego_s: float, ego_d: float, angl
     return img
 
 
-def draw_error_bars(truth: np.ndarray, est: np.ndarray, size=(RIGHT, 240)) -> np.ndarray:
-    """One bar per paper indicator: |estimate - truth| against its scale (angle 0.2 rad, markings 2 m, gaps
-    20 m); the value in the indicator's unit beside it."""
+def draw_error_bars(truth: np.ndarray, est: np.ndarray | None, size=(RIGHT, 240)) -> np.ndarray:
+    """One row per paper indicator: the true value, the estimate and a bar of |estimate - truth| against its
+    scale (angle 0.2 rad, markings 2 m, gaps 20 m). Without an estimate (the oracle) the rows hold the truth."""
     w, h = size
     img = np.full((h, w, 3), 250, np.uint8)
     names = PAPER_INDICATORS
-    row = (h - 10) / len(names)
+    row = (h - 22) / len(names)
+    font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.38
+    heads = (("truth", 110), ("estimate", 170), ("|error|", 250)) if est is not None else (("truth", 110),)
+    for text, x in heads:
+        cv2.putText(img, text, (x, 13), font, scale, TEXT, 1, cv2.LINE_AA)
     for i, name in enumerate(names):
-        err = abs(float(est[INDEX[name]]) - float(truth[INDEX[name]]))
-        y = int(8 + i * row)
+        y = int(20 + i * row)
+        t = float(truth[INDEX[name]])
+        fmt = (lambda v: f"{v:.3f}") if name == "angle" else (lambda v: f"{v:.2f}")
+        cv2.putText(img, name, (6, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, fmt(t), (110, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        if est is None:
+            continue
+        e = float(est[INDEX[name]])
+        err = abs(e - t)
         frac = min(1.0, err / ERROR_SCALE[name])
         colour = (60, 160, 60) if frac < 0.25 else (230, 160, 0) if frac < 0.75 else (220, 40, 40)
-        cv2.putText(img, name, (6, y + 11), cv2.FONT_HERSHEY_SIMPLEX, 0.38, TEXT, 1, cv2.LINE_AA)
-        cv2.rectangle(img, (120, y + 2), (120 + int(330 * frac), y + int(row) - 3), colour, -1)
-        cv2.rectangle(img, (120, y + 2), (450, y + int(row) - 3), (180, 180, 180), 1)
-        unit = "rad" if name == "angle" else "m"
-        cv2.putText(img, f"{err:.3f} {unit}", (458, y + 11), cv2.FONT_HERSHEY_SIMPLEX, 0.38, TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, fmt(e), (170, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, fmt(err), (250, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        cv2.rectangle(img, (310, y + 2), (310 + int(240 * frac), y + int(row) - 3), colour, -1)
+        cv2.rectangle(img, (310, y + 2), (550, y + int(row) - 3), (180, 180, 180), 1)
     return img
 
 
@@ -204,7 +214,7 @@ def compose(frame: np.ndarray, truth: np.ndarray, estimate: np.ndarray | None, l
     top = draw_topdown(lanes, lane_width, ego_s, ego_d, float(truth[INDEX["angle"]]), cars, host)
     cam = cv2.resize(frame, (RIGHT, int(RIGHT * frame.shape[0] / frame.shape[1])), interpolation=cv2.INTER_NEAREST)
     cam = cam[:420] if cam.shape[0] >= 420 else np.vstack([cam, np.zeros((420 - cam.shape[0], RIGHT, 3), np.uint8)])
-    bars = draw_error_bars(truth, estimate if estimate is not None else truth)
+    bars = draw_error_bars(truth, estimate)
     right = np.vstack([cam, bars])
     out = np.hstack([top, right])
     lines = [title] if title else []

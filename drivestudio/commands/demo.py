@@ -6,7 +6,6 @@ import time
 from pathlib import Path
 
 
-
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the whole pipeline at small scale on built-in defaults",
                        description="Render frames of three tracks with SUMO traffic; drive closed loop with the "

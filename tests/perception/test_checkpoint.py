@@ -10,7 +10,7 @@ from perception.models import build, load_trunk
 from perception.train import train
 from shm_bridge.vocabulary import label_set
 
-from .frames import dataset, gist_checkpoint, tiny_config, workdir
+from .frames import dataset, gist_checkpoint, tiny_config
 
 
 class _Payload:

@@ -1,7 +1,6 @@
 """Short real training runs on generated frames: the loss goes down, checkpoints resume where they stopped."""
 import csv
 
-import numpy as np
 import pytest
 import torch
 
