@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from shm_bridge.vocabulary import GAP_MAX, INACTIVE, INDEX, PAPER_INDICATORS, lane_centres, markings
+from shm_bridge.vocabulary import GAP_MAX, INDEX, PAPER_INDICATORS, lane_centres, markings
 
 PX_PER_M = 12                  # DeepDriving's scale, both directions
 CANVAS = (320, 660)            # width, height of the top-down view [px]
@@ -46,8 +46,12 @@ class HostEstimate:
     cars: list               # [(gap [m], d [m])] of the estimated other cars
 
 
-def _active(v: np.ndarray, name: str, tol: float = 0.05) -> bool:
-    return abs(v[INDEX[name]] - INACTIVE[name]) > tol
+# A network's estimate of an inactive indicator is near its inactive value, never exactly on it; each system is
+# judged active by thresholds halfway between its active range (docs: affordances.md) and its inactive value.
+IN_LANE_SPAN = 5.5   # [m] -toMarking_ML + toMarking_MR: the lane width (4) when active, 11 when inactive
+MARKING_M = 2.75     # [m] |toMarking_M|: at most 2 when active (2 m outside an edge), 3.5 when inactive
+EDGE_LR = 6.5        # [m] |toMarking_L/R| beyond this reads as their inactive 7: no marking on that side
+NEIGHBOUR_LL_RR = 8.0  # [m] |toMarking_LL/RR| beyond this reads as their inactive 9.5: no lane on that side
 
 
 def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: float | None = None,
@@ -64,11 +68,11 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
     cars: list = []
     ds, systems, sources = [], [], []
 
-    in_lane = (_active(est, "toMarking_ML") and _active(est, "toMarking_MR")
-               and -est[INDEX["toMarking_ML"]] + est[INDEX["toMarking_MR"]] < 5.5)
+    in_lane = -est[INDEX["toMarking_ML"]] + est[INDEX["toMarking_MR"]] < IN_LANE_SPAN
     k = None
     if in_lane:
-        left_exists, right_exists = est[INDEX["toMarking_LL"]] > -8.0, est[INDEX["toMarking_RR"]] < 8.0
+        left_exists = est[INDEX["toMarking_LL"]] > -NEIGHBOUR_LL_RR
+        right_exists = est[INDEX["toMarking_RR"]] < NEIGHBOUR_LL_RR
         if lanes_left is not None:
             k, src = int(np.clip(round(lanes_left), 0, lanes - 1)), "lanes_left"
         elif not left_exists or lanes == 1:
@@ -88,11 +92,12 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
             if 0 <= lane < lanes and est[INDEX[name]] < ESTIMATE_RANGE:
                 cars.append((float(est[INDEX[name]]), float(c[lane])))
 
-    if _active(est, "toMarking_M"):
+    if abs(est[INDEX["toMarking_M"]]) < MARKING_M:
         mv = est[INDEX["toMarking_M"]]
-        if est[INDEX["toMarking_L"]] < -6.5:
+        left_marking, right_marking = est[INDEX["toMarking_L"]] > -EDGE_LR, est[INDEX["toMarking_R"]] < EDGE_LR
+        if not left_marking:
             j, src = 0, "indicators"
-        elif est[INDEX["toMarking_R"]] > 6.5:
+        elif not right_marking:
             j, src = lanes, "indicators"
         elif lanes == 2:
             j, src = 1, "indicators"
@@ -107,9 +112,9 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
             src = "ambiguous"
         j = int(np.clip(j, 0, lanes))
         parts = [mv + m[j]]
-        if j >= 1 and _active(est, "toMarking_L"):
+        if j >= 1 and left_marking:
             parts.append(est[INDEX["toMarking_L"]] + m[j - 1])
-        if j + 1 <= lanes and _active(est, "toMarking_R"):
+        if j + 1 <= lanes and right_marking:
             parts.append(est[INDEX["toMarking_R"]] + m[j + 1])
         ds.append(float(np.mean(parts)))
         systems.append("on-marking")

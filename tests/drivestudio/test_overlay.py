@@ -69,6 +69,25 @@ def test_estimate_system_and_ambiguity():
     assert told.lane_source == "lanes_left" and told.d == pytest.approx(-2.2)
 
 
+def test_near_inactive_estimates_count_as_inactive():
+    # a network never hits an inactive value exactly: 3.41 for toMarking_M (inactive 3.5) is "off", so a car in
+    # the middle of a 1-lane road is placed by its in-lane estimate alone, not on a marking 3.4 m away
+    tr = load_track("oval", lanes=1)
+    ind = affordances(tr, 100.0, 0.11, 0.0)
+    noisy = ind.copy()
+    for name, v in (("toMarking_L", -6.94), ("toMarking_M", 3.41), ("toMarking_R", 6.93),
+                    ("toMarking_LL", -9.3), ("toMarking_RR", 9.4)):
+        noisy[INDEX[name]] = v
+    host = estimate_host(noisy, 1, 4.0)
+    assert host.system == "in-lane" and host.d == pytest.approx(0.11)
+    # and on a marking with a near-inactive in-lane system (ML -5.3, MR 5.2: a 10.5 m "lane")
+    ind = affordances(tr, 100.0, -2.1, 0.0)  # just outside the right edge: on-marking only
+    noisy = ind.copy()
+    noisy[INDEX["toMarking_ML"]], noisy[INDEX["toMarking_MR"]] = -5.3, 5.2
+    host = estimate_host(noisy, 1, 4.0)
+    assert host.system == "on-marking" and host.d == pytest.approx(-2.1)
+
+
 def test_estimated_cars_are_placed_by_the_gaps():
     tr = load_track("oval", lanes=3)
     ind = affordances(tr, 100.0, 0.0, 0.0, [130.0, 145.0, 200.0], [4.0, 0.0, -4.0])
