@@ -1,6 +1,7 @@
 """drivestudio overlay --data DIR --model CKPT|oracle --out DIR: box overlays of chosen frames (or a video)."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..errors import UsageError
@@ -104,7 +105,8 @@ def run(args) -> int:
             items.append((record, image, truth, np.asarray(est[k]), None if ll is None else float(ll[k])))
         batch.clear()
 
-    for item in tqdm(wanted, desc="estimating", unit="frame", disable=len(wanted) < 200):
+    for item in tqdm(wanted, desc="estimating", unit="frame", disable=len(wanted) < 200, file=sys.stderr,
+                     mininterval=1.0 if sys.stderr.isatty() else 30.0):
         batch.append(load(item))
         if len(batch) == 32:
             flush()
