@@ -60,9 +60,11 @@ def shard_name(episode: int) -> str:
 def encode_image(rgb: np.ndarray, encoding: str = "png", quality: int = 95) -> bytes:
     bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     if encoding == "png":
-        # one fixed filter instead of libpng's per-row search: 3.5x faster to write, as small, as fast to read
+        # no row filter instead of libpng's per-row search: our flat-shaded frames compress best unfiltered
+        # (measured on 20 frames of a default set: 0.40 ms and 5.0 kB a frame; SUB 0.51 ms, 6.1 kB; the
+        # adaptive default 1.7 ms, 5.3 kB), and decode as fast
         ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1,
-                                             cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB])
+                                             cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE])
     elif encoding == "jpeg":
         ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     else:
