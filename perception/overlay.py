@@ -99,6 +99,9 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
             j, src = 0, "indicators"
         elif not right_marking:
             j, src = lanes, "indicators"
+        elif lanes == 1:  # both edges read as present (a poor estimate): the one nearer its inactive value
+            j = 0 if abs(est[INDEX["toMarking_L"]] + EDGE_LR) < abs(est[INDEX["toMarking_R"]] - EDGE_LR) else 1
+            src = "indicators"
         elif lanes == 2:
             j, src = 1, "indicators"
         elif k is not None:  # the in-lane estimate says which lane; the sign of M says which of its markings

@@ -39,9 +39,10 @@ def run(args) -> int:
         print(f"({time.perf_counter() - t0:.0f} s)", flush=True)
 
     for track, lanes in (("oval", 3), ("hairpins", 2), ("sbends", 1)):
-        step(f"a frame of {track} ({lanes} lanes) after 20 s of SUMO traffic", "render", "--track", track,
-             "--lanes", lanes, "--cars", 16, "--warmup", 20, "-o", out / f"frame-{track}-{lanes}lanes.png",
-             "--truth", out / f"frame-{track}-{lanes}lanes.json")
+        name = f"frame-{track}-{lanes}lane{'s' * (lanes > 1)}"
+        step(f"a frame of {track} ({lanes} lane{'s' * (lanes > 1)}) after 20 s of SUMO traffic", "render",
+             "--track", track, "--lanes", lanes, "--cars", 16, "--warmup", 20, "-o", out / f"{name}.png",
+             "--truth", out / f"{name}.json")
     step("the oracle drives 60 s closed loop, world and driver in two processes over shared memory", "drive",
          "--model", "oracle", "--track", "oval", "--lanes", 3, "--cars", 12, "--seconds", 60,
          "--record", out / "oracle-drive.mp4", "--out", out / "oracle-drive")

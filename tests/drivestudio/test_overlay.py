@@ -88,6 +88,14 @@ def test_near_inactive_estimates_count_as_inactive():
     assert host.system == "on-marking" and host.d == pytest.approx(-2.1)
 
 
+def test_a_one_lane_estimate_with_both_edges_present_still_picks_an_edge():
+    tr = load_track("oval", lanes=1)
+    ind = affordances(tr, 100.0, 2.3, 0.0)  # just outside the left edge: L inactive (-7), M about -0.3
+    ind[INDEX["toMarking_L"]], ind[INDEX["toMarking_R"]] = -5.9, 5.0  # an untrained net's guesses
+    host = estimate_host(ind, 1, 4.0)
+    assert host.system == "on-marking" and host.d > 0  # the left edge, not a marking that does not exist
+
+
 def test_estimated_cars_are_placed_by_the_gaps():
     tr = load_track("oval", lanes=3)
     ind = affordances(tr, 100.0, 0.0, 0.0, [130.0, 145.0, 200.0], [4.0, 0.0, -4.0])
