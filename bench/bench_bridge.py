@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint  # noqa: E402
 from shm_bridge.layout import TRUTH_LEN  # noqa: E402
-from shm_bridge.vocabulary import Action  # noqa: E402
+from shm_bridge.worlds.highway import Action  # noqa: E402
 
 
 def run_driver(name: str, spin: float) -> int:

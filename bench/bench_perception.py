@@ -18,7 +18,7 @@ import torch
 
 from perception.models import build
 from perception.train import PAPER, euclidean_loss
-from shm_bridge.vocabulary import label_set
+from shm_bridge.worlds.highway import label_set
 
 H, W = 210, 280
 MODELS = {"alexnet": ("alexnet", {}), "vgg16": ("vgg16", {"frozen": True}),

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 from sim.scenario import scenario_from_dict
 from sim.world import World, WorldConfig
 

@@ -7,7 +7,7 @@ Signs: `angle > 0` means the car points to the right of the road, so a positive 
 `center_line` is the car's offset from its target centre line, positive when the car is left of it, so a
 positive `center_line` steers right. Steer is positive to the left.
 
-Depends only on numpy and the shared vocabulary (docs/architecture.md).
+Depends only on numpy and the highway's declaration (docs/architecture.md).
 """
 from __future__ import annotations
 
@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shm_bridge.vocabulary import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
+from shm_bridge.worlds.highway import (EDGE_MARKING, IN_LANE_SPAN, INACTIVE, INDICATORS, NEIGHBOUR_LANE,
+                                      STEER_LOCK_RAD, Action)
 
 # Lane-change states: keeping a lane, or phase 1 / phase 2 of a change to the left or to the right.
 KEEP = "keep"
@@ -44,17 +45,17 @@ class ChenParams:
     follow_c: float = 2.772                   # [1/s] follow curve: slow_down = v_max (1 - exp(-c/v_max dist - d))
     follow_d: float = -0.693                  # [-] follow curve offset (0 m/s at 5 m)
     no_slow_down: float = math.inf            # [m/s] slow_down when not following: no limit
-    left_lane_exists: float = -8.0            # [m] toMarking_LL above this: a lane to the left exists
-    right_lane_exists: float = 8.0            # [m] toMarking_RR below this: a lane to the right exists
+    left_lane_exists: float = -NEIGHBOUR_LANE  # [m] toMarking_LL above this: a lane to the left exists
+    right_lane_exists: float = NEIGHBOUR_LANE  # [m] toMarking_RR below this: a lane to the right exists
     steer_trend_bound: float = 0.2            # [-] |steer_trend| below this to start a change (not on 2 lanes)
     steer_history: int = 5                    # [frames] steering commands summed into steer_trend
     # rule 4: lane keeping
-    in_lane_span: float = 5.5                 # [m] in-lane estimate trusted when -toMarking_ML + toMarking_MR < this
+    in_lane_span: float = IN_LANE_SPAN        # [m] in-lane estimate trusted when -toMarking_ML + toMarking_MR < this
     coe_keep: float = 1.5                     # [-] steering divisor, in-lane
     coe_keep_near_marking: float = 0.4        # [-] steering divisor, in-lane and toMarking_M < near_marking
     near_marking: float = 1.0                 # [m] toMarking_M below this: close to a marking, steer harder
     coe_on_marking: float = 0.3               # [-] steering divisor, on-marking estimate only
-    edge_marking: float = 6.5                 # [m] |toMarking_L/R| beyond this: the edge's inactive 7 (ours)
+    edge_marking: float = EDGE_MARKING        # [m] |toMarking_L/R| beyond this: the edge's inactive 7 (ours)
     # rule 5: lane change
     coe_change: float = 6.0                   # [-] steering divisor, phase 1
     coe_change_phase_2: float = 20.0          # [-] steering divisor, phase 2

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from shm_bridge.vocabulary import INDEX, STEER_LOCK_RAD, Action
+from shm_bridge.worlds.highway import INDEX, NEIGHBOUR_LANE, STEER_LOCK_RAD, Action
 
 from .chen import KEEP, ChenController, ChenParams
 
@@ -71,9 +71,9 @@ class PerturbedExpert:
         if self.controller.state != KEEP or not self._chance(c.change_every):
             return
         options = []
-        if v[INDEX["toMarking_LL"]] > -8 and v[INDEX["dist_LL"]] > c.change_clear:
+        if v[INDEX["toMarking_LL"]] > -NEIGHBOUR_LANE and v[INDEX["dist_LL"]] > c.change_clear:
             options.append("left")
-        if v[INDEX["toMarking_RR"]] < 8 and v[INDEX["dist_RR"]] > c.change_clear:
+        if v[INDEX["toMarking_RR"]] < NEIGHBOUR_LANE and v[INDEX["dist_RR"]] > c.change_clear:
             options.append("right")
         if options:
             self.controller.begin_lane_change(options[int(self.rng.integers(len(options)))])

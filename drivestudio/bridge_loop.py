@@ -1,10 +1,10 @@
 """The loop's second transport: the world and the driver in separate processes over shared memory.
 
-World side: `shm_exchange(endpoint)` plugs into drivestudio.loop.run_loop like `in_process(driver)` does, so
-there is still one loop. Driver side: `serve_driver(endpoint, driver)` answers frames until the world ends
-the run. The world honours the driver's flags: while `paused` it does not advance; in "manual" mode (an
-expert drives, as a human did in TORCS) the world-side oracle's command is applied and the network's estimate
-only recorded.
+World side: `ShmExchange(endpoint)` plugs into drivestudio.loop.run_loop like `in_process(driver)` does, so there
+is still one loop. Driver side: `serve_driver(endpoint, driver)` answers frames until the world ends the run. The
+world honours the driver's flags: while `paused` it does not advance; in "manual" mode (an expert drives, as a
+human did in TORCS) or under a world's correction rule, the world's supervisor decides what is applied, and the
+driver's estimate is only recorded.
 """
 from __future__ import annotations
 
@@ -13,59 +13,47 @@ import time
 import numpy as np
 
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.layout import TRUTH_INDEX, pack_truth_arrays
-from shm_bridge.vocabulary import Action
-from sim.world import Observation
-
-from .loop import Driver, Exchange
 
 PAUSE_POLL = 0.05  # [s] a paused world checks the flag this often (not latency-critical)
 
 
-def truth_record(obs: Observation) -> np.ndarray:
-    t = obs.truth
-    return pack_truth_arrays(t.indicators, t.ego, lanes_left=t.lanes_left, lanes=t.lanes, lane_width=t.lane_width,
-                             speed=t.speed, in_lane=t.in_lane, on_marking=t.on_marking, t=obs.t,
-                             collision=obs.collision, off_road=obs.off_road)
-
-
 class ShmExchange:
-    """World side of the bridge as a loop transport; `round_trip` sums the time spent waiting for the driver."""
+    """World side of the bridge as a loop transport; `round_trip` sums the time spent waiting for the driver.
 
-    def __init__(self, endpoint: WorldEndpoint):
+    supervisor(obs, action, driver_mode) -> (applied action, operation mode), or None: the driver's action is
+    applied as it is. `operation` holds the operation mode of the last step."""
+
+    def __init__(self, endpoint: WorldEndpoint, supervisor=None):
         self.endpoint = endpoint
+        self.supervisor = supervisor
         self.round_trip = 0.0
-        self._expert = Driver()  # drives in "manual" mode
-        self._last = Action()
+        self.operation = "network"
+        decl = endpoint.declaration
+        self._last = decl.neutral_action()
+        self._no_estimate = np.full(len(decl.estimate_names), np.nan)
 
-    def __call__(self, obs: Observation) -> tuple[Action, np.ndarray]:
+    def __call__(self, obs) -> tuple[np.ndarray, np.ndarray]:
         ep = self.endpoint
         while ep.paused:
             time.sleep(PAUSE_POLL)
         t0 = time.perf_counter()
-        seq = ep.publish(obs.frame, truth_record(obs))
+        seq = ep.publish(obs.frames, obs.record, obs.t)
         msg = ep.wait_action(seq) if ep.lockstep else ep.latest_action()
         self.round_trip += time.perf_counter() - t0
-        if msg is None:  # free-running, no action yet: coast
-            return self._last, obs.truth.indicators
+        if msg is None:  # free-running, no action yet: keep the last command (the neutral one at first)
+            return self._last, self._no_estimate
         action = msg.action
-        if ep.driver_mode == "manual":
-            t = obs.truth
-            action, _ = self._expert.act(obs.frame, t.indicators, t.speed, t.lanes)
+        if self.supervisor is not None:
+            action, self.operation = self.supervisor(obs, action, ep.driver_mode)
         self._last = action
         return action, msg.estimate
 
 
-def shm_exchange(endpoint: WorldEndpoint) -> Exchange:
-    return ShmExchange(endpoint)
-
-
-def serve_driver(endpoint: DriverEndpoint, driver: Driver) -> int:
+def serve_driver(endpoint: DriverEndpoint, driver) -> int:
     """Answer frames until the world closes the run; returns the number of frames answered."""
     n = 0
     while (msg := endpoint.wait_frame()) is not None:
-        lanes = int(msg.truth[TRUTH_INDEX["lanes"]])
-        action, estimate = driver.act(msg.frame, msg.indicators, msg.speed, lanes)
+        action, estimate = driver.act(msg)
         endpoint.send_action(msg.seq, action, estimate)
         n += 1
     return n

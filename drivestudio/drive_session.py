@@ -1,5 +1,5 @@
-"""Closed-loop driving sessions: the world side, the driver side, both at once over the bridge, or in one
-process. Each ends with the metrics table printed and saved as JSON (controller/metrics.py)."""
+"""Closed-loop driving sessions for any world: the world side, the driver side, both at once over the bridge, or in
+one process. Each ends with the world's metrics table printed and saved as JSON."""
 from __future__ import annotations
 
 import json
@@ -10,42 +10,21 @@ import sys
 import time
 from pathlib import Path
 
-from controller.metrics import ClosedLoopMetrics
-from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, WorldEndpoint
-from shm_bridge.signals import exit_on_sigterm
-from sim.world import World, WorldConfig
+from shm_bridge import worlds as declared
+from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
+from shm_bridge.signals import Terminated, exit_on_sigterm
 
 from .bridge_loop import ShmExchange, serve_driver
 from .errors import UsageError
-from .loop import Driver, in_process, run_loop
-from .outputs import VideoWriter, write_json, write_text
-from .overlays import overlay_observation
+from .loop import in_process, run_loop
+from .outputs import write_json, write_text
 
-ATTACH_SLICE = 0.25  # [s] while waiting for a driver we started, check it is still alive this often
-
-
-class _Recorder:
-    """drive --record: every step's overlay (truth and the driver's estimate) into an mp4."""
-
-    def __init__(self, path: str | None, world: World, label: str):
-        self.writer = VideoWriter(path) if path else None
-        self.world, self.label = world, label
-
-    def __call__(self, rec) -> None:
-        if self.writer is not None:
-            t = rec.obs.truth
-            title = f"t {rec.obs.t:5.1f} s  {self.world.track.name}, {t.lanes} lanes, {t.speed:4.1f} m/s"
-            estimate = None if self.label == "oracle" else rec.estimate
-            self.writer.write(overlay_observation(rec.obs, estimate, self.world.track, title, label=self.label))
-
-    def close(self, ok: bool) -> None:
-        if self.writer is not None:
-            (self.writer.close if ok else self.writer.abort)()
-            if ok:
-                print(f"recorded {self.writer.frames} overlays to {self.writer.path}")
+ATTACH_SLICE = 0.25       # [s] while waiting for a driver we started, check it is still alive this often
+DRIVER_ATTACH = 30.0      # [s] `drive --shm` waits this long for the world's segment
+SHM_PREFIX = "drivestudio-"
 
 
-def _finish(metrics: ClosedLoopMetrics, out: Path, extra: dict) -> None:
+def _finish(metrics, out: Path, extra: dict) -> None:
     report = {**metrics.report(), **extra}
     write_json(out / "metrics.json", report)
     table = metrics.table()
@@ -67,63 +46,88 @@ def _wait_for_driver(ep: WorldEndpoint, timeout: float, proc: subprocess.Popen |
                 raise BridgeTimeout(f"no driver attached to '{ep.name}' within {timeout:.0f} s") from None
 
 
-def run_world_side(args, cfg: WorldConfig, out: Path, driver_proc: subprocess.Popen | None = None,
+def _label(args) -> str:
+    return getattr(args, "model", None) or "driver"
+
+
+def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
+    """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
+    (finished, host lost, interrupted, driver finished)."""
     seconds = args.seconds if args.seconds is not None else math.inf
-    metrics = None
-    exchange = None
-    with exit_on_sigterm(), World(cfg) as world:
-        metrics = ClosedLoopMetrics(world.track.length, cfg.dt)
-        with WorldEndpoint(args.shm, cfg.camera.height, cfg.camera.width, lockstep=not args.free_running) as ep:
-            print(f"world on shared memory '{args.shm}' ({'free-running' if args.free_running else 'lock-step'}); "
-                  f"waiting for a driver", file=sys.stderr, flush=True)
-            _wait_for_driver(ep, getattr(args, "wait", 120.0), driver_proc)
-            exchange = ShmExchange(ep)
-            recorder = _Recorder(getattr(args, "record", None), world, getattr(args, "model", "driver"))
+    exchange, reason = None, "finished"
+    with exit_on_sigterm(), plugin.world(args, render=True) as world:
+        metrics = plugin.metrics(world)
+        with WorldEndpoint(args.shm, world.declaration, lockstep=not args.free_running) as ep:
+            print(f"world '{world.declaration.name}' on shared memory '{args.shm}' "
+                  f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
+                  file=sys.stderr, flush=True)
+            _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
+            exchange = ShmExchange(ep, plugin.supervisor(world, args))
+            recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
             ok = False
             try:
-                run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
-                         on_step=recorder)
+                last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
+                                on_step=recorder)
+                reason = "host lost" if last.end is not None else "finished"
                 ok = True
-            except KeyboardInterrupt:
+            except PeerGone as gone:
+                if not gone.finished:
+                    raise
+                reason, ok = "driver finished", True
+                print(str(gone), file=sys.stderr)
+            except (KeyboardInterrupt, Terminated):
+                reason = "interrupted"
                 if args.seconds is not None:
                     raise  # a bounded run was cut short
                 ok = True
             finally:
                 recorder.close(ok)
-    extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": args.model
-             if hasattr(args, "model") else "external", "track": world.track.name, "lanes": world.track.lanes,
-             "cars": cfg.cars}
+                ep.end(reason if reason != "finished" or ok else "error")
+        extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": _label(args),
+                 "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
     driver_time = 0.0
     if driver_proc is not None:
         driver_proc.wait(timeout=15)
         if driver_stats is not None and driver_stats.exists():
             stats = json.loads(driver_stats.read_text())
-            metrics.add_time("perception", stats["perception"])
-            metrics.add_time("control", stats["control"])
-            driver_time = stats["perception"] + stats["control"]
+            for stage, value in stats.get("timings", {}).items():
+                metrics.add_time(stage, value)
+                driver_time += value
     metrics.add_time("transfer", max(0.0, exchange.round_trip - driver_time))
     _finish(metrics, out, extra)
     return 0
 
 
-def run_driver_side(name: str, perception, stats_out: str | None) -> int:
-    driver = Driver(perception)
-    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=30.0) as ep:
+def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
+    """The driver over the bridge: the world's declaration comes from the header; the model must fit it."""
+    from . import worlds
+    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=DRIVER_ATTACH) as ep:
+        decl = ep.declaration
+        try:
+            plugin = worlds.get(decl.name)
+        except UsageError:
+            declared.register(decl)   # a world this installation does not know: drive it from its header
+            plugin = worlds.Plugin.__new__(worlds.Plugin)
+            plugin.declaration = decl
+        driver = plugin.driver(model, args, decl)
+        ep.require(world=decl.name, action=decl.action_names)
         n = serve_driver(ep, driver)
+        print(f"drove {n} frames; the world ended the run: {ep.end_reason}", file=sys.stderr)
     if stats_out:
-        write_json(Path(stats_out), {"frames": n, **driver.timings})
+        write_json(Path(stats_out), {"frames": n, "timings": dict(getattr(driver, "timings", {}))})
     return 0
 
 
-def run_both_sides(args, cfg: WorldConfig, out: Path) -> int:
-    args.shm = f"drivestudio-{os.getpid()}"
+def run_both_sides(args, plugin, out: Path) -> int:
+    reclaim(SHM_PREFIX)   # segments of earlier runs killed with SIGKILL (world and driver both dead)
+    args.shm = f"{SHM_PREFIX}{os.getpid()}"
     stats = out / "driver-timings.json"
     cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", args.shm, "--model", args.model,
-           "--device", args.device, "--stats-out", str(stats)]
+           "--device", args.device, "--stats-out", str(stats)] + plugin.driver_args(args)
     proc = subprocess.Popen(cmd)
     try:
-        return run_world_side(args, cfg, out, driver_proc=proc, driver_stats=stats)
+        return run_world_side(args, plugin, out, driver_proc=proc, driver_stats=stats)
     finally:
         try:
             proc.wait(timeout=5)
@@ -132,21 +136,21 @@ def run_both_sides(args, cfg: WorldConfig, out: Path) -> int:
             proc.wait()
 
 
-def run_in_process(args, cfg: WorldConfig, perception, out: Path) -> int:
-    driver = Driver(perception)
-    with exit_on_sigterm(), World(cfg) as world:
-        metrics = ClosedLoopMetrics(world.track.length, cfg.dt)
-        recorder = _Recorder(args.record, world, args.model if args.model == "oracle" else driver.name)
+def run_in_process(args, plugin, out: Path) -> int:
+    with exit_on_sigterm(), plugin.world(args, render=plugin.needs_frames(args)) as world:
+        driver = plugin.driver(args.model, args, world.declaration)
+        metrics = plugin.metrics(world)
+        recorder = plugin.recorder(world, args.record, _label(args))
         ok = False
         try:
-            run_loop(world, in_process(driver), args.seconds, render=cfg.render, metrics=metrics,
-                     realtime=args.realtime, on_step=recorder)
+            last = run_loop(world, in_process(driver), args.seconds, render=plugin.needs_frames(args),
+                            metrics=metrics, realtime=args.realtime, on_step=recorder)
             ok = True
         finally:
             recorder.close(ok)
-        extra = {"transport": "in process", "driver": args.model, "track": world.track.name,
-                 "lanes": world.track.lanes, "cars": cfg.cars}
-    for stage, seconds in driver.timings.items():
+        extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
+                 "end": "host lost" if last.end is not None else "finished", **plugin.describe_run(world, args)}
+    for stage, seconds in getattr(driver, "timings", {}).items():
         metrics.add_time(stage, seconds)
     _finish(metrics, out, extra)
     return 0

@@ -8,12 +8,18 @@ class UsageError(ValueError):
     """A bad combination of options, found after parsing."""
 
 
+class RunError(RuntimeError):
+    """A run that failed on its way (a worker died, a peer went away): one line, exit status 1."""
+
+
 # (module, class) of the errors that are the user's to fix; looked up only among modules already imported,
 # since an exception of a class can exist only once its module is loaded (and the error path must not pay for
 # importing torch)
 _INPUT = (("sim.track.trackfile", "TrackError"), ("sim.scenario", "ScenarioError"), ("sim.errors", "RendererError"),
           ("sim.errors", "TrafficError"), ("perception.shards", "DatasetError"),
-          ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"))
+          ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"),
+          ("perception.files", "OutputError"), ("shm_bridge.declaration", "DeclarationError"),
+          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 
@@ -32,4 +38,4 @@ def input_errors() -> tuple[type[BaseException], ...]:
 
 def runtime_errors() -> tuple[type[BaseException], ...]:
     """Failures of a run rather than of its input (a peer process died)."""
-    return _loaded(_RUNTIME)
+    return (RunError,) + _loaded(_RUNTIME)

@@ -1,135 +1,100 @@
-"""Dataset generation: episodes of perturbed expert driving, recorded into shards, in parallel and resumable.
+"""Dataset generation for any declared world: episodes of expert driving recorded into shards, in parallel and
+resumable.
 
-The plan is a pure function of the options: episode k always has the same track, lane count, car count and
-seed, and so the same frames. Workers record whole episodes into shards (written atomically); the manifest
-lists the finished ones. Running the same command again after Ctrl-C or SIGKILL skips finished episodes,
-adopts shards that were renamed into place just before the manifest could list them, and deletes
-half-written temporaries: no frame is lost, duplicated or half-written.
+The plan is a pure function of the options (the world's Plugin.plan): episode k always has the same parameters
+and seed, and so the same frames. Workers record whole episodes into shards (written atomically); the manifest
+lists the finished ones with their size and SHA-256. Running the same command again after Ctrl-C or SIGKILL checks
+the listed shards (a damaged one is regenerated), skips finished episodes, adopts shards that were renamed into
+place just before the manifest could list them, and deletes half-written temporaries: no step is lost, duplicated
+or half-written.
+
+Local workers are plain child processes (`python -m drivestudio.generate worker`) that read episodes and write
+results as JSON lines on pipes: no POSIX semaphores or shared memory, so a kill -9 leaves nothing in /dev/shm.
 """
 from __future__ import annotations
 
 import ctypes
 import fcntl
+import importlib
 import importlib.metadata
+import json
 import os
 import platform
-import queue
+import selectors
 import signal
+import subprocess
 import sys
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass
-from multiprocessing import get_context
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
+from perception.shards import (MANIFEST, SPLIT_RULE, DatasetError, ShardInfo, ShardReader, ShardWriter,
+                               clean_temporaries, file_digest, manifest_declaration, read_manifest, shard_name,
+                               split_of, verify_shard, write_manifest)
 
-from perception.shards import (MANIFEST, SPLIT_RULE, DatasetError, ShardReader, ShardWriter, clean_temporaries,
-                               read_manifest, shard_name, split_of, write_manifest)
-from shm_bridge.vocabulary import INDICATORS
+from . import worlds
+from .errors import RunError, UsageError
+from .worlds import Episode
 
-from .errors import UsageError
-
-PROGRESS_EVERY = 25  # frames between progress reports from a worker
+PROGRESS_EVERY = 25  # steps between progress reports from a worker
 
 
 @dataclass(frozen=True)
 class GenerateConfig:
     """Everything that decides the content of a dataset (and nothing that does not, like the worker count)."""
 
+    world: str = "highway"
     frames: int = 20000
-    tracks: tuple = ()            # track references; () = every preset and `procedural` tracks
-    procedural: int = 3           # procedural tracks added to the default track list
-    lanes: tuple = (1, 2, 3)
-    cars: tuple = (12, 30)        # AI cars per episode, drawn from this range (inclusive)
     seed: int = 0
     renderer: str = "tiny"
-    width: int = 280
-    height: int = 210
-    fov: float = 60.0
     encoding: str = "png"
     quality: int = 95
     episode_frames: int = 500
-    warmup: float = 5.0           # [s] driven before recording starts
-
-    def track_list(self) -> list[str]:
-        if self.tracks:
-            return list(self.tracks)
-        from sim.track import preset_names
-        return preset_names() + [f"procedural:{self.seed * 1000 + i}" for i in range(self.procedural)]
+    warmup: float = 5.0               # [s] driven before recording starts
+    options: dict = field(default_factory=dict)   # the world's own (Plugin.generate_options)
 
 
-@dataclass(frozen=True)
-class Episode:
-    index: int
-    track: str
-    lanes: int
-    cars: int
-    seed: int
-    frames: int
+def plugin_ref(plugin) -> str:
+    """Where a worker process finds the world's plugin: "module:Class"."""
+    cls = type(plugin)
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+def load_plugin(ref: str):
+    module, _, name = ref.partition(":")
+    plugin = getattr(importlib.import_module(module), name)()
+    return worlds.register(plugin)
 
 
 def plan(cfg: GenerateConfig) -> list[Episode]:
-    """Episode k drives lane count k mod L on track (k div L) mod T: every track meets every lane count, and
-    with three lane counts the split rule's every-tenth episode cycles through them too (10 = 1 mod 3)."""
-    tracks = cfg.track_list()
-    n = -(-cfg.frames // cfg.episode_frames)
-    episodes = []
-    for k in range(n):
-        rng = np.random.default_rng([cfg.seed, k, 0x6E4])
-        frames = min(cfg.episode_frames, cfg.frames - k * cfg.episode_frames)
-        episodes.append(Episode(k, tracks[(k // len(cfg.lanes)) % len(tracks)], int(cfg.lanes[k % len(cfg.lanes)]),
-                                int(rng.integers(cfg.cars[0], cfg.cars[1] + 1)), int(rng.integers(2**31 - 1)),
-                                frames))
-    return episodes
+    return worlds.get(cfg.world).plan(cfg.options, cfg.frames, cfg.episode_frames, cfg.seed)
 
 
-def _record(ep: Episode, step: int, obs, action, label: str) -> dict:
-    t = obs.truth
-    rec = {name: float(v) for name, v in zip(INDICATORS, t.indicators)}
-    rec.update(lanes_left=t.lanes_left, lanes=t.lanes, speed=t.speed, lane_width=t.lane_width, in_lane=t.in_lane,
-               on_marking=t.on_marking, episode=ep.index, step=step, t=obs.t, track=ep.track, seed=ep.seed,
-               perturbation=label, ego=t.ego.tolist(), cars=t.cars.astype(np.float32).tolist(),
-               action=[action.steer, action.accel, action.brake])
-    return rec
+def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=None) -> dict:
+    """Drive one episode with the world's expert and write its shard; returns the manifest entry."""
+    from .loop import in_process, run_loop
 
-
-def record_episode(ep: Episode, cfg: GenerateConfig, out: str, progress=None) -> dict:
-    """Drive one episode and write its shard; returns the manifest entry. Runs in a worker process."""
-    from controller.expert import PerturbedExpert
-    from sim.camera import CameraConfig
-    from sim.world import World, WorldConfig
-
-    from .loop import run_loop
-
-    camera = CameraConfig(width=cfg.width, height=cfg.height, fov_deg=cfg.fov)
-    world = World(WorldConfig(track=ep.track, lanes=ep.lanes, cars=ep.cars, seed=ep.seed, renderer=cfg.renderer,
-                              camera=camera, render=False, start_speed=15.0))
+    world, expert, columns = plugin.episode(ep, cfg.options, cfg.renderer)
     try:
-        expert = PerturbedExpert(ep.lanes, world.track.lane_width, ep.seed, dt=world.config.dt)
-        label = ["none"]
-
-        def exchange(obs):
-            t = obs.truth
-            action, label[0] = expert.act(t.indicators, t.speed, float(t.ego[4]))
-            return action, t.indicators
-
-        run_loop(world, exchange, cfg.warmup, render=False, when_lost="recover")
-        writer = ShardWriter(Path(out) / shard_name(ep.index), cfg.encoding, cfg.quality)
+        act = in_process(expert)
+        run_loop(world, act, cfg.warmup, render=False, when_lost="recover")
+        writer = ShardWriter(Path(out) / shard_name(ep.index), world.declaration, cfg.encoding, cfg.quality)
 
         def on_step(rec) -> None:
-            writer.add(rec.obs.frame, _record(ep, len(writer), rec.obs, rec.action, label[0]))
+            obs = rec.obs
+            writer.add(obs.frames, obs.record, columns(obs), episode=ep.index, step=len(writer), t=obs.t,
+                       seed=ep.seed, action=rec.action)
             if progress is not None and len(writer) % PROGRESS_EVERY == 0:
-                progress.put(PROGRESS_EVERY)
+                progress(PROGRESS_EVERY)
 
-        run_loop(world, exchange, ep.frames * world.config.dt, render=True, on_step=on_step, when_lost="recover")
-        frames = writer.close()
+        run_loop(world, act, ep.frames * world.dt, render=True, on_step=on_step, when_lost="recover")
+        written = writer.close()
         if progress is not None:
-            progress.put(frames % PROGRESS_EVERY)
+            progress(written["frames"] % PROGRESS_EVERY)
     finally:
         world.close()
-    return {"file": shard_name(ep.index), "episode": ep.index, "frames": frames, "split": split_of(ep.index),
-            "track": ep.track, "lanes": ep.lanes}
+    return ShardInfo(shard_name(ep.index), ep.index, written["frames"], split_of(ep.index), dict(ep.params),
+                     written["size"], written["sha256"]).entry()
 
 
 # --- the run -------------------------------------------------------------------------------------------------
@@ -144,15 +109,16 @@ def _software() -> dict:
 
 
 def _config_dict(cfg: GenerateConfig) -> dict:
-    d = asdict(cfg)
-    d["tracks"], d["lanes"], d["cars"] = list(cfg.track_list()), list(cfg.lanes), list(cfg.cars)
-    return d
+    return json.loads(json.dumps(asdict(cfg)))   # tuples become lists, as they come back from the manifest
 
 
-def _open_manifest(out: Path, cfg: GenerateConfig) -> dict:
+def _open_manifest(out: Path, cfg: GenerateConfig, plugin) -> dict:
     config = _config_dict(cfg)
     if (out / MANIFEST).exists():
         manifest = read_manifest(out)
+        if manifest.get("version") == 1:
+            raise UsageError(f"{out} holds a dataset of format version 1; give a new --out (this version writes "
+                             "format 2)")
         if manifest.get("config") != config:
             old = manifest.get("config", {})
             diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
@@ -161,91 +127,163 @@ def _open_manifest(out: Path, cfg: GenerateConfig) -> dict:
         return manifest
     if any(out.glob("shard-*.parquet")):
         raise UsageError(f"{out} holds shards but no {MANIFEST}; it is not a dataset this command can continue")
-    return {"config": config, "seed": cfg.seed, "renderer": cfg.renderer, "split_rule": SPLIT_RULE,
-            "software": _software(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [],
-            "frames": 0, "complete": False}
+    decl = plugin.declaration_for(cfg.options)
+    return {"world": decl.to_json(), "config": config, "seed": cfg.seed, "renderer": cfg.renderer,
+            "split_rule": SPLIT_RULE, "software": _software(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "shards": [], "frames": 0, "complete": False}
+
+
+def _check_listed(out: Path, manifest: dict, log) -> None:
+    """Shards the manifest lists but that are missing or damaged (truncated, changed): forget them, so that their
+    episodes are recorded again."""
+    if not manifest["shards"]:
+        return
+    keep = []
+    for entry in manifest["shards"]:
+        info = ShardInfo.from_entry(entry)
+        problem = verify_shard(out, info)
+        if problem is None:
+            keep.append(entry)
+            continue
+        log(f"shard {info.file} is damaged ({problem}): recording episode {info.episode} again")
+        (out / info.file).unlink(missing_ok=True)
+    manifest["shards"] = keep
 
 
 def _adopt_orphans(out: Path, manifest: dict, episodes: list[Episode]) -> None:
     """Shards renamed into place by a run killed before it could list them: keep them if they are whole."""
     listed = {s["episode"] for s in manifest["shards"]}
+    decl = manifest_declaration(manifest)
     for ep in episodes:
         path = out / shard_name(ep.index)
         if ep.index in listed or not path.exists():
             continue
         try:
-            ok = len(ShardReader(path)) == ep.frames
+            ok = len(ShardReader(path, decl)) == ep.frames
         except DatasetError:
             ok = False
         if ok:
-            manifest["shards"].append({"file": path.name, "episode": ep.index, "frames": ep.frames,
-                                       "split": split_of(ep.index), "track": ep.track, "lanes": ep.lanes})
+            size, digest = file_digest(path)
+            manifest["shards"].append(ShardInfo(path.name, ep.index, ep.frames, split_of(ep.index), dict(ep.params),
+                                                size, digest).entry())
         else:
             path.unlink()
 
 
-def _worker_init(progress_queue) -> None:
-    global _PROGRESS
-    _PROGRESS = progress_queue
-    try:  # die with the parent, even when it is SIGKILLed, rather than run on as an orphan
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+# --- local workers -------------------------------------------------------------------------------------------
+def _die_with_parent() -> None:
+    try:  # PR_SET_PDEATHSIG: a SIGKILLed parent takes its workers with it rather than leave them running
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL)
     except (OSError, AttributeError):
         pass
+
+
+def worker_main() -> int:
+    """A local worker: JSON lines on stdin ({"ref", "episode", "config", "out"}), JSON lines on stdout
+    ({"progress": n}, {"done": entry} or {"error": message})."""
+    _die_with_parent()
     if os.getppid() == 1:
-        os._exit(1)
+        return 1
+    out_stream = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)   # library chatter must not corrupt the protocol
+
+    def send(obj) -> None:
+        out_stream.write(json.dumps(obj) + "\n")
+
+    for line in sys.stdin:
+        job = json.loads(line)
+        try:
+            plugin = load_plugin(job["ref"])
+            cfg = GenerateConfig(**job["config"])
+            ep = Episode(**job["episode"])
+            entry = record_episode(plugin, ep, cfg, job["out"], progress=lambda n: send({"progress": n}))
+            send({"done": entry})
+        except Exception as e:  # the parent reports it in one line and stops the run
+            send({"error": f"episode {job['episode']['index']}: {type(e).__name__}: {e}"})
+    return 0
 
 
-_PROGRESS = None
+def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int, ref: str, on_done,
+               on_frames) -> None:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    procs = [subprocess.Popen([sys.executable, "-m", "drivestudio.generate", "worker"], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True, bufsize=1, env=env,
+                              cwd=os.getcwd()) for _ in range(min(workers, len(todo)))]
+    queue = list(todo)
+    busy: dict = {}
+    sel = selectors.DefaultSelector()
 
+    def give(proc) -> None:
+        if queue:
+            ep = queue.pop(0)
+            proc.stdin.write(json.dumps({"ref": ref, "episode": asdict(ep), "config": asdict(cfg),
+                                         "out": str(out)}) + "\n")
+            proc.stdin.flush()
+            busy[proc] = ep
+        else:
+            proc.stdin.close()
 
-def _worker_episode(ep: Episode, cfg: GenerateConfig, out: str) -> dict:
-    return record_episode(ep, cfg, out, _PROGRESS)
-
-
-def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int, on_done, on_frames) -> None:
-    ctx = get_context("spawn")
-    progress = ctx.Queue()
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(progress,))
     try:
-        pending = {pool.submit(_worker_episode, ep, cfg, str(out)) for ep in todo}
-        while pending:
-            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
-            while True:
-                try:
-                    on_frames(progress.get_nowait())
-                except queue.Empty:
-                    break
-            for fut in done:
-                on_done(fut.result())
-    except BaseException:
-        for p in list(getattr(pool, "_processes", {}).values()):
-            p.kill()
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown()
+        for p in procs:
+            sel.register(p.stdout, selectors.EVENT_READ, p)
+            give(p)
+        while busy:
+            for key, _ in sel.select(timeout=1.0):
+                proc = key.data
+                line = proc.stdout.readline()
+                if not line:
+                    sel.unregister(proc.stdout)
+                    if proc in busy:
+                        raise RunError(f"a worker died while recording episode {busy[proc].index} "
+                                       f"(exit status {proc.wait()})")
+                    continue
+                msg = json.loads(line)
+                if "progress" in msg:
+                    on_frames(msg["progress"])
+                elif "done" in msg:
+                    busy.pop(proc)
+                    on_done(msg["done"])
+                    give(proc)
+                else:
+                    raise RunError(msg.get("error", "a worker failed"))
+        for p in procs:
+            p.wait(timeout=30)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        sel.close()
 
 
-def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, on_done) -> None:
+def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_done) -> None:
     try:
         import ray
     except ImportError:
         raise UsageError("--backend ray needs Ray: pip install 'drivestudio[cluster]' (and a folder every node "
                          "can write to as --out)") from None
     ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True, log_to_driver=False)
-    task = ray.remote(record_episode)
-    pending = [task.remote(ep, cfg, str(out)) for ep in todo]
+
+    def task(ref_, ep_, cfg_, out_):
+        return record_episode(load_plugin(ref_), ep_, cfg_, out_)
+
+    remote = ray.remote(task)
+    pending = [remote.remote(ref, ep, cfg, str(out)) for ep in todo]
     while pending:
         done, pending = ray.wait(pending, num_returns=1)
         on_done(ray.get(done[0]))
 
 
 def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "local",
-             show_progress: bool = True) -> dict:
+             show_progress: bool = True, log=print) -> dict:
     """Make (or continue) the dataset in `out`; returns its manifest."""
     from tqdm import tqdm
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    from perception.files import make_dir
+
+    plugin = worlds.get(cfg.world)
+    ref = plugin_ref(plugin)
+    out = make_dir(Path(out))
     lock = open(out / ".lock", "w")
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -253,8 +291,9 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
         raise UsageError(f"another generate run is writing to {out}") from None
     try:
         clean_temporaries(out)
-        manifest = _open_manifest(out, cfg)
+        manifest = _open_manifest(out, cfg, plugin)
         episodes = plan(cfg)
+        _check_listed(out, manifest, log)
         _adopt_orphans(out, manifest, episodes)
         done = {s["episode"] for s in manifest["shards"]}
         todo = [ep for ep in episodes if ep.index not in done]
@@ -274,9 +313,9 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
 
         try:
             if todo and backend == "ray":
-                _run_ray(todo, cfg, out, on_done)
+                _run_ray(todo, cfg, out, ref, on_done)
             elif todo:
-                _run_local(todo, cfg, out, workers, on_done, bar.update)
+                _run_local(todo, cfg, out, workers, ref, on_done, bar.update)
         finally:
             bar.close()
         manifest["complete"] = len(manifest["shards"]) == len(episodes)
@@ -285,3 +324,9 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
     finally:
         fcntl.flock(lock, fcntl.LOCK_UN)
         lock.close()
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["worker"]:
+        sys.exit(worker_main())
+    sys.exit("usage: python -m drivestudio.generate worker (started by `drivestudio generate`)")

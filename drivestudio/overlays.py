@@ -1,4 +1,4 @@
-"""Wiring for overlays: from the world's observations or a dataset's records to perception.overlay.compose."""
+"""Wiring for the highway's overlays: from its observations or a dataset's records to perception.overlay.compose."""
 from __future__ import annotations
 
 from functools import lru_cache
@@ -36,6 +36,5 @@ def overlay_observation(obs, estimate: np.ndarray | None, track: Track, title: s
 def overlay_record(image: np.ndarray, record: dict, truth: np.ndarray, estimate: np.ndarray | None,
                    title: str = "", lanes_left: float | None = None, label: str = "estimate") -> np.ndarray:
     track = track_of(record["track"], int(record["lanes"]))
-    ego = record["ego"]
-    return compose(image, truth, estimate, int(record["lanes"]), float(record["lane_width"]), float(ego[3]),
-                   float(ego[4]), car_gaps(track, ego[3], record["cars"]), title, lanes_left, label)
+    return compose(image, truth, estimate, int(record["lanes"]), float(record["lane_width"]), float(record["s"]),
+                   float(record["d"]), car_gaps(track, record["s"], record["cars"]), title, lanes_left, label)

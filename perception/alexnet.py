@@ -1,14 +1,16 @@
 """DeepDriving's AlexNet regressor: five conv(-relu-pool) layers, then fully connected 4096-4096-256-N.
 
 The convolutional trunk and pooling are torchvision's AlexNet (for 210x280 input the trunk ends in 5x7 cells,
-pooled to 6x6); the head replaces the 1000-way classifier. Trained from scratch as in seed 002 §6: no dropout
-(it made the regression loss unstable) and no output sigmoid (it slowed convergence, §6.3).
+pooled to 6x6); the head replaces the 1000-way classifier. Trained from scratch as in Liu and Wang, section 6: no dropout
+(it made the regression loss unstable) and no output sigmoid (it slowed convergence, section 6.3).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 from torchvision.models import alexnet as tv_alexnet
+
+from .models import Family, ModelInput, one_camera_now, register
 
 
 class AlexNetRegressor(nn.Module):
@@ -33,7 +35,7 @@ class AlexNetRegressor(nn.Module):
         # Start the outputs at the middle of the normalised range [0.1, 0.9] rather than at 0.
         nn.init.constant_(self.regressor[-1].bias, 0.5)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         x = self.features(x)
         x = self.avgpool(x)
         x = torch.flatten(x, 1)
@@ -43,3 +45,13 @@ class AlexNetRegressor(nn.Module):
 def alexnet(num_outputs: int = 13) -> AlexNetRegressor:
     """AlexNet for `num_outputs` indicators, randomly initialised (DeepDriving trains it from scratch)."""
     return AlexNetRegressor(num_outputs)
+
+
+def _build(inp: ModelInput, outputs: int, options: dict) -> AlexNetRegressor:
+    return AlexNetRegressor(outputs)
+
+
+register(Family(
+    "alexnet", "AlexNet", _build, one_camera_now, trainer="sgd",
+    defaults={"iterations": 10_000, "batch_size": 15, "lr": 1e-2},   # Liu and Wang, section 6.1
+    describe=lambda spec: "AlexNet" + (" (ImageNet init)" if spec["options"].get("weights") else "")))

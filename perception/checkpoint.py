@@ -1,8 +1,10 @@
 """The checkpoint format: one torch file holding plain data only, loaded with `weights_only=True` (no pickled
-code runs), written atomically (a temporary file renamed into place, so a crash leaves the previous one).
+code runs), written atomically (a temporary file renamed into place, so a crash leaves the previous one; a
+temporary left by a killed save is removed by the next save to the same place).
 
-    format, version   "drivestudio-perception", 1
-    spec              the model (perception/models.py): name, labels, options, input statistics, normalisation
+    format, version   "drivestudio-perception", 2 (version 1: highway models before worlds were declared; read)
+    spec              the model (perception/models.py): family, world, labels and outputs, options, input,
+                      normalisation
     state_dict        the model's tensors
     train             progress and settings: config (JSON-able), iteration, epoch, step_in_epoch, history
     optimizer, scheduler, rng    what resuming needs (absent from fitted GIST models)
@@ -10,48 +12,29 @@ code runs), written atomically (a temporary file renamed into place, so a crash 
 """
 from __future__ import annotations
 
-import os
 import pickle
-import tempfile
 from pathlib import Path
 
 import torch
 
+from .files import atomic_write
+
 FORMAT = "drivestudio-perception"
-VERSION = 1
+VERSION = 2
+READABLE = (1, 2)
 
 
 class CheckpointError(ValueError):
     """A checkpoint (or weights file) that cannot be used: missing, not ours, truncated, or not the model asked for."""
 
 
-def _replace_atomically(path, write) -> None:
-    """Call write(file) on a hidden temporary file beside `path`, then rename it into place."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # the permissions of an ordinary new file, not mkstemp's 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_write(path, data: bytes) -> None:
-    _replace_atomically(path, lambda f: f.write(data))
-
-
 def save_checkpoint(path, payload: dict) -> None:
-    _replace_atomically(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
+    atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
 
 
-def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu") -> dict:
-    """Read and check a checkpoint; `model` and `labels`, when given, must be the ones it was trained for."""
+def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu", world: str | None = None) -> dict:
+    """Read and check a checkpoint; `model`, `labels` and `world`, when given, must be the ones it was trained
+    for."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"no checkpoint at {path}")
@@ -69,12 +52,17 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
         raise CheckpointError(f"{path} is not a drivestudio checkpoint ({type(e).__name__})") from None
     if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a drivestudio checkpoint")
-    if ckpt.get("version") != VERSION:
-        raise CheckpointError(f"{path} has checkpoint version {ckpt.get('version')}; this reader reads {VERSION}")
+    if ckpt.get("version") not in READABLE:
+        raise CheckpointError(f"{path} has checkpoint version {ckpt.get('version')}; this reader reads "
+                              f"{', '.join(map(str, READABLE))}")
     spec = ckpt.get("spec")
     if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
             not {"name", "labels", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
+    from .models import upgrade_spec
+    spec = ckpt["spec"] = upgrade_spec(spec)
+    if world is not None and spec["world"] != world:
+        raise CheckpointError(f"{path} is a model of the {spec['world']} world, not of the {world} world")
     if model is not None and spec["name"] != model:
         raise CheckpointError(f"{path} holds a '{spec['name']}' model, not '{model}'")
     if labels is not None and tuple(spec["labels"]) != tuple(labels):
@@ -87,18 +75,18 @@ def describe_labels(labels) -> str:
     """"13 indicators (the paper's)", "14 indicators (the paper's 13 + fast)", ..."""
     labels = tuple(labels)
     extra = [n for n in labels[13:]]
-    from shm_bridge.vocabulary import PAPER_INDICATORS
+    from shm_bridge.worlds.highway import PAPER_INDICATORS
     if labels[:13] == PAPER_INDICATORS:
         return f"{len(labels)} indicators (the paper's 13{''.join(' + ' + n for n in extra)})"
-    return f"{len(labels)} outputs ({', '.join(labels)})"
+    return f"{len(labels)} labels ({', '.join(labels)})"
 
 
-def load_model(path, model: str | None = None, labels=None, device="cpu"):
+def load_model(path, model: str | None = None, labels=None, device="cpu", world: str | None = None):
     """The model of a checkpoint, in eval mode on `device`: (Regressor, checkpoint dict)."""
-    from .models import Regressor, check_normalisation
+    from .models import Regressor, check_spec
 
-    ckpt = load_checkpoint(path, model=model, labels=labels)
-    check_normalisation(ckpt["spec"], str(path))
+    ckpt = load_checkpoint(path, model=model, labels=labels, world=world)
+    check_spec(ckpt["spec"], str(path))
     net = Regressor(ckpt["spec"])
     try:
         net.load_state_dict(ckpt["state_dict"])

@@ -1,4 +1,6 @@
-"""What a dataset covers: regimes, lane positions, near cars, angles, lane changes; and label histograms.
+"""What a dataset covers, and label histograms. For the highway: regimes, lane positions, near cars, angles, lane
+changes; for any world: frames per split, the spread of every label, the balance of behavioural modes and the share
+of every flag of the truth record (collisions, corrections, ...).
 
 Reads label columns only (no image is decoded), so it runs at millions of frames per minute.
 """
@@ -8,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from shm_bridge.vocabulary import GAP_MAX, GAPS, INACTIVE, INDICATORS
+from shm_bridge.worlds.highway import GAP_MAX, GAPS, INACTIVE, INDICATORS
 
 from .shards import Dataset
 
@@ -21,8 +23,17 @@ def _share(mask: np.ndarray) -> float:
     return round(float(np.mean(mask)), 4) if mask.size else 0.0
 
 
+def _splits(ds: Dataset) -> dict:
+    """How the split was made and what each split holds."""
+    rule = ds.manifest.get("split_rule", "episode % 10: 0-7 train, 8 validation, 9 test")
+    return {"rule": rule, **{s: {"episodes": len(ds.select(s)), "frames": ds.frames(s)}
+                             for s in ("train", "val", "test")}}
+
+
 def summarize(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
     """(summary, label arrays) of a split ("train", "val", "test" or None for all)."""
+    if ds.world != "highway":
+        return summarize_any(ds, split)
     v = ds.labels(split, COLUMNS)
     n = len(v["angle"])
     in_lane, on_marking = v["in_lane"].astype(bool), v["on_marking"].astype(bool)
@@ -42,8 +53,10 @@ def summarize(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
         m = lanes == count
         positions[f"{count} lane(s)"] = {f"lane {k}": int(np.sum(m & (lanes_left == k))) for k in range(count)}
     summary = {
+        "world": ds.world,
         "frames": n,
         "episodes": int(len(np.unique(v["episode"]))),
+        "splits": _splits(ds),
         "tracks": sorted(set(v["track"].tolist())),
         "share_in_lane_only": _share(in_lane & ~on_marking),
         "share_on_marking_only": _share(on_marking & ~in_lane),
@@ -64,11 +77,43 @@ def summarize(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
     return summary, v
 
 
+def summarize_any(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
+    """The summary of a dataset of any world: splits, label spread, mode balance, flag shares."""
+    decl = ds.declaration
+    flags = [q.name for q in decl.truth if q.kind == "bool"]
+    columns = list(dict.fromkeys(list(decl.label_names) + flags + ([decl.mode_field] if decl.mode_field else [])
+                                 + ["episode", "step"]))
+    v = ds.labels(split, columns)
+    n = len(v["episode"])
+    spread = {}
+    for name in decl.label_names:
+        x = v[name].astype(np.float64)
+        spread[name] = {k: round(float(f(x)), 4) if n else 0.0 for k, f in
+                        (("min", np.min), ("p5", lambda a: np.percentile(a, 5)), ("median", np.median),
+                         ("p95", lambda a: np.percentile(a, 95)), ("max", np.max), ("std", np.std))}
+    summary = {"world": ds.world, "frames": n, "episodes": int(len(np.unique(v["episode"]))),
+               "splits": _splits(ds), "labels": spread,
+               "flags": {name: _share(v[name].astype(bool)) for name in flags}}
+    if decl.mode_field:
+        modes = v[decl.mode_field].astype(int)
+        summary["modes"] = {m: _share(modes == i) for i, m in enumerate(decl.modes)}
+        for m_i, m in enumerate(decl.modes):
+            summary.setdefault("labels_by_mode", {})[m] = {
+                name: round(float(np.mean(v[name][modes == m_i])), 4) if np.any(modes == m_i) else None
+                for name in decl.label_names}
+    return summary, v
+
+
 def table(summary: dict) -> str:
     """The summary as a Markdown table."""
     rows = ["| measure | value |", "|---|---|"]
-    for key in ("frames", "episodes"):
+    for key in ("world", "frames", "episodes"):
         rows.append(f"| {key} | {summary[key]} |")
+    sp = summary["splits"]
+    rows.append(f"| split | {sp['rule']}: " + ", ".join(f"{k} {sp[k]['frames']} frames in {sp[k]['episodes']} "
+                                                        f"episodes" for k in ("train", "val", "test")) + " |")
+    if summary["world"] != "highway":
+        return _table_any(summary, rows)
     rows.append(f"| tracks | {len(summary['tracks'])}: {', '.join(summary['tracks'])} |")
     for key in ("share_in_lane_only", "share_on_marking_only", "share_overlap"):
         rows.append(f"| {key.replace('_', ' ')} | {summary[key]:.1%} |")
@@ -86,7 +131,20 @@ def table(summary: dict) -> str:
     return "\n".join(rows)
 
 
-def histograms(values: dict, out_dir: Path) -> list[Path]:
+def _table_any(summary: dict, rows: list[str]) -> str:
+    for name, st in summary["labels"].items():
+        rows.append(f"| {name} | min {st['min']}, 5% {st['p5']}, median {st['median']}, 95% {st['p95']}, "
+                    f"max {st['max']}, std {st['std']} |")
+    if "modes" in summary:
+        rows.append("| behavioural modes | " + ", ".join(f"{k} {v:.1%}" for k, v in summary["modes"].items()) + " |")
+        for mode, means in summary["labels_by_mode"].items():
+            rows.append(f"| mean labels, {mode} | " + ", ".join(f"{k} {v}" for k, v in means.items()) + " |")
+    for name, share in summary["flags"].items():
+        rows.append(f"| share {name.replace('_', ' ')} | {share:.1%} |")
+    return "\n".join(rows)
+
+
+def histograms(values: dict, out_dir: Path, decl=None) -> list[Path]:
     """One PNG per indicator (active values; the share of inactive readings in the title) and an overview."""
     import matplotlib
     matplotlib.use("Agg")
@@ -94,9 +152,12 @@ def histograms(values: dict, out_dir: Path) -> list[Path]:
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    names = list(INDICATORS) + ["lanes_left", "speed"]
+    names = list(INDICATORS) + ["lanes_left", "speed"] if decl is None or decl.name == "highway" else \
+        list(decl.label_names)
     written = []
-    grid, axes = plt.subplots(4, 4, figsize=(16, 12))
+    cols = 4 if len(names) > 4 else len(names)
+    grid, axes = plt.subplots(-(-len(names) // cols), cols, figsize=(4 * cols, 3 * -(-len(names) // cols)),
+                              squeeze=False)
     for ax_grid, name in zip(axes.flat, names):
         x = values[name].astype(np.float64)
         inactive = x == INACTIVE[name] if name in INACTIVE else np.zeros(len(x), bool)
@@ -105,6 +166,8 @@ def histograms(values: dict, out_dir: Path) -> list[Path]:
         if name in GAPS:
             title += f", {np.mean(active >= GAP_MAX):.0%} at {GAP_MAX:g}" if active.size else ""
         bins = np.arange(-0.5, 4.5) if name == "lanes_left" else 50
+        if not active.size:
+            active = np.zeros(0)
         fig, ax = plt.subplots(figsize=(5, 3.2))
         for a in (ax, ax_grid):
             a.hist(active, bins=bins, color="#3b6ea5")

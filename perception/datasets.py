@@ -1,95 +1,215 @@
-"""PyTorch readers of the dataset format (perception/shards.py).
+"""PyTorch readers of the dataset format (perception/shards.py), for any declared world.
 
-FrameDataset: map-style, random access (`dataset[i]`), for evaluation and small sets.
-FrameStream: iterable, reads whole row groups in a shuffled shard order through a shuffle buffer, split
-across DataLoader workers: the way to train on hundreds of thousands of frames.
+A sample is assembled from the recorded steps of one episode as the world's declaration says (its `moment`):
+the images of the steps at the moment's instants (the highway: the current step; MultiNet's data moment: the
+stereo pair now and one step, 33 ms, earlier), and the targets: the labels of the current step (horizon 0) or of
+the `horizon` following steps (MultiNet: the next 10 steering and 10 motor values). Every step that has the steps
+it needs starts one sample; nothing is stored twice.
 
-Both yield (image, target): image a uint8 tensor (3, H, W) RGB, target a float32 tensor of the requested
-labels normalised with DeepDriving's affine maps (shm_bridge.vocabulary.normalise), or raw with
-normalised=False.
+FrameDataset: map-style, random access (`dataset[i]`), for evaluation, balanced sampling and small sets.
+FrameStream: iterable, reads whole episodes in a shuffled order through a shuffle buffer, split across DataLoader
+workers: the way to train on hundreds of thousands of samples.
+
+Both yield (images, mode, target): images a uint8 tensor (C, H, W) with C = instants x cameras x 3 (oldest instant
+first, cameras in declaration order, RGB), mode an int64 scalar tensor (the behavioural mode index, -1 for a world
+without modes), target a float32 tensor of the outputs (normalised with the declaration's affine maps, or raw
+with normalised=False).
 """
 from __future__ import annotations
 
 import bisect
 import math
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from shm_bridge.vocabulary import PAPER_INDICATORS, normalise
+from shm_bridge.declaration import Moment, WorldDeclaration, base_name, expand
 
-from .shards import SCHEMA, Dataset, DatasetError, ShardReader, decode_image
-
-
-def _check_labels(labels) -> tuple[str, ...]:
-    labels = tuple(labels)
-    missing = [n for n in labels if n not in SCHEMA.names or n == "image"]
-    if missing:
-        raise DatasetError(f"the dataset has no labels {missing}")
-    return labels
+from .shards import Dataset, DatasetError, ShardReader, decode_image, image_column
 
 
-def _image_tensor(rgb: np.ndarray) -> torch.Tensor:
-    return torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1)))
+class SampleSpec:
+    """What one sample of a dataset holds: which targets over which horizon, which images at which instants."""
+
+    def __init__(self, decl: WorldDeclaration, targets=None, moment: Moment | None = None, normalised: bool = True):
+        self.decl = decl
+        self.targets = tuple(decl.targets if targets is None else targets)
+        self.moment = decl.moment if moment is None else moment
+        self.normalised = normalised
+        labels = set(decl.label_names)
+        missing = [n for n in self.targets if n not in labels]
+        if missing:
+            raise DatasetError(f"the {decl.name} dataset has no labels {missing} (labels: "
+                               f"{', '.join(decl.label_names)})")
+        if not self.targets:
+            raise DatasetError("no targets to learn")
+        self.outputs = expand(self.targets, self.moment.horizon)
+        self.mode_field = decl.mode_field
+        self.columns = tuple(dict.fromkeys(self.targets + ((decl.mode_field,) if decl.mode_field else ())))
+        self.images = tuple(image_column(c.name) for c in decl.cameras)
+
+    @property
+    def channels(self) -> int:
+        return len(self.moment.instants) * sum(c.channels for c in self.decl.cameras)
+
+    def starts(self, steps: int) -> range:
+        """The steps of an episode of `steps` steps that start a sample."""
+        return range(-self.moment.earliest, steps - self.moment.horizon)
+
+    def target_values(self, values: np.ndarray, t: int) -> np.ndarray:
+        """The raw target vector of the sample at step t, from the episode's (steps, targets) label array."""
+        h = self.moment.horizon
+        if h == 0:
+            return values[t]
+        return values[t + 1:t + 1 + h].T.reshape(-1)   # each target's h future values, target by target
+
+    def target_tensor(self, raw: np.ndarray) -> torch.Tensor:
+        raw = np.asarray(raw, dtype=np.float32)
+        return torch.from_numpy(self.decl.normalise(raw, self.outputs) if self.normalised else raw)
 
 
-def _target(values: np.ndarray, labels: tuple[str, ...], normalised: bool) -> torch.Tensor:
-    values = np.asarray(values, dtype=np.float32)
-    return torch.from_numpy(normalise(values, labels) if normalised else values)
+def _stack(images) -> torch.Tensor:
+    """(h, w, 3) RGB arrays -> one uint8 (3 * len, h, w) tensor."""
+    if len(images) == 1:
+        return torch.from_numpy(np.ascontiguousarray(images[0].transpose(2, 0, 1)))
+    return torch.from_numpy(np.ascontiguousarray(np.concatenate(images, axis=2).transpose(2, 0, 1)))
+
+
+def _mode_tensor(value) -> torch.Tensor:
+    return torch.tensor(-1 if value is None else int(value), dtype=torch.int64)
 
 
 class FrameDataset(torch.utils.data.Dataset):
-    def __init__(self, root: str | Path, split: str | None = "train", labels=PAPER_INDICATORS,
-                 normalised: bool = True):
+    def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
+                 moment: Moment | None = None):
         self.data = Dataset(Path(root))
-        self.labels = _check_labels(labels)
-        self.normalised = normalised
+        self.spec = SampleSpec(self.data.declaration, targets, moment, normalised)
         self.shards = self.data.select(split)
-        if not self.shards:
-            raise DatasetError(f"dataset {self.data.root} has no frames in split '{split}'")
-        self._starts = np.cumsum([0] + [s.frames for s in self.shards]).tolist()
-        self._readers: dict[int, ShardReader] = {}  # opened lazily, per worker process
+        self._starts_of = [self.spec.starts(s.frames) for s in self.shards]
+        if not self.shards or not sum(len(r) for r in self._starts_of):
+            raise DatasetError(f"dataset {self.data.root} has no samples in split '{split}'")
+        self._offsets = np.cumsum([0] + [len(r) for r in self._starts_of]).tolist()
+        self._readers: dict[int, ShardReader] = {}    # opened lazily, per worker process
+        self._values: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+        self._groups: OrderedDict = OrderedDict()     # (shard, row group) -> table, a few kept
+
+    @property
+    def targets(self) -> tuple[str, ...]:
+        return self.spec.targets
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.spec.outputs
 
     def __len__(self) -> int:
-        return self._starts[-1]
+        return self._offsets[-1]
 
-    def _locate(self, i: int) -> tuple[int, int]:
+    def locate(self, i: int) -> tuple[int, int]:
+        """(shard index, step) of sample i."""
         if not 0 <= i < len(self):
             raise IndexError(i)
-        k = bisect.bisect_right(self._starts, i) - 1
-        return k, i - self._starts[k]
+        k = bisect.bisect_right(self._offsets, i) - 1
+        return k, self._starts_of[k][i - self._offsets[k]]
 
-    def record(self, i: int) -> tuple[np.ndarray, dict]:
-        """Frame i as (RGB image, every label column)."""
-        k, row = self._locate(i)
+    def _reader(self, k: int) -> ShardReader:
         if k not in self._readers:
             self._readers[k] = self.data.reader(self.shards[k])
-        return self._readers[k].row(row)
+        return self._readers[k]
+
+    def _episode_values(self, k: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """(steps, targets) raw label array and the mode per step of shard k."""
+        if k not in self._values:
+            table = self._reader(k).labels(self.spec.columns)
+            values = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
+                               for n in self.spec.targets], axis=1)
+            modes = table.column(self.spec.mode_field).to_numpy() if self.spec.mode_field else None
+            self._values[k] = (values, modes)
+        return self._values[k]
+
+    def _image_bytes(self, k: int, step: int) -> list[bytes]:
+        reader = self._reader(k)
+        starts = reader._starts
+        g = int(np.searchsorted(starts, step, side="right") - 1)
+        key = (k, g)
+        table = self._groups.get(key)
+        if table is None:
+            table = reader.row_group(g, self.spec.images)
+            self._groups[key] = table
+            if len(self._groups) > 4:
+                self._groups.popitem(last=False)
+        row = step - int(starts[g])
+        return [table.column(c)[row].as_py() for c in self.spec.images]
+
+    def images(self, k: int, t: int) -> list[np.ndarray]:
+        """The decoded images of the sample at step t of shard k, oldest instant first, cameras in order."""
+        out = []
+        for dt in self.spec.moment.instants:
+            out.extend(decode_image(b) for b in self._image_bytes(k, t + dt))
+        return out
+
+    def mode_of(self, i: int) -> int:
+        k, t = self.locate(i)
+        modes = self._episode_values(k)[1]
+        return -1 if modes is None else int(modes[t])
+
+    def modes(self) -> np.ndarray:
+        """The behavioural mode index of every sample (-1 without modes); reads labels only."""
+        out = []
+        for k, starts in enumerate(self._starts_of):
+            modes = self._episode_values(k)[1]
+            out.append(np.full(len(starts), -1) if modes is None else np.asarray(modes)[list(starts)])
+        return np.concatenate(out).astype(np.int64) if out else np.zeros(0, np.int64)
+
+    def raw_targets(self, i: int) -> np.ndarray:
+        k, t = self.locate(i)
+        return self.spec.target_values(self._episode_values(k)[0], t)
+
+    def record(self, i: int) -> tuple[tuple, dict]:
+        """Sample i's current step as stored: (images per camera, every other column)."""
+        k, t = self.locate(i)
+        return self._reader(k).row(t)
 
     def __getitem__(self, i: int):
-        image, record = self.record(int(i))
-        return _image_tensor(image), _target([record[n] for n in self.labels], self.labels, self.normalised)
+        k, t = self.locate(int(i))
+        values, modes = self._episode_values(k)
+        return (_stack(self.images(k, t)), _mode_tensor(None if modes is None else modes[t]),
+                self.spec.target_tensor(self.spec.target_values(values, t)))
 
     def __getstate__(self):  # DataLoader workers reopen the shards themselves
         state = dict(self.__dict__)
-        state["_readers"] = {}
+        state["_readers"], state["_groups"] = {}, OrderedDict()
         return state
 
 
 class FrameStream(torch.utils.data.IterableDataset):
-    def __init__(self, root: str | Path, split: str | None = "train", labels=PAPER_INDICATORS,
-                 normalised: bool = True, shuffle: bool = True, seed: int = 0, buffer: int = 2048):
+    """Samples of a split, episode by episode, shuffled through a buffer (shuffle=False: in order).
+
+    context: columns whose raw value at the sample's step is yielded as a fourth element (float64 tensor), for
+    reports that split errors by regime."""
+
+    def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
+                 shuffle: bool = True, seed: int = 0, buffer: int = 2048, moment: Moment | None = None,
+                 context: tuple[str, ...] = ()):
         self.data = Dataset(Path(root))
-        self.labels = _check_labels(labels)
-        self.normalised, self.shuffle, self.seed, self.buffer = normalised, shuffle, seed, buffer
+        self.spec = SampleSpec(self.data.declaration, targets, moment, normalised)
+        self.shuffle, self.seed, self.buffer = shuffle, seed, buffer
+        self.context = tuple(context)
+        missing = self.data.has_columns(self.context)
+        if missing:
+            raise DatasetError(f"the {self.data.world} dataset {self.data.root} has no column {', '.join(missing)}")
         self.shards = self.data.select(split)
-        if not self.shards:
-            raise DatasetError(f"dataset {self.data.root} has no frames in split '{split}'")
+        if not self.shards or not len(self):
+            raise DatasetError(f"dataset {self.data.root} has no samples in split '{split}'")
         self.epoch = 0
 
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.spec.outputs
+
     def __len__(self) -> int:
-        return sum(s.frames for s in self.shards)
+        return sum(len(self.spec.starts(s.frames)) for s in self.shards)
 
     def set_epoch(self, epoch: int) -> None:
         """A new shuffle order per epoch (call before iterating, as with DistributedSampler)."""
@@ -105,25 +225,45 @@ class FrameStream(torch.utils.data.IterableDataset):
             order = order[info.id::info.num_workers]
         return order, rng
 
+    def _episode(self, k: int):
+        """The samples of shard k as (encoded images, mode, raw targets, context), in step order."""
+        spec = self.spec
+        reader = self.data.reader(self.shards[k])
+        table = reader.labels(tuple(dict.fromkeys(spec.columns + self.context)))
+        values = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
+                           for n in spec.targets], axis=1)
+        modes = table.column(spec.mode_field).to_numpy() if spec.mode_field else None
+        context = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
+                            for n in self.context], axis=1) if self.context else None
+        starts = spec.starts(len(values))
+        instants = spec.moment.instants
+        keep = -spec.moment.earliest + 1     # steps of images a sample may reach back to
+        window: list[list[bytes]] = []
+        step = 0
+        for group in reader.iter_row_groups(spec.images):
+            columns = [group.column(c).to_pylist() for c in spec.images]
+            for row in zip(*columns):
+                window.append(list(row))
+                if len(window) > keep:
+                    window.pop(0)
+                if step in starts:
+                    encoded = [img for dt in instants for img in window[len(window) - 1 + dt]]
+                    yield (encoded, None if modes is None else int(modes[step]),
+                           spec.target_values(values, step), None if context is None else context[step])
+                step += 1
+
     def __iter__(self):
         order, rng = self._my_shards()
         pool: list = []
-        columns = ["image", *self.labels]
         for k in order:
-            reader = self.data.reader(self.shards[k])
-            for table in reader.iter_row_groups():
-                table = table.select(columns)
-                images = table.column("image").to_pylist()
-                values = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float32)
-                                   for n in self.labels], axis=1)
-                for img, v in zip(images, values):
-                    pool.append((img, v))
+            for item in self._episode(k):
+                pool.append(item)
                 if not self.shuffle:
                     yield from self._emit(pool)
                     pool = []
                 elif len(pool) >= self.buffer:
                     rng.shuffle(pool)
-                    keep = math.ceil(self.buffer / 2)  # emit half, keep half to mix with the next shards
+                    keep = math.ceil(self.buffer / 2)  # emit half, keep half to mix with the next episodes
                     yield from self._emit(pool[keep:])
                     pool = pool[:keep]
         if self.shuffle:
@@ -131,5 +271,14 @@ class FrameStream(torch.utils.data.IterableDataset):
         yield from self._emit(pool)
 
     def _emit(self, items):
-        for img, v in items:
-            yield _image_tensor(decode_image(img)), _target(v, self.labels, self.normalised)
+        for encoded, mode, raw, context in items:
+            sample = (_stack([decode_image(b) for b in encoded]), _mode_tensor(mode), self.spec.target_tensor(raw))
+            if self.context:
+                yield (*sample, torch.from_numpy(np.asarray(context, dtype=np.float64)))
+            else:
+                yield sample
+
+
+def output_labels(outputs) -> tuple[str, ...]:
+    """The label each output stands for ("steer+3" -> "steer")."""
+    return tuple(base_name(o) for o in outputs)

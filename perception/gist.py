@@ -1,4 +1,4 @@
-"""The GIST baseline of DeepDriving (seed 002, Table 3): a scene descriptor and a regularised regressor on it.
+"""The GIST baseline of Liu and Wang (Deeper Direct Perception, Table 3): a scene descriptor and a regularised regressor on it.
 
 GIST (Oliva & Torralba 2001; the LMgist reference code): the frame is made grey, resized, log-compressed,
 whitened and contrast-normalised (the pre-filter); Gabor filters of 4 scales x 8 orientations are applied in
@@ -13,6 +13,8 @@ import math
 import torch
 import torch.nn.functional as F
 from torch import nn
+
+from .models import Family, ModelInput, one_camera_now, register
 
 ORIENTATIONS = (8, 8, 8, 8)  # orientations per scale, finest scale first
 GRID = 4                     # energies are averaged over GRID x GRID cells
@@ -112,7 +114,7 @@ class GistRegressor(nn.Module):
             z = torch.cos(z @ self.rff_weight / self.rff_width + self.rff_phase) * math.sqrt(2.0 / self.rff_weight.shape[1])
         return z
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         return self.lift(self.descriptor(x)) @ self.weight + self.bias
 
     @torch.no_grad()
@@ -151,3 +153,12 @@ class GistRegressor(nn.Module):
 
 def gist(num_outputs: int = 13, regressor: str = "ridge", seed: int = 0) -> GistRegressor:
     return GistRegressor(num_outputs, regressor=regressor, seed=seed)
+
+
+def _build(inp: ModelInput, outputs: int, options: dict) -> GistRegressor:
+    return GistRegressor(outputs, regressor=options.get("regressor", "ridge"), seed=int(options.get("seed", 0)))
+
+
+register(Family("gist", "GIST", _build, one_camera_now, trainer="closed-form",
+                defaults={"batch_size": 32},
+                describe=lambda spec: f"GIST + {spec['options'].get('regressor', 'ridge')}"))

@@ -1,106 +1,236 @@
-"""The model registry and the wrapper every regressor is used through.
+"""The model registry and the wrapper every model is used through.
+
+A model family registers a `Family`: a builder that takes the input (channels, height, width, behavioural modes)
+and the number of outputs, a test of which worlds it fits, how its input is scaled and how it is trained. The
+families shipped: alexnet, vgg16, gist (the highway's regressors, one camera) and z2color (MultiNet, stereo moments
+with a behavioural mode). `drivestudio train --model NAME` offers the families that fit the dataset's world.
 
 A model is described by a `spec`, a plain JSON-able dict that a checkpoint stores beside the weights:
-    name           "alexnet" | "vgg16" | "gist"
-    labels         the regression targets in output order (shm_bridge.vocabulary.label_set)
-    options        family options: weights ("imagenet" or None: where the trunk started) for alexnet and
-                   vgg16; batch_norm, frozen for vgg16; regressor ("ridge" | "rbf") and seed for gist
-    input          {"height", "width", "mean", "std"}: frames are scaled to [0, 1], then (x - mean) / std
-                   per channel; mean and std are the training frames' own (seed 002 §5.1 subtracts the
-                   dataset's mean) or ImageNet's when the trunk starts from ImageNet weights
-    normalisation  {label: [scale, offset]}: the vocabulary's maps the targets were trained with
-`Regressor(spec)` rebuilds the network from it; its forward takes uint8 frames (B, 3, H, W) RGB and returns
-normalised indicators (about [0.1, 0.9]); `denormalise` maps them back to metres, radians and flags.
+    name           the family
+    world          the world's name; `labels` the targets it learns, `outputs` the output names (targets expanded
+                   over the moment's horizon: "steer+1" .. "steer+10")
+    options        family options (weights, frozen, batch_norm, regressor, seed, ...)
+    input          {"channels", "height", "width", "instants", "cameras", "modes", "scaling", "mean", "std"}:
+                   frames arrive as uint8 (B, channels, H, W) and are resized (area) to height x width;
+                   scaling "standardise" maps them to [0, 1] then (x - mean) / std per channel (the training
+                   frames' own statistics, or ImageNet's), "centre" to x / 255 - 0.5 (Z2Color)
+    normalisation  {output: [scale, offset]}: the declaration's maps the targets were trained with
+`Regressor(spec)` rebuilds the network; its forward takes (images, modes) and returns normalised outputs;
+`denormalise` maps them back to the labels' units.
 """
 from __future__ import annotations
 
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
-from shm_bridge.vocabulary import NORMALISATION, denormalise
+from shm_bridge import worlds
+from shm_bridge.declaration import DeclarationError, WorldDeclaration
 
-from .alexnet import alexnet
 from .checkpoint import CheckpointError
-from .gist import gist
-from .vgg import vgg16
 
-MODELS = ("alexnet", "vgg16", "gist")
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
-FRAME_SIZE = (210, 280)  # (h, w) of the world's camera frames
+SCALINGS = ("standardise", "centre")
 
 
-def make_spec(name: str, labels, mean=(0.0, 0.0, 0.0), std=(1.0, 1.0, 1.0), size=FRAME_SIZE,
+@dataclass(frozen=True)
+class ModelInput:
+    channels: int
+    height: int
+    width: int
+    modes: int = 0       # behavioural modes fed beside the images (0: none)
+
+
+@dataclass(frozen=True)
+class Family:
+    """A kind of model. build(input, outputs, options) -> nn.Module whose forward(x, modes) takes scaled float
+    images (B, C, H, W) and mode indices (B,) (ignored by families without modes) and returns (B, outputs).
+
+    fits(declaration) -> None when the family can learn that world, else why not (one line).
+    size(declaration) -> (height, width) the family wants its input at (None: the camera's own).
+    trainer: "sgd" (iterations of SGD/Adam on the Euclidean loss), "closed-form" (GIST + ridge) or "multinet"
+    (epochs of Adadelta, MultiNet's losses and trials). defaults: the trainer's settings for this family.
+    """
+
+    name: str
+    title: str
+    build: Callable[[ModelInput, int, dict], nn.Module]
+    fits: Callable[[WorldDeclaration], str | None]
+    scaling: str = "standardise"
+    trainer: str = "sgd"
+    size: Callable[[WorldDeclaration], tuple[int, int] | None] = lambda decl: None
+    defaults: dict = field(default_factory=dict)
+    describe: Callable[[dict], str] | None = None
+
+
+_FAMILIES: dict[str, Family] = {}
+_BUILTIN = ("perception.alexnet", "perception.vgg", "perception.gist", "perception.z2color")
+_loaded = False
+
+
+def register(family: Family) -> Family:
+    if family.scaling not in SCALINGS:
+        raise ValueError(f"family {family.name}: scaling must be one of {SCALINGS}")
+    _FAMILIES[family.name] = family
+    return family
+
+
+def _load_builtin() -> None:
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        for module in _BUILTIN:
+            importlib.import_module(module)
+
+
+def families() -> dict[str, Family]:
+    _load_builtin()
+    return dict(_FAMILIES)
+
+
+def family(name: str) -> Family:
+    fams = families()
+    if name not in fams:
+        raise CheckpointError(f"unknown model '{name}' (families: {', '.join(sorted(fams))})")
+    return fams[name]
+
+
+def fitting(decl: WorldDeclaration) -> list[str]:
+    """The families that can learn world `decl`."""
+    return sorted(n for n, f in families().items() if f.fits(decl) is None)
+
+
+def one_camera_now(decl: WorldDeclaration) -> str | None:
+    """The highway regressors' test: one RGB camera, one instant, targets of the current step."""
+    if len(decl.cameras) != 1 or decl.cameras[0].channels != 3:
+        return f"it reads one RGB camera; the {decl.name} world has {len(decl.cameras)}"
+    if decl.moment.instants != (0,) or decl.moment.horizon:
+        return f"it reads the current frame only; the {decl.name} world's samples span several steps"
+    return None
+
+
+def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=None, size=None,
               **options) -> dict:
-    if name not in MODELS:
-        raise ValueError(f"unknown model '{name}' (choose from {', '.join(MODELS)})")
-    labels = [str(n) for n in labels]
-    return {"name": name, "labels": labels, "options": dict(options),
-            "input": {"height": int(size[0]), "width": int(size[1]),
-                      "mean": [float(v) for v in mean], "std": [float(v) for v in std]},
-            "normalisation": {n: [float(v) for v in NORMALISATION[n]] for n in labels}}
+    """The spec of a new model of family `name` for world `decl` learning `targets` (default: the world's)."""
+    fam = family(name)
+    why = fam.fits(decl)
+    if why is not None:
+        raise CheckpointError(f"a {name} model cannot learn the {decl.name} world: {why}")
+    targets = tuple(decl.targets if targets is None else targets)
+    outputs = decl.outputs(targets)
+    channels = len(decl.moment.instants) * sum(c.channels for c in decl.cameras)
+    cam = decl.cameras[0]
+    height, width = size or fam.size(decl) or (cam.height, cam.width)
+    mean = [0.0] * channels if mean is None else [float(v) for v in mean]
+    std = [1.0] * channels if std is None else [float(v) for v in std]
+    if len(mean) != channels or len(std) != channels:
+        raise ValueError(f"mean and std need {channels} values, one per input channel")
+    return {"name": name, "world": decl.name, "world_fingerprint": decl.fingerprint(), "labels": list(targets),
+            "outputs": list(outputs), "options": dict(options),
+            "input": {"channels": channels, "height": int(height), "width": int(width),
+                      "instants": list(decl.moment.instants), "cameras": list(decl.camera_names),
+                      "modes": list(decl.modes), "scaling": fam.scaling, "mean": mean, "std": std},
+            "normalisation": decl.normalisation(outputs)}
+
+
+def upgrade_spec(spec: dict) -> dict:
+    """A spec of a version-1 checkpoint (highway only, 3-channel frames) in the current form."""
+    if "world" in spec:
+        return spec
+    from shm_bridge.worlds.highway import HIGHWAY
+    spec = dict(spec)
+    inp = dict(spec["input"])
+    inp.update(channels=3, instants=[0], cameras=["front"], modes=[], scaling="standardise")
+    spec.update(world="highway", world_fingerprint=None, outputs=list(spec["labels"]), input=inp)
+    spec.setdefault("normalisation", HIGHWAY.normalisation(spec["labels"]))
+    return spec
+
+
+def declaration_of(spec: dict) -> WorldDeclaration:
+    try:
+        return worlds.get(spec["world"])
+    except DeclarationError as e:
+        raise CheckpointError(f"the model was trained for a world this installation does not know ({e})") from None
 
 
 def describe(spec: dict) -> str:
-    """A short human name: "AlexNet", "VGG-16 (conv frozen, ImageNet)", "GIST + ridge", with extra labels."""
-    o, name = spec.get("options", {}), spec["name"]
-    if name == "alexnet":
-        text = "AlexNet" + (" (ImageNet init)" if o.get("weights") else "")
-    elif name == "vgg16":
-        bits = ["conv frozen" if o.get("frozen", True) else "all layers trained"]
-        bits.append("ImageNet init" if o.get("weights") else "random init")
-        text = ("VGG-16-BN" if o.get("batch_norm") else "VGG-16") + f" ({', '.join(bits)})"
-    else:
-        text = f"GIST + {o.get('regressor', 'ridge')}"
+    """A short human name: "AlexNet", "VGG-16 (conv frozen, ImageNet)", "GIST + ridge", "Z2Color (MultiNet)"."""
+    fam = family(spec["name"])
+    text = fam.describe(spec) if fam.describe else fam.title
     extra = [n for n in spec["labels"] if n in ("fast", "lanes_left")]
     return text + (f" [+{', '.join(extra)}]" if extra else "")
 
 
 class Regressor(nn.Module):
-    """Input handling + network. forward: uint8 frames (B, 3, H, W) RGB -> normalised indicators (B, N)."""
+    """Input handling + network. forward: uint8 images (B, C, H, W) and modes (B,) -> normalised outputs (B, N)."""
 
     def __init__(self, spec: dict) -> None:
         super().__init__()
+        spec = upgrade_spec(spec)
         self.spec = spec
-        self.name, self.labels = spec["name"], tuple(spec["labels"])
-        o, n = spec.get("options", {}), len(self.labels)
-        if self.name == "alexnet":
-            self.net = alexnet(n)
-        elif self.name == "vgg16":
-            self.net = vgg16(n, batch_norm=bool(o.get("batch_norm", False)), frozen=bool(o.get("frozen", True)))
-        elif self.name == "gist":
-            self.net = gist(n, regressor=o.get("regressor", "ridge"), seed=int(o.get("seed", 0)))
-        else:
-            raise CheckpointError(f"unknown model '{self.name}' (choose from {', '.join(MODELS)})")
-        self.register_buffer("mean", torch.tensor(spec["input"]["mean"], dtype=torch.float32).view(1, 3, 1, 1))
-        self.register_buffer("std", torch.tensor(spec["input"]["std"], dtype=torch.float32).view(1, 3, 1, 1))
+        self.name = spec["name"]
+        self.labels = tuple(spec["labels"])
+        self.outputs = tuple(spec["outputs"])
+        fam = family(self.name)
+        inp = spec["input"]
+        self.size = (int(inp["height"]), int(inp["width"]))
+        self.scaling = inp.get("scaling", fam.scaling)
+        self.modes = tuple(inp.get("modes", ()))
+        self.net = fam.build(ModelInput(int(inp["channels"]), *self.size, len(self.modes)), len(self.outputs),
+                             dict(spec.get("options", {})))
+        c = int(inp["channels"])
+        self.register_buffer("mean", torch.tensor(inp["mean"], dtype=torch.float32).view(1, c, 1, 1))
+        self.register_buffer("std", torch.tensor(inp["std"], dtype=torch.float32).view(1, c, 1, 1))
+        self._scale = np.array([spec["normalisation"][n][0] for n in self.outputs], dtype=np.float32)
+        self._offset = np.array([spec["normalisation"][n][1] for n in self.outputs], dtype=np.float32)
 
-    def forward(self, images: torch.Tensor) -> torch.Tensor:
+    def scale_input(self, images: torch.Tensor) -> torch.Tensor:
         x = images.float()
+        if x.shape[-2:] != self.size:   # area resampling: an exact 2x2 mean for cameras twice the input size
+            x = F.interpolate(x, size=self.size, mode="area")
+        if self.scaling == "centre":
+            return x / 255.0 - 0.5
         if images.dtype == torch.uint8:
             x = x / 255.0
-        return self.net((x - self.mean) / self.std)
+        return (x - self.mean) / self.std
+
+    def forward(self, images: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
+        if modes is None:
+            modes = torch.full((images.shape[0],), -1, dtype=torch.int64, device=images.device)
+        return self.net(self.scale_input(images), modes)
 
     def denormalise(self, outputs) -> np.ndarray:
-        """Network outputs (..., N) -> label values in metres, radians, flags and lane counts."""
+        """Network outputs (..., N) -> values in the labels' units."""
         if isinstance(outputs, torch.Tensor):
             outputs = outputs.detach().float().cpu().numpy()
-        return denormalise(outputs, self.labels).astype(np.float64)
+        return ((np.asarray(outputs, dtype=np.float32) - self._offset) / self._scale).astype(np.float64)
 
 
-def build(name: str, labels, **kwargs) -> Regressor:
-    return Regressor(make_spec(name, labels, **kwargs))
+def build(name: str, decl: WorldDeclaration, targets=None, **kwargs) -> Regressor:
+    return Regressor(make_spec(name, decl, targets, **kwargs))
 
 
-def check_normalisation(spec: dict, where: str) -> None:
-    """The vocabulary owns the normalisation; a model trained with other maps would be read back wrongly."""
-    for n in spec["labels"]:
-        if n not in NORMALISATION:
-            raise CheckpointError(f"{where}: the model predicts '{n}', which the vocabulary does not know")
-        if not np.allclose(spec["normalisation"].get(n, [np.nan, np.nan]), NORMALISATION[n], rtol=0, atol=1e-9):
-            raise CheckpointError(f"{where} was trained with another normalisation of '{n}' than "
-                                  "shm_bridge.vocabulary's; retrain it")
+def check_spec(spec: dict, where: str) -> WorldDeclaration:
+    """The world a spec was trained for, after checking that its outputs and normalisation are that world's
+    (a model trained with other maps would be read back wrongly)."""
+    decl = declaration_of(spec)
+    for n in spec["outputs"]:
+        try:
+            lab = decl.label(n)
+        except DeclarationError:
+            raise CheckpointError(f"{where}: the model predicts '{n}', which the {decl.name} world does not "
+                                  "declare") from None
+        if not np.allclose(spec["normalisation"].get(n, [np.nan, np.nan]), [lab.scale, lab.offset], rtol=0,
+                           atol=1e-9):
+            raise CheckpointError(f"{where} was trained with another normalisation of '{n}' than the "
+                                  f"{decl.name} world declares; retrain it")
+    return decl
 
 
 def load_trunk(model: Regressor, path: str) -> int:

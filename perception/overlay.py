@@ -1,4 +1,4 @@
-"""Box overlays (seed 002, Figures 9-11; DeepDriving's visualiser): the camera frame beside a top-down view of
+"""Box overlays (Liu and Wang, Figures 9-11; DeepDriving's visualiser): the camera frame beside a top-down view of
 the lanes around the host car, the ground truth as filled boxes and the estimate as outlines.
 
 - truth: host car filled red, rotated by the true angle; other cars filled yellow (gap under 60 m);
@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from shm_bridge.vocabulary import GAP_MAX, INDEX, PAPER_INDICATORS, lane_centres, markings
+from shm_bridge.worlds.highway import (EDGE_MARKING, GAP_MAX, IN_LANE_SPAN, INDEX, NEIGHBOUR_LANE, ON_MARKING_M,
+                                      PAPER_INDICATORS, lane_centres, markings)
 
 PX_PER_M = 12                  # DeepDriving's scale, both directions
 CANVAS = (320, 660)            # width, height of the top-down view [px]
@@ -47,11 +48,8 @@ class HostEstimate:
 
 
 # A network's estimate of an inactive indicator is near its inactive value, never exactly on it; each system is
-# judged active by thresholds halfway between its active range (docs: affordances.md) and its inactive value.
-IN_LANE_SPAN = 5.5   # [m] -toMarking_ML + toMarking_MR: the lane width (4) when active, 11 when inactive
-MARKING_M = 2.75     # [m] |toMarking_M|: at most 2 when active (2 m outside an edge), 3.5 when inactive
-EDGE_LR = 6.5        # [m] |toMarking_L/R| beyond this reads as their inactive 7: no marking on that side
-NEIGHBOUR_LL_RR = 8.0  # [m] |toMarking_LL/RR| beyond this reads as their inactive 9.5: no lane on that side
+# judged active by the highway declaration's thresholds between its active range and its inactive values.
+MARKING_M, EDGE_LR, NEIGHBOUR_LL_RR = ON_MARKING_M, EDGE_MARKING, NEIGHBOUR_LANE
 
 
 def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: float | None = None,
@@ -60,7 +58,7 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
 
     The 13 indicators are relative to the lane or marking the car is on; which one it is follows from which
     neighbours exist (an inactive LL/RR or L/R), from a predicted lanes_left when the model has one, and
-    otherwise is ambiguous (seed 002 §6.5): then the lane or marking nearest `hint_d` is taken and the overlay
+    otherwise is ambiguous (Liu and Wang, section 6.5): then the lane or marking nearest `hint_d` is taken and the overlay
     says so.
     """
     est = np.asarray(est, dtype=np.float64)

@@ -1,20 +1,18 @@
-"""A trained model as the closed loop's perception: one 280x210 RGB frame in, the 14 indicators out.
+"""A trained model as a driver's perception: the images of one sample in, the model's outputs out.
 
     predict = load_predictor("runs/alexnet.pt")
-    indicators = predict(frame)      # np.float64 (14,), shm_bridge.vocabulary.INDICATORS order, denormalised
+    values = predict([frame])               # np.float64 (len(predict.outputs),), in the labels' units
+    predict.named([frame])                  # {output name: value}
 
-drivestudio/loop.py's Driver(perception=predict) calls it once per 10 Hz frame. An indicator the model does not
-predict is 0.0: for a 13-output model that is `fast` = 0, "not on a long straight", which makes the Chen
-controller keep to its slower curve speed. A `lanes_left` output is not one of the 14 and is left out here
-(`predict.labels_of(frame)` returns every output of the model by name, lanes_left included).
+A sample's images are the world's cameras at the model's instants, oldest first (the highway: [front frame];
+MultiNet: [left t-1, right t-1, left t, right t]); `History` keeps the earlier steps' images for a driver that
+sees one step at a time. Frames of another size than the model's input are resampled inside the model, as in
+training.
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import torch
-
-from shm_bridge.vocabulary import INDEX, INDICATORS
 
 from .checkpoint import load_model
 from .models import describe
@@ -24,47 +22,81 @@ class Predictor:
     def __init__(self, model, spec: dict, device: str | torch.device = "cpu"):
         self.model, self.spec, self.device = model, spec, torch.device(device)
         self.name: str = spec["name"]
+        self.world: str = spec["world"]
         self.description: str = describe(spec)
         self.labels: tuple[str, ...] = tuple(spec["labels"])
-        self.size = (int(spec["input"]["height"]), int(spec["input"]["width"]))
-        self._slots = [(i, INDEX[n]) for i, n in enumerate(self.labels) if n in INDEX]
+        self.outputs: tuple[str, ...] = tuple(spec["outputs"])
+        self.instants: tuple[int, ...] = tuple(spec["input"]["instants"])
+        self.cameras: tuple[str, ...] = tuple(spec["input"]["cameras"])
+        self.modes: tuple[str, ...] = tuple(spec["input"].get("modes", ()))
+        self.channels = int(spec["input"]["channels"])
 
-    def _batch(self, frames) -> torch.Tensor:
+    def _batch(self, samples) -> torch.Tensor:
         out = []
-        for f in frames:
-            f = np.asarray(f)
-            if f.ndim != 3 or f.shape[2] != 3 or f.dtype != np.uint8:
-                raise ValueError(f"expected an (h, w, 3) uint8 RGB frame, got {f.dtype} {f.shape}")
-            if f.shape[:2] != self.size:  # the model was trained on frames of this size
-                f = cv2.resize(f, self.size[::-1], interpolation=cv2.INTER_AREA)
-            out.append(torch.from_numpy(np.ascontiguousarray(f.transpose(2, 0, 1))))
+        for images in samples:
+            images = [images] if isinstance(images, np.ndarray) else list(images)
+            for f in images:
+                if f.ndim != 3 or f.dtype != np.uint8:
+                    raise ValueError(f"expected (h, w, c) uint8 images, got {f.dtype} {f.shape}")
+            stacked = images[0] if len(images) == 1 else np.concatenate(images, axis=2)
+            if stacked.shape[2] != self.channels:
+                raise ValueError(f"{self.description} reads {self.channels} channels per sample "
+                                 f"({len(self.instants)} instant(s) x cameras {', '.join(self.cameras)}), got "
+                                 f"{stacked.shape[2]}")
+            out.append(torch.from_numpy(np.ascontiguousarray(stacked.transpose(2, 0, 1))))
         return torch.stack(out).to(self.device)
 
+    def _modes(self, modes, n: int) -> torch.Tensor:
+        if modes is None:
+            return torch.full((n,), -1, dtype=torch.int64, device=self.device)
+        values = [self.modes.index(m) if isinstance(m, str) else int(m) for m in
+                  (modes if isinstance(modes, (list, tuple, np.ndarray)) else [modes] * n)]
+        return torch.tensor(values, dtype=torch.int64, device=self.device)
+
     @torch.inference_mode()
-    def outputs(self, frames) -> np.ndarray:
-        """Every output of the model for a batch of frames, denormalised: (B, len(labels)) float64."""
-        return self.model.denormalise(self.model(self._batch(frames)))
+    def batch(self, samples, modes=None) -> np.ndarray:
+        """Every output for a batch of samples, denormalised: (B, len(outputs)) float64."""
+        x = self._batch(samples)
+        return self.model.denormalise(self.model(x, self._modes(modes, len(x))))
 
-    def predict_batch(self, frames) -> np.ndarray:
-        """(B, 14) indicators in canonical order; indicators the model does not predict are 0.0."""
-        values = self.outputs(frames)
-        out = np.zeros((len(values), len(INDICATORS)), dtype=np.float64)
-        for i, j in self._slots:
-            out[:, j] = values[:, i]
-        return out
+    def __call__(self, images, mode=None) -> np.ndarray:
+        """The outputs for one sample (its images, or the single image of a one-camera, one-instant model)."""
+        return self.batch([images], None if mode is None else [mode])[0]
 
-    def __call__(self, frame: np.ndarray) -> np.ndarray:
-        return self.predict_batch([frame])[0]
-
-    def labels_of(self, frame: np.ndarray) -> dict[str, float]:
-        """{label: value} of every output, lanes_left included."""
-        return {n: float(v) for n, v in zip(self.labels, self.outputs([frame])[0])}
+    def named(self, images, mode=None) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.outputs, self(images, mode))}
 
     def __repr__(self) -> str:
-        return f"Predictor({self.description}, {len(self.labels)} outputs, {self.device})"
+        return f"Predictor({self.description}, {len(self.outputs)} outputs, {self.device})"
 
 
-def load_predictor(path, device: str = "cpu") -> Predictor:
-    """The predictor of a checkpoint written by `drivestudio train` (loaded without running pickled code)."""
-    model, ckpt = load_model(path, device=device)
+class History:
+    """The images of the last steps, so that a driver seeing one step at a time can build samples that reach back
+    (MultiNet's moment: the stereo pair now and one step earlier). Before enough steps have been seen, the
+    earliest available step stands in for the missing ones."""
+
+    def __init__(self, instants=(0,)):
+        self.instants = tuple(instants)
+        self.depth = -min(self.instants) + 1
+        self._steps: list = []
+
+    def reset(self) -> None:
+        self._steps.clear()
+
+    def push(self, frames) -> list:
+        """Add this step's images (one per camera) and return the sample's images, oldest instant first."""
+        self._steps.append(tuple(frames))
+        if len(self._steps) > self.depth:
+            self._steps.pop(0)
+        out = []
+        for dt in self.instants:
+            k = max(0, len(self._steps) - 1 + dt)
+            out.extend(self._steps[k])
+        return out
+
+
+def load_predictor(path, device: str = "cpu", world: str | None = None) -> Predictor:
+    """The predictor of a checkpoint written by `drivestudio train` (loaded without running pickled code);
+    `world`, when given, must be the world it was trained for."""
+    model, ckpt = load_model(path, device=device, world=world)
     return Predictor(model, ckpt["spec"], device)

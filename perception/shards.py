@@ -1,18 +1,27 @@
-"""The dataset format (docs/dataset.md): Parquet shards and a JSON manifest. The one owner of it: writing and
-reading both live here. Only pyarrow, numpy and OpenCV: no torch, so generators and `stats` stay light.
+"""The dataset format (docs/dataset.md), version 2: Parquet shards and a JSON manifest, for any declared world.
+The one owner of it: writing and reading both live here. Only pyarrow, numpy and OpenCV: no torch, so generators
+and `stats` stay light.
 
 A dataset is a folder:
-    manifest.json          configuration, seed, renderer, software versions, and one entry per finished shard
-    shard-000000.parquet   one episode of driving, row groups of ROW_GROUP frames
-A shard is written to a hidden temporary file and renamed into place when complete, so a shard is either
-whole or absent. The split of a frame is the split of its episode (SPLIT_RULE), never of single frames.
+    manifest.json          the world's declaration, configuration, seed, software versions, and one entry per
+                           finished shard (its size and SHA-256, so a damaged shard is found)
+    shard-000000.parquet   one episode, row groups of ROW_GROUP steps, in time order
+A shard is written to a hidden temporary file and renamed into place when complete, so a shard is either whole or
+absent. The split of a step is the split of its episode (SPLIT_RULE), never of single steps.
+
+The columns come from the world's declaration (shm_bridge/declaration.py): one image column per camera
+(`image_<camera>`, PNG or JPEG), one column per truth field (typed by its kind), the declared extra columns, then
+the generic `episode`, `step`, `t`, `seed` and `action`. Each step is stored once; a data moment (several
+images, labels of later steps) is assembled by the readers (perception/datasets.py).
+
+Version 1 (the highway's first format: one `image` column, `ego` as a list) still reads: its tables are
+upgraded to version 2 columns as they are read.
 """
 from __future__ import annotations
 
+import hashlib
 import json
-import os
-import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -20,34 +29,60 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from shm_bridge.vocabulary import INDICATORS
+from shm_bridge.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
+
+from .files import atomic_write, reclaim_temporaries
 
 FORMAT = "drivestudio-dataset"
-VERSION = 1
+VERSION = 2
+READABLE = (1, 2)
 ROW_GROUP = 64
 MANIFEST = "manifest.json"
+MANIFEST_LIMIT = 64 << 20          # [bytes] a manifest larger than this is not one of ours
 ENCODINGS = ("png", "jpeg")
 SPLIT_RULE = "episode % 10: 0-7 train, 8 validation, 9 test"
+GENERIC = ("episode", "step", "t", "seed", "action")   # columns every dataset has, after the world's own
 
-SCHEMA = pa.schema(
-    [("image", pa.binary())]
-    + [(name, pa.float32()) for name in INDICATORS]
-    + [("lanes_left", pa.int8()), ("lanes", pa.int8()), ("speed", pa.float32()), ("lane_width", pa.float32()),
-       ("in_lane", pa.bool_()), ("on_marking", pa.bool_()),
-       ("episode", pa.int32()), ("step", pa.int32()), ("t", pa.float32()), ("track", pa.string()),
-       ("seed", pa.int64()), ("perturbation", pa.string()),
-       ("ego", pa.list_(pa.float64(), 5)), ("cars", pa.list_(pa.list_(pa.float32(), 5))),
-       ("action", pa.list_(pa.float32(), 3))]
-)
-LABEL_COLUMNS = tuple(n for n in SCHEMA.names if n != "image")
+_SCALAR = {"f32": pa.float32(), "f64": pa.float64(), "i8": pa.int8(), "i32": pa.int32(), "i64": pa.int64(),
+           "bool": pa.bool_(), "str": pa.string()}
 
 
 class DatasetError(ValueError):
     """A dataset that cannot be read: missing manifest, corrupt or truncated shard, missing labels."""
 
 
+def image_column(camera: str) -> str:
+    return f"image_{camera}"
+
+
+def _column_type(kind: str) -> pa.DataType:
+    m = COLUMN_KIND.fullmatch(kind)
+    base, size, many = m.group(1), m.group(2), m.group(3)
+    t = _SCALAR[base]
+    if size:
+        t = pa.list_(t, int(size[1:-1]))
+    if many:
+        t = pa.list_(t)
+    return t
+
+
+def schema_for(decl: WorldDeclaration) -> pa.Schema:
+    """The shard schema of a world: images, truth fields, declared columns, then the generic columns."""
+    fields = [(image_column(c.name), pa.binary()) for c in decl.cameras]
+    fields += [(q.name, _SCALAR[q.kind]) for q in decl.truth]
+    fields += [(c.name, _column_type(c.kind)) for c in decl.columns]
+    fields += [("episode", pa.int32()), ("step", pa.int32()), ("t", pa.float64()), ("seed", pa.int64()),
+               ("action", pa.list_(pa.float32(), len(decl.action)))]
+    return pa.schema(fields)
+
+
+def label_columns(decl: WorldDeclaration) -> tuple[str, ...]:
+    """Every column but the images."""
+    return tuple(n for n in schema_for(decl).names if not n.startswith("image_"))
+
+
 def split_of(episode: int) -> str:
-    """The split of an episode (SPLIT_RULE): whole episodes, so no two neighbouring frames straddle splits."""
+    """The split of an episode (SPLIT_RULE): whole episodes, so no two neighbouring steps straddle splits."""
     k = int(episode) % 10
     return "test" if k == 9 else "val" if k == 8 else "train"
 
@@ -82,79 +117,135 @@ def decode_image(data: bytes) -> np.ndarray:
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
+def file_digest(path) -> tuple[int, str]:
+    """(size in bytes, SHA-256 hex) of a file."""
+    h = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+            size += len(chunk)
+    return size, h.hexdigest()
+
+
 # --- writing -------------------------------------------------------------------------------------------------
 class ShardWriter:
-    """Collects one episode's frames and writes them as one shard, atomically, on close()."""
+    """Collects one episode's steps and writes them as one shard, atomically, on close()."""
 
-    def __init__(self, path: Path, encoding: str = "png", quality: int = 95):
+    def __init__(self, path: Path, decl: WorldDeclaration, encoding: str = "png", quality: int = 95):
         if encoding not in ENCODINGS:
             raise ValueError(f"unknown image encoding '{encoding}' (choose from {', '.join(ENCODINGS)})")
-        self.path, self.encoding, self.quality = Path(path), encoding, quality
-        self._columns: dict[str, list] = {name: [] for name in SCHEMA.names}
+        self.path, self.decl, self.encoding, self.quality = Path(path), decl, encoding, quality
+        self.schema = schema_for(decl)
+        self._images = [[] for _ in decl.cameras]
+        self._records: list[np.ndarray] = []
+        self._columns: dict[str, list] = {c.name: [] for c in decl.columns}
+        self._generic: dict[str, list] = {n: [] for n in GENERIC}
 
     def __len__(self) -> int:
-        return len(self._columns["image"])
+        return len(self._records)
 
-    def add(self, image: np.ndarray, record: dict) -> None:
-        """One frame: the RGB image and a record with every other column of SCHEMA (indicators by name)."""
-        self._columns["image"].append(encode_image(image, self.encoding, self.quality))
-        for name in LABEL_COLUMNS:
-            self._columns[name].append(record[name])
+    def add(self, images, record, columns: dict, *, episode: int, step: int, t: float, seed: int, action) -> None:
+        """One step: the images (one per camera, declaration order), the truth record (float64, declaration
+        order), the declared extra columns by name, and the generic fields."""
+        if isinstance(images, np.ndarray):
+            images = (images,)
+        if len(images) != len(self._images):
+            raise ValueError(f"expected {len(self._images)} image(s), got {len(images)}")
+        for store, img in zip(self._images, images):
+            store.append(encode_image(img, self.encoding, self.quality))
+        self._records.append(np.asarray(record, dtype=np.float64))
+        for name, store in self._columns.items():
+            store.append(columns[name])
+        g = self._generic
+        g["episode"].append(episode)
+        g["step"].append(step)
+        g["t"].append(t)
+        g["seed"].append(seed)
+        g["action"].append(np.asarray(action, dtype=np.float32).tolist())
 
-    def close(self) -> int:
-        """Write the shard (to a temporary name, then renamed into place); returns the number of frames."""
-        table = pa.table(self._columns, schema=SCHEMA)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = _temporary(self.path)
-        try:
-            pq.write_table(table, tmp, row_group_size=ROW_GROUP, compression="none",
-                           use_dictionary=["track", "perturbation"], write_statistics=False)
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return table.num_rows
+    def table(self) -> pa.Table:
+        decl = self.decl
+        arrays = {image_column(c.name): store for c, store in zip(decl.cameras, self._images)}
+        records = np.stack(self._records) if self._records else np.zeros((0, len(decl.truth)))
+        for i, q in enumerate(decl.truth):
+            col = records[:, i]
+            arrays[q.name] = col.astype(bool) if q.kind == "bool" else np.round(col).astype(
+                np.dtype(q.kind.replace("i", "int"))) if q.kind.startswith("i") else col
+        arrays.update(self._columns)
+        arrays.update(self._generic)
+        return pa.table(arrays, schema=self.schema)
 
+    def close(self) -> dict:
+        """Write the shard (to a temporary name, then renamed into place); returns {frames, size, sha256}."""
+        table = self.table()
+        strings = [c.name for c in self.decl.columns if c.kind == "str"]
 
-def _temporary(path: Path) -> Path:
-    """A hidden name beside `path` for writing before the rename (created with the usual permissions)."""
-    return path.parent / f".{path.name}.{os.getpid()}.{time.monotonic_ns()}.tmp"
+        def write(f) -> None:
+            pq.write_table(table, f, row_group_size=ROW_GROUP, compression="none",
+                           use_dictionary=strings or False, write_statistics=False)
+
+        atomic_write(self.path, write)
+        size, digest = file_digest(self.path)
+        return {"frames": table.num_rows, "size": size, "sha256": digest}
 
 
 def clean_temporaries(root: Path) -> int:
-    """Remove half-written shards left by a killed run; returns how many."""
-    n = 0
+    """Remove half-written shards and manifests left by killed runs; returns how many."""
+    n = reclaim_temporaries(root)
     for p in list(Path(root).glob(".shard-*.tmp")) + list(Path(root).glob(f".{MANIFEST}.*.tmp")):
-        p.unlink(missing_ok=True)
+        p.unlink(missing_ok=True)   # no writer runs here while the caller holds the dataset's lock
         n += 1
     return n
 
 
 # --- the manifest --------------------------------------------------------------------------------------------
+def _v1_declaration(manifest: dict) -> WorldDeclaration:
+    from shm_bridge.worlds.highway import HIGHWAY
+    cfg = manifest.get("config", {})
+    return HIGHWAY.with_camera("front", int(cfg.get("height", 210)), int(cfg.get("width", 280)))
+
+
 def read_manifest(root: Path) -> dict:
+    """The manifest of a dataset folder (version 1 or 2), or DatasetError in one line."""
     path = Path(root) / MANIFEST
     try:
-        manifest = json.loads(path.read_text())
+        if path.stat().st_size > MANIFEST_LIMIT:
+            raise DatasetError(f"{path} is too large to be a dataset manifest")
+        manifest = json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise DatasetError(f"{root} is not a dataset: no {MANIFEST}") from None
-    except json.JSONDecodeError as e:
-        raise DatasetError(f"{path} is corrupt: {e.msg} at line {e.lineno}") from None
-    if manifest.get("format") != FORMAT:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        what = "not UTF-8" if isinstance(e, UnicodeDecodeError) else "not valid JSON"
+        raise DatasetError(f"{path} is corrupt ({what}); regenerate the dataset or restore the manifest") from None
+    except IsADirectoryError:
+        raise DatasetError(f"{path} is a folder, not a manifest") from None
+    except OSError as e:
+        raise DatasetError(f"cannot read {path}: {e.strerror}") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         raise DatasetError(f"{path} is not a drivestudio dataset manifest")
-    if manifest.get("version") != VERSION:
+    if manifest.get("version") not in READABLE:
         raise DatasetError(f"{path} has dataset format version {manifest.get('version')}; this reader reads "
-                           f"version {VERSION}")
+                           f"versions {', '.join(map(str, READABLE))}")
+    if not isinstance(manifest.get("shards", []), list):
+        raise DatasetError(f"{path} is corrupt: its shard list is not a list")
     return manifest
 
 
 def write_manifest(root: Path, manifest: dict) -> None:
-    """Atomically replace the manifest."""
-    path = Path(root) / MANIFEST
-    tmp = _temporary(path)
-    with open(tmp, "w") as f:
-        json.dump({"format": FORMAT, "version": VERSION, **manifest}, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, path)
+    """Atomically replace the manifest (always version 2)."""
+    body = {k: v for k, v in manifest.items() if k not in ("format", "version")}
+    text = json.dumps({"format": FORMAT, "version": VERSION, **body}, indent=1) + "\n"
+    atomic_write(Path(root) / MANIFEST, text.encode())
+
+
+def manifest_declaration(manifest: dict) -> WorldDeclaration:
+    if manifest.get("version") == 1:
+        return _v1_declaration(manifest)
+    try:
+        return WorldDeclaration.from_json(manifest["world"])
+    except (KeyError, DeclarationError) as e:
+        raise DatasetError(f"the manifest does not declare its world ({e})") from None
 
 
 # --- reading -------------------------------------------------------------------------------------------------
@@ -164,24 +255,66 @@ class ShardInfo:
     episode: int
     frames: int
     split: str
-    track: str
-    lanes: int
+    params: dict = field(default_factory=dict)   # what the world's plan chose for the episode (track, lanes, ...)
+    size: int | None = None
+    sha256: str | None = None
+
+    @classmethod
+    def from_entry(cls, entry: dict) -> "ShardInfo":
+        try:
+            params = entry.get("params")
+            if params is None:   # version 1 listed track and lanes beside the file
+                params = {k: entry[k] for k in ("track", "lanes") if k in entry}
+            return cls(str(entry["file"]), int(entry["episode"]), int(entry["frames"]), str(entry["split"]),
+                       dict(params), entry.get("size"), entry.get("sha256"))
+        except (KeyError, TypeError, ValueError):
+            raise DatasetError(f"the manifest lists a shard it does not describe: {str(entry)[:80]}") from None
+
+    def entry(self) -> dict:
+        return {"file": self.file, "episode": self.episode, "frames": self.frames, "split": self.split,
+                "params": self.params, "size": self.size, "sha256": self.sha256}
+
+
+def _upgrade_v1(table: pa.Table) -> pa.Table:
+    """A version-1 highway table with version-2 columns: image -> image_front, ego -> x y yaw s d, and the
+    collision / off_road flags version 1 did not record (False)."""
+    names = table.column_names
+    out = {}
+    n = table.num_rows
+    for name in names:
+        if name == "image":
+            out["image_front"] = table.column(name)
+        elif name == "ego":
+            ego = np.asarray(table.column(name).to_pylist(), dtype=np.float64).reshape(n, 5)
+            for i, k in enumerate(("x", "y", "yaw", "s", "d")):
+                out[k] = pa.array(ego[:, i])
+        else:
+            out[name] = table.column(name)
+    for k in ("collision", "off_road"):
+        out[k] = pa.array(np.zeros(n, dtype=bool))
+    if "t" in out:
+        out["t"] = out["t"].cast(pa.float64())
+    return pa.table(out)
 
 
 class ShardReader:
-    """Random and sequential access to one shard, with its last row group's images kept decoded-ready."""
+    """Random and sequential access to one shard, with its last row group kept."""
 
-    def __init__(self, path: Path):
-        self.path = Path(path)
+    def __init__(self, path: Path, decl: WorldDeclaration, version: int = VERSION):
+        self.path, self.decl, self.version = Path(path), decl, version
+        self.schema = schema_for(decl)
         try:
             self._file = pq.ParquetFile(self.path, memory_map=True)
         except FileNotFoundError:
             raise DatasetError(f"shard {self.path} is missing") from None
         except (pa.ArrowException, OSError) as e:
-            raise DatasetError(f"shard {self.path} is corrupt or truncated: {e}") from None
+            raise DatasetError(f"shard {self.path} is corrupt or truncated: {str(e).splitlines()[0]}") from None
         meta = self._file.metadata
-        if self._file.schema_arrow.names != SCHEMA.names:
-            raise DatasetError(f"shard {self.path} does not have the columns of a drivestudio dataset")
+        names = self._file.schema_arrow.names
+        if version == VERSION and names != self.schema.names:
+            raise DatasetError(f"shard {self.path} does not have the columns of a {decl.name} dataset")
+        if version == 1 and "image" not in names:
+            raise DatasetError(f"shard {self.path} does not have the columns of a version-1 dataset")
         sizes = [meta.row_group(i).num_rows for i in range(meta.num_row_groups)]
         self._starts = np.cumsum([0] + sizes)
         self._cached: tuple[int, pa.Table] | None = None
@@ -189,45 +322,77 @@ class ShardReader:
     def __len__(self) -> int:
         return int(self._starts[-1])
 
+    def _source_columns(self, columns) -> list[str] | None:
+        if columns is None or self.version == VERSION:
+            return None if columns is None else list(columns)
+        src = []
+        for c in columns:
+            if c == "image_front":
+                src.append("image")
+            elif c in ("x", "y", "yaw", "s", "d"):
+                src.append("ego")
+            elif c not in ("collision", "off_road"):
+                src.append(c)
+        return list(dict.fromkeys(src))
+
+    def _finish(self, table: pa.Table, columns) -> pa.Table:
+        if self.version == 1:
+            table = _upgrade_v1(table)
+        return table if columns is None else table.select(list(columns))
+
     def row_group(self, g: int, columns=None) -> pa.Table:
         try:
-            return self._file.read_row_group(g, columns=columns)
+            table = self._file.read_row_group(g, columns=self._source_columns(columns))
         except (pa.ArrowException, OSError) as e:
-            raise DatasetError(f"shard {self.path} is corrupt or truncated (row group {g}): {e}") from None
+            raise DatasetError(f"shard {self.path} is corrupt or truncated (row group {g}): "
+                               f"{str(e).splitlines()[0]}") from None
+        return self._finish(table, columns)
 
-    def row(self, i: int) -> tuple[np.ndarray, dict]:
-        """Frame i: (RGB image, {column: value})."""
+    def row(self, i: int) -> tuple[tuple, dict]:
+        """Step i: (images, one RGB array per camera; {column: value} of every other column)."""
+        if not 0 <= i < len(self):
+            raise IndexError(i)
         g = int(np.searchsorted(self._starts, i, side="right") - 1)
         if self._cached is None or self._cached[0] != g:
             self._cached = (g, self.row_group(g))
         table = self._cached[1]
         k = i - int(self._starts[g])
-        record = {name: table.column(name)[k].as_py() for name in LABEL_COLUMNS}
-        return decode_image(table.column("image")[k].as_py()), record
+        images = tuple(decode_image(table.column(image_column(c.name))[k].as_py()) for c in self.decl.cameras)
+        record = {name: table.column(name)[k].as_py() for name in label_columns(self.decl)}
+        return images, record
 
-    def labels(self, columns=LABEL_COLUMNS) -> pa.Table:
-        """Every frame's labels, images not read."""
+    def labels(self, columns=None) -> pa.Table:
+        """Every step's labels (the named columns, default all but the images); images not read."""
+        columns = label_columns(self.decl) if columns is None else tuple(columns)
         try:
-            return self._file.read(columns=list(columns))
+            table = self._file.read(columns=self._source_columns(columns))
         except (pa.ArrowException, OSError) as e:
-            raise DatasetError(f"shard {self.path} is corrupt or truncated: {e}") from None
+            raise DatasetError(f"shard {self.path} is corrupt or truncated: {str(e).splitlines()[0]}") from None
+        return self._finish(table, columns)
 
-    def iter_row_groups(self):
+    def iter_row_groups(self, columns=None):
         for g in range(len(self._starts) - 1):
-            yield self.row_group(g)
+            yield self.row_group(g, columns)
 
 
 class Dataset:
-    """A dataset folder: its manifest and shards, split by episode."""
+    """A dataset folder: its manifest, its world's declaration and its shards, split by episode."""
 
     def __init__(self, root: Path):
         self.root = Path(root)
         if not self.root.is_dir():
             raise DatasetError(f"no dataset at {self.root}: not a folder")
         self.manifest = read_manifest(self.root)
-        self.shards = [ShardInfo(**s) for s in sorted(self.manifest.get("shards", []), key=lambda s: s["episode"])]
+        self.version = int(self.manifest["version"])
+        self.declaration = manifest_declaration(self.manifest)
+        self.shards = sorted((ShardInfo.from_entry(s) for s in self.manifest.get("shards", [])),
+                             key=lambda s: s.episode)
         if not self.shards:
             raise DatasetError(f"dataset {self.root} has no finished shards yet")
+
+    @property
+    def world(self) -> str:
+        return self.declaration.name
 
     def select(self, split: str | None = None) -> list[ShardInfo]:
         if split in (None, "all"):
@@ -240,10 +405,27 @@ class Dataset:
         return sum(s.frames for s in self.select(split))
 
     def reader(self, shard: ShardInfo) -> ShardReader:
-        return ShardReader(self.root / shard.file)
+        path = self.root / shard.file
+        if shard.size is not None:
+            try:
+                size = path.stat().st_size
+            except FileNotFoundError:
+                raise DatasetError(f"shard {path} is missing") from None
+            if size != shard.size:
+                raise DatasetError(f"shard {path} is damaged: {size} bytes, the manifest says {shard.size}")
+        return ShardReader(path, self.declaration, self.version)
 
-    def labels(self, split: str | None = None, columns=LABEL_COLUMNS) -> dict[str, np.ndarray]:
-        """Label columns of every frame of a split as numpy arrays (ego/cars/action as lists)."""
+    def has_columns(self, names) -> list[str]:
+        """Which of `names` this dataset lacks."""
+        have = set(label_columns(self.declaration))
+        return [n for n in names if n not in have]
+
+    def labels(self, split: str | None = None, columns=None) -> dict[str, np.ndarray]:
+        """Label columns of every step of a split as numpy arrays (list columns as object arrays)."""
+        columns = label_columns(self.declaration) if columns is None else tuple(columns)
+        missing = self.has_columns(columns)
+        if missing:
+            raise DatasetError(f"the {self.world} dataset {self.root} has no column {', '.join(missing)}")
         tables = [self.reader(s).labels(columns) for s in self.select(split)]
         if not tables:
             return {c: np.zeros(0) for c in columns}
@@ -254,3 +436,22 @@ class Dataset:
             out[c] = np.asarray(col.to_pylist(), dtype=object) if pa.types.is_list(col.type) or \
                 pa.types.is_fixed_size_list(col.type) else col.to_numpy()
         return out
+
+    def verify(self, shard: ShardInfo) -> str | None:
+        return verify_shard(self.root, shard)
+
+
+def verify_shard(root: Path, shard: ShardInfo) -> str | None:
+    """None when the shard is whole (size and SHA-256 as the manifest lists them), else what is wrong."""
+    path = Path(root) / shard.file
+    if not path.is_file():
+        return "missing"
+    if shard.sha256 is None:
+        return None
+    size, digest = file_digest(path)
+    if size != shard.size:
+        return f"{size} bytes instead of {shard.size}"
+    if digest != shard.sha256:
+        return "its checksum differs from the manifest's"
+    return None
+

@@ -1,13 +1,15 @@
-"""Training: one readable loop (nanoGPT's train.py is the model), configured by the dataclass below.
+"""Training: one readable loop (nanoGPT's train.py is the model), configured by the dataclass below, for any
+model family and world (the family's trainer decides: "sgd" here, "closed-form" GIST below, "multinet" in
+perception/multinet.py).
 
-The defaults are seed 002's (§6.1, §6.3): SGD with momentum 0.9, learning rate x0.9 every 1000 iterations,
-AlexNet from scratch at lr 1e-2 with batches of 15 for 10,000 iterations, VGG-16 (conv frozen) at lr 1e-4 with
-batches of 10 for 15,000 iterations, Euclidean loss L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to
-about [0.1, 0.9]; no dropout, no output sigmoid. GIST is fitted in closed form instead (perception/gist.py).
+The defaults are Liu and Wang's (Deeper Direct Perception, sections 6.1 and 6.3): SGD with momentum 0.9,
+learning rate x0.9 every 1000 iterations, AlexNet from scratch at lr 1e-2 with batches of 15 for 10,000 iterations,
+VGG-16 (conv frozen) at lr 1e-4 with batches of 10 for 15,000 iterations, Euclidean loss
+L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to about [0.1, 0.9]; no dropout, no output sigmoid.
 
-The checkpoint at `out` is written atomically at every validation, at the end and on Ctrl-C; running the same
-training again continues from it (same data order, same optimiser state). Loss curves go beside it as
-`<out>.loss.csv` and `<out>.loss.png`.
+The checkpoint at `out` is written atomically at every validation, every `checkpoint_every` seconds, at the end
+and on Ctrl-C or SIGTERM; running the same training again continues from it (same data order, same optimiser
+state). Loss curves go beside it as `<out>.loss.csv` and `<out>.loss.png`.
 """
 from __future__ import annotations
 
@@ -23,18 +25,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from shm_bridge.vocabulary import label_set
+from shm_bridge.declaration import WorldDeclaration
+from shm_bridge.signals import Terminated, exit_on_sigterm
 
-from .checkpoint import CheckpointError, atomic_write, load_checkpoint, save_checkpoint
+from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .datasets import FrameDataset, FrameStream
-from .models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_normalisation, describe, load_trunk, make_spec
+from .files import atomic_write
+from .models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_spec, describe, family, load_trunk, make_spec
 from .shards import Dataset, DatasetError
-
-PAPER = {  # seed 002 §6.1 and §6.3
-    "alexnet": {"iterations": 10_000, "batch_size": 15, "lr": 1e-2},
-    "vgg16": {"iterations": 15_000, "batch_size": 10, "lr": 1e-4},
-    "gist": {"iterations": 0, "batch_size": 32, "lr": 0.0},
-}
 
 
 class TrainingError(ValueError):
@@ -44,15 +42,16 @@ class TrainingError(ValueError):
 @dataclass
 class TrainConfig:
     data: str = "out/dataset"
-    model: str = "alexnet"            # alexnet | vgg16 | gist
+    model: str = "alexnet"            # a family of perception/models.py that fits the dataset's world
     out: str = "runs/alexnet.pt"
+    targets: str | None = None        # comma-separated labels (default: the world's); "+name" adds to the default
     iterations: int | None = None     # None: the paper's for the model (or from `epochs`)
     epochs: float | None = None       # alternative to iterations: passes over the training split
     batch_size: int | None = None     # None: the paper's (15 AlexNet, 10 VGG-16)
     lr: float | None = None           # None: the paper's (1e-2 AlexNet, 1e-4 VGG-16)
     lr_step: int = 1000               # iterations between learning-rate decays
     lr_gamma: float = 0.9
-    optimizer: str = "sgd"            # sgd (the paper's, momentum 0.9) | adam
+    optimizer: str | None = None      # sgd (Liu and Wang's, momentum 0.9) | adam | adadelta; None: the family's
     momentum: float = 0.9
     weight_decay: float = 0.0
     device: str = "auto"              # auto | cpu | cuda | cuda:N
@@ -60,19 +59,42 @@ class TrainConfig:
     workers: int = 1                  # DataLoader processes decoding frames
     shuffle_buffer: int = 16384       # frames mixed across episodes before batching
     val_every: int = 500              # iterations between validations (and checkpoints)
+    checkpoint_every: float = 300.0   # [s] also save at least this often (a kill loses at most this much)
     val_frames: int = 1000            # at most this many validation frames, evenly spread over the split
     log_every: int = 10               # iterations per row of the loss curve
     unfreeze: bool = False            # VGG-16: train the convolutional layers too
     batch_norm: bool = False          # VGG-16: vgg16_bn
     weights: str | None = None        # torchvision ImageNet state dict for the trunk (never downloaded)
-    fast: bool = False                # predict `fast` too (14 outputs)
-    lanes_left: bool = False          # predict lanes_left too (seed 002 §6.5's proposed fix)
+    fast: bool = False                # highway: predict `fast` too (= targets "+fast")
+    lanes_left: bool = False          # highway: predict lanes_left too (Liu and Wang's proposed fix)
     regressor: str = "ridge"          # GIST: ridge | rbf
+    modes: str | None = None          # Z2Color: behavioural modes to train on (comma-separated; None: all)
+    mtl: str | None = None            # Z2Color: the MTL baseline on this one mode (no modal input)
+    trials: int = 1                   # Z2Color: repeats with fresh seeds
     seed: int = 0
 
-    @property
-    def labels(self) -> tuple[str, ...]:
-        return label_set(fast=self.fast, lanes_left=self.lanes_left)
+    def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:
+        """The targets of this run for a dataset of world `decl`."""
+        return resolve_targets(decl, self.targets, extra=tuple(
+            n for n, on in (("fast", self.fast), ("lanes_left", self.lanes_left)) if on))
+
+
+def resolve_targets(decl: WorldDeclaration, text: str | None, extra=()) -> tuple[str, ...]:
+    """--targets: "a,b" replaces the world's default targets, "+a,+b" adds to them; `extra` adds too."""
+    items = [t.strip() for t in (text or "").split(",") if t.strip()]
+    if items and all(not t.startswith("+") for t in items):
+        names = items
+    elif any(not t.startswith("+") for t in items):
+        raise TrainingError("--targets takes either names (replacing the defaults) or +names (adding to them)")
+    else:
+        names = list(decl.targets) + [t[1:] for t in items]
+    names += [n for n in extra if n not in names]
+    known = set(decl.label_names)
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise TrainingError(f"the {decl.name} world has no label {', '.join(unknown)} "
+                            f"(labels: {', '.join(decl.label_names)})")
+    return tuple(dict.fromkeys(names))
 
 
 def euclidean_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -103,16 +125,16 @@ def spread(n: int, k: int) -> list[int]:
 
 
 def load_frames(root, split: str, labels, limit: int, normalised: bool = True):
-    """Up to `limit` frames of a split, evenly spread over it, as (uint8 images, targets) tensors."""
+    """Up to `limit` samples of a split, evenly spread over it, as (uint8 images, modes, targets) tensors."""
     ds = FrameDataset(root, split, labels, normalised=normalised)
     items = [ds[i] for i in spread(len(ds), limit)]
-    return torch.stack([x for x, _ in items]), torch.stack([y for _, y in items])
+    return tuple(torch.stack([item[k] for item in items]) for k in range(3))
 
 
-def input_statistics(root, frames: int = 512) -> tuple[list[float], list[float]]:
-    """Per-channel mean and standard deviation of training frames in [0, 1] (seed 002 §5.1's mean file)."""
-    images, _ = load_frames(root, "train", ("angle",), frames)
-    x = images.float().div_(255).permute(1, 0, 2, 3).reshape(3, -1)
+def input_statistics(root, labels, frames: int = 512) -> tuple[list[float], list[float]]:
+    """Per-channel mean and standard deviation of training samples in [0, 1] (Liu and Wang's mean file)."""
+    images, _, _ = load_frames(root, "train", labels, frames)
+    x = images.float().div_(255).transpose(0, 1).reshape(images.shape[1], -1)
     return x.mean(1).tolist(), x.std(1).clamp_min(1e-3).tolist()
 
 
@@ -159,27 +181,51 @@ def write_curves(out, history: list[dict], x: str = "iteration", title: str = ""
 
 # --- validation ---------------------------------------------------------------------------------------------
 @torch.no_grad()
-def validate(model: Regressor, images: torch.Tensor, targets: torch.Tensor, device, batch: int = 50) -> dict:
-    """Euclidean loss (normalised) and mean absolute error per label (in the labels' units)."""
+def predict_all(model: Regressor, images: torch.Tensor, modes: torch.Tensor, device, batch: int = 50) -> torch.Tensor:
+    """The model's outputs for every sample, in eval mode, batch by batch (float32 on the CPU)."""
     was_training = model.training
     model.eval()
-    preds = torch.cat([model(images[i:i + batch].to(device)).float().cpu() for i in range(0, len(images), batch)])
+    preds = torch.cat([model(images[i:i + batch].to(device), modes[i:i + batch].to(device)).float().cpu()
+                       for i in range(0, len(images), batch)])
     model.train(was_training)
+    return preds
+
+
+def validate(model: Regressor, images: torch.Tensor, modes: torch.Tensor, targets: torch.Tensor, device,
+             batch: int = 50) -> dict:
+    """Euclidean loss (normalised) and mean absolute error per output (in the labels' units)."""
+    preds = predict_all(model, images, modes, device, batch)
     mae = np.abs(model.denormalise(preds) - model.denormalise(targets)).mean(0)
     return {"val_loss": float(euclidean_loss(preds, targets)),
-            "val_mae": {n: float(v) for n, v in zip(model.labels, mae)}}
+            "val_mae": {n: float(v) for n, v in zip(model.outputs, mae)}}
 
 
 # --- the loop -----------------------------------------------------------------------------------------------
+def open_data(cfg: TrainConfig) -> tuple[Dataset, WorldDeclaration, tuple[str, ...]]:
+    """The dataset, its world and this run's targets; refuses a family that does not fit the world."""
+    data = Dataset(Path(cfg.data))
+    decl = data.declaration
+    fam = family(cfg.model)
+    why = fam.fits(decl)
+    if why is not None:
+        from .models import fitting
+        raise TrainingError(f"--model {cfg.model} does not fit the {decl.name} world of {cfg.data}: {why} "
+                            f"(models for it: {', '.join(fitting(decl)) or 'none'})")
+    return data, decl, cfg.labels_for(decl)
+
+
 def train(cfg: TrainConfig, log=print) -> dict:
     """Train (or continue training) `cfg.model` on `cfg.data`; returns the final checkpoint's `train` record."""
-    if cfg.model == "gist":
+    trainer = family(cfg.model).trainer
+    if trainer == "closed-form":
         return fit_gist(cfg, log)
-    paper = PAPER[cfg.model]
-    labels = cfg.labels
+    if trainer == "multinet":
+        from .multinet import train_multinet
+        return train_multinet(cfg, log)
+    data, decl, labels = open_data(cfg)
+    paper = family(cfg.model).defaults
     device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
-    data = Dataset(Path(cfg.data))
     stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
                          buffer=min(cfg.shuffle_buffer, data.frames("train")))
     batch_size = cfg.batch_size or paper["batch_size"]
@@ -191,12 +237,13 @@ def train(cfg: TrainConfig, log=print) -> dict:
     else:
         iterations = cfg.iterations if cfg.iterations is not None else paper["iterations"]
     lr = cfg.lr if cfg.lr is not None else paper["lr"]
+    optimizer = cfg.optimizer or paper.get("optimizer", "sgd")
     out = Path(cfg.out)
 
     ckpt = None
     if out.exists():
-        ckpt = load_checkpoint(out, model=cfg.model, labels=labels)
-        check_normalisation(ckpt["spec"], str(out))
+        ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
+        check_spec(ckpt["spec"], str(out))
         if "optimizer" not in ckpt:
             raise CheckpointError(f"{out} holds no training state to continue from")
     if ckpt is not None:
@@ -209,7 +256,7 @@ def train(cfg: TrainConfig, log=print) -> dict:
             raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
                                   "use the same options to continue it, or another --out")
         old = ckpt["train"]["config"]
-        if old.get("optimizer") != cfg.optimizer:
+        if old.get("optimizer") != optimizer:
             raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
                                   "optimiser to continue it, or another --out")
         if old.get("lr") != lr or old.get("batch_size") != batch_size:
@@ -221,12 +268,12 @@ def train(cfg: TrainConfig, log=print) -> dict:
             mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
         else:
             log("computing the per-channel input mean and deviation of the training frames ...")
-            mean, std = input_statistics(cfg.data)
+            mean, std = input_statistics(cfg.data, labels)
             weights = None
         options = {"weights": weights}
         if cfg.model == "vgg16":
             options.update(frozen=not cfg.unfreeze, batch_norm=cfg.batch_norm)
-        spec = make_spec(cfg.model, labels, mean=mean, std=std, **options)
+        spec = make_spec(cfg.model, decl, labels, mean=mean, std=std, **options)
 
     model = Regressor(spec)
     if ckpt is not None:
@@ -242,12 +289,14 @@ def train(cfg: TrainConfig, log=print) -> dict:
     model.train()
 
     params = [p for p in model.parameters() if p.requires_grad]
-    if cfg.optimizer == "sgd":
+    if optimizer == "sgd":
         opt = torch.optim.SGD(params, lr=lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
-    elif cfg.optimizer == "adam":
+    elif optimizer == "adam":
         opt = torch.optim.Adam(params, lr=lr, weight_decay=cfg.weight_decay)
+    elif optimizer == "adadelta":
+        opt = torch.optim.Adadelta(params, lr=lr, weight_decay=cfg.weight_decay)
     else:
-        raise TrainingError(f"unknown optimizer '{cfg.optimizer}' (sgd or adam)")
+        raise TrainingError(f"unknown optimizer '{optimizer}' (sgd, adam or adadelta)")
     sched = torch.optim.lr_scheduler.StepLR(opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
     amp_dtype = None
     if cfg.amp and device.type == "cuda":
@@ -273,14 +322,14 @@ def train(cfg: TrainConfig, log=print) -> dict:
         log(f"continuing {out} from iteration {state['iteration']} of {iterations}")
 
     if data.frames("val"):
-        val_images, val_targets = load_frames(cfg.data, "val", labels, cfg.val_frames)
+        val_images, val_modes, val_targets = load_frames(cfg.data, "val", labels, cfg.val_frames)
     else:
-        val_images = val_targets = None
+        val_images = val_modes = val_targets = None
         log(f"note: {cfg.data} has no validation split (episodes 8, 18, ...); training without validation")
 
     def save(final: bool = False) -> None:
         config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
-        config.update(iterations=iterations, batch_size=batch_size, lr=lr)
+        config.update(iterations=iterations, batch_size=batch_size, lr=lr, optimizer=optimizer)
         payload = {"spec": spec, "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
                    "scheduler": sched.state_dict(), "rng": torch.get_rng_state(),
                    "train": {**state, "config": config, "device": str(device), "finished": final},
@@ -288,23 +337,22 @@ def train(cfg: TrainConfig, log=print) -> dict:
         if scaler.is_enabled():
             payload["scaler"] = scaler.state_dict()
         save_checkpoint(out, payload)
-        write_curves(out, state["history"], title=f"{describe(spec)} on {data.root.name}: {cfg.optimizer}, "
+        write_curves(out, state["history"], title=f"{describe(spec)} on {data.root.name}: {optimizer}, "
                                                   f"lr {lr:g}, batch {batch_size}")
 
     def run_validation(row: dict) -> None:
         if val_images is None:
             return
-        v = validate(model, val_images, val_targets, device)
+        v = validate(model, val_images, val_modes, val_targets, device)
         row["val_loss"] = v["val_loss"]
         row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
+        shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
         tqdm.write(f"iteration {state['iteration']}: train loss {row.get('train_loss', float('nan')):.4f}, "
-                   f"val loss {v['val_loss']:.4f}, val MAE angle {v['val_mae']['angle']:.3f} rad, "
-                   f"toMarking_ML {v['val_mae']['toMarking_ML']:.2f} m, dist_MM {v['val_mae']['dist_MM']:.1f} m",
-                   file=sys.stderr)
+                   f"val loss {v['val_loss']:.4f}, val MAE {shown}", file=sys.stderr)
 
     log(f"training {describe(spec)} ({sum(p.numel() for p in params):,} trainable parameters) on "
         f"{len(stream)} frames of {cfg.data} on {device}: {iterations} iterations of {batch_size}, "
-        f"{cfg.optimizer} lr {lr:g} x{cfg.lr_gamma} every {cfg.lr_step}" + (f", {amp_dtype}" if amp_dtype else ""))
+        f"{optimizer} lr {lr:g} x{cfg.lr_gamma} every {cfg.lr_step}" + (f", {amp_dtype}" if amp_dtype else ""))
     loader_kw = dict(batch_size=batch_size, num_workers=cfg.workers, drop_last=True,
                      pin_memory=device.type == "cuda")
     if cfg.workers:
@@ -313,53 +361,61 @@ def train(cfg: TrainConfig, log=print) -> dict:
     bar = tqdm(total=iterations, initial=state["iteration"], unit="it", dynamic_ncols=True, file=sys.stderr,
                mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=cfg.model)
     losses, t_row, t_start = [], time.perf_counter(), time.perf_counter() - state["seconds"]
+    last_save = time.monotonic()
     try:
-        while state["iteration"] < iterations:
-            stream.set_epoch(state["epoch"])
-            skip = state["step_in_epoch"]
-            for step, (x, y) in enumerate(loader):
-                if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
-                    continue
-                x, y = x.to(device, non_blocking=True), y.to(device, non_blocking=True)
-                with torch.autocast(device.type, dtype=amp_dtype or torch.float32, enabled=amp_dtype is not None):
-                    pred = model(x)
-                loss = euclidean_loss(pred, y)
-                if not torch.isfinite(loss):
-                    raise TrainingError(f"the loss diverged ({loss.item()}) at iteration {state['iteration']}; "
-                                        f"lower --lr (now {lr:g}) or use --optimizer adam")
-                opt.zero_grad(set_to_none=True)
-                scaler.scale(loss).backward()
-                scaler.step(opt)
-                scaler.update()
-                sched.step()
-                state["iteration"] += 1
-                state["step_in_epoch"] = step + 1
-                losses.append(loss.item())
-                it = state["iteration"]
-                bar.update(1)
-                if it % cfg.log_every == 0 or it == iterations or it % cfg.val_every == 0:
-                    now = time.perf_counter()
-                    state["seconds"] = now - t_start
-                    row = {"iteration": it, "epoch": round(it * batch_size / len(stream), 3),
-                           "train_loss": float(np.mean(losses)), "lr": opt.param_groups[0]["lr"],
-                           "samples_per_s": round(len(losses) * batch_size / max(now - t_row, 1e-9), 2),
-                           "elapsed_s": round(state["seconds"], 1)}
-                    losses, t_row = [], now
-                    bar.set_postfix(loss=f"{row['train_loss']:.4f}", lr=f"{row['lr']:.2g}",
-                                    fps=f"{row['samples_per_s']:.0f}", refresh=False)
-                    if it % cfg.val_every == 0 or it == iterations:
-                        run_validation(row)
-                        state["history"].append(row)
-                        save(final=it == iterations)
-                        t_row = time.perf_counter()  # validation and saving are not training time
-                    else:
-                        state["history"].append(row)
-                if it >= iterations:
-                    break
-            else:
-                state["epoch"] += 1
-                state["step_in_epoch"] = 0
-    except KeyboardInterrupt:
+        with exit_on_sigterm():
+            while state["iteration"] < iterations:
+                stream.set_epoch(state["epoch"])
+                skip = state["step_in_epoch"]
+                for step, (x, m, y) in enumerate(loader):
+                    if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
+                        continue
+                    x, m, y = (x.to(device, non_blocking=True), m.to(device, non_blocking=True),
+                               y.to(device, non_blocking=True))
+                    with torch.autocast(device.type, dtype=amp_dtype or torch.float32, enabled=amp_dtype is not None):
+                        pred = model(x, m)
+                    loss = euclidean_loss(pred, y)
+                    if not torch.isfinite(loss):
+                        raise TrainingError(f"the loss diverged ({loss.item()}) at iteration {state['iteration']}; "
+                                            f"lower --lr (now {lr:g}) or use --optimizer adam")
+                    opt.zero_grad(set_to_none=True)
+                    scaler.scale(loss).backward()
+                    scaler.step(opt)
+                    scaler.update()
+                    sched.step()
+                    state["iteration"] += 1
+                    state["step_in_epoch"] = step + 1
+                    losses.append(loss.item())
+                    it = state["iteration"]
+                    bar.update(1)
+                    if it % cfg.log_every == 0 or it == iterations or it % cfg.val_every == 0:
+                        now = time.perf_counter()
+                        state["seconds"] = now - t_start
+                        row = {"iteration": it, "epoch": round(it * batch_size / len(stream), 3),
+                               "train_loss": float(np.mean(losses)), "lr": opt.param_groups[0]["lr"],
+                               "samples_per_s": round(len(losses) * batch_size / max(now - t_row, 1e-9), 2),
+                               "elapsed_s": round(state["seconds"], 1)}
+                        losses, t_row = [], now
+                        bar.set_postfix(loss=f"{row['train_loss']:.4f}", lr=f"{row['lr']:.2g}",
+                                        fps=f"{row['samples_per_s']:.0f}", refresh=False)
+                        if it % cfg.val_every == 0 or it == iterations:
+                            run_validation(row)
+                            state["history"].append(row)
+                            save(final=it == iterations)
+                            last_save = time.monotonic()
+                            t_row = time.perf_counter()  # validation and saving are not training time
+                        else:
+                            state["history"].append(row)
+                    if time.monotonic() - last_save > cfg.checkpoint_every and it < iterations:
+                        state["seconds"] = time.perf_counter() - t_start
+                        save()   # a kill between validations loses at most checkpoint_every seconds
+                        last_save = time.monotonic()
+                    if it >= iterations:
+                        break
+                else:
+                    state["epoch"] += 1
+                    state["step_in_epoch"] = 0
+    except (KeyboardInterrupt, Terminated):
         bar.close()
         state["seconds"] = time.perf_counter() - t_start
         save()
@@ -381,8 +437,9 @@ def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32
                      desc: str = "") -> tuple[torch.Tensor, torch.Tensor]:
     """GIST descriptors and normalised targets of a split (every frame, or `limit` spread over it)."""
     if limit is not None:
-        images, targets = load_frames(root, split, labels, limit)
-        chunks = [(images[i:i + batch], targets[i:i + batch]) for i in range(0, len(images), batch)]
+        images, modes, targets = load_frames(root, split, labels, limit)
+        chunks = [(images[i:i + batch], modes[i:i + batch], targets[i:i + batch])
+                  for i in range(0, len(images), batch)]
         total = len(images)
     else:
         stream = FrameStream(root, split, labels, shuffle=False)
@@ -391,7 +448,7 @@ def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32
     feats, targets = [], []
     with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
               mininterval=1.0 if sys.stderr.isatty() else 30.0) as bar:
-        for x, y in chunks:
+        for x, _, y in chunks:
             feats.append(model.net.descriptor(x.float() / 255.0))
             targets.append(y)
             bar.update(len(x))
@@ -401,18 +458,18 @@ def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32
 def fit_gist(cfg: TrainConfig, log=print) -> dict:
     """GIST + ridge: descriptors of every training frame, one closed-form solve per ridge strength, the
     strength chosen on the validation split (or on 10% of the training frames when there is none)."""
-    labels, out = cfg.labels, Path(cfg.out)
+    data, decl, labels = open_data(cfg)
+    out = Path(cfg.out)
     if out.exists():
-        ckpt = load_checkpoint(out, model="gist", labels=labels)
+        ckpt = load_checkpoint(out, model="gist", labels=labels, world=decl.name)
         if ckpt["spec"]["options"].get("regressor") != cfg.regressor:
             raise CheckpointError(f"{out} holds GIST + {ckpt['spec']['options'].get('regressor')}, not + "
                                   f"{cfg.regressor}; use another --out")
         log(f"{out} is a fitted GIST model already: nothing to do (remove it to fit again)")
         return ckpt["train"]
-    data = Dataset(Path(cfg.data))
     if not data.frames("train"):
         raise DatasetError(f"dataset {cfg.data} has no frames in split 'train'")
-    spec = make_spec("gist", labels, regressor=cfg.regressor, seed=cfg.seed)
+    spec = make_spec("gist", decl, labels, regressor=cfg.regressor, seed=cfg.seed)
     model = Regressor(spec).eval()
     t0 = time.perf_counter()
     log(f"fitting {describe(spec)} on {data.frames('train')} frames of {cfg.data}")

@@ -1,6 +1,6 @@
 """Seed 002's VGG-16 regressor: torchvision's VGG-16 trunk, fully connected layers replaced by 4096-256-N.
 
-By default the thirteen convolutional layers are frozen and only the new head learns (§6: "fixing the
+By default the thirteen convolutional layers are frozen and only the new head learns (Liu and Wang, section 6: "fixing the
 pre-trained weights for all convolutional layers"); `frozen=False` fine-tunes everything (the paper's first
 item of future work) and `batch_norm=True` uses vgg16_bn (its second). No dropout, no output sigmoid.
 """
@@ -9,6 +9,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 from torchvision.models.vgg import cfgs, make_layers
+
+from .models import Family, ModelInput, one_camera_now, register
 
 
 class VGGRegressor(nn.Module):
@@ -43,7 +45,7 @@ class VGGRegressor(nn.Module):
             self.features.eval()
         return self
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         x = self.features(x)
         x = self.avgpool(x)
         x = torch.flatten(x, 1)
@@ -53,3 +55,20 @@ class VGGRegressor(nn.Module):
 def vgg16(num_outputs: int = 13, batch_norm: bool = False, frozen: bool = True) -> VGGRegressor:
     """VGG-16 (or VGG-16-BN) for `num_outputs` indicators; load ImageNet trunk weights with models.load_trunk."""
     return VGGRegressor(num_outputs, batch_norm=batch_norm, frozen=frozen)
+
+
+def _build(inp: ModelInput, outputs: int, options: dict) -> VGGRegressor:
+    return VGGRegressor(outputs, batch_norm=bool(options.get("batch_norm", False)),
+                        frozen=bool(options.get("frozen", True)))
+
+
+def _describe(spec: dict) -> str:
+    o = spec["options"]
+    bits = ["conv frozen" if o.get("frozen", True) else "all layers trained",
+            "ImageNet init" if o.get("weights") else "random init"]
+    return ("VGG-16-BN" if o.get("batch_norm") else "VGG-16") + f" ({', '.join(bits)})"
+
+
+register(Family("vgg16", "VGG-16", _build, one_camera_now, trainer="sgd",
+                defaults={"iterations": 15_000, "batch_size": 10, "lr": 1e-4},   # Liu and Wang, section 6.3
+                describe=_describe))

@@ -1,15 +1,21 @@
 """The two ends of the bridge: WorldEndpoint (creates the segment, publishes frames) and DriverEndpoint (attaches,
 takes frames, sends actions). docs/shm-protocol.md describes what they do byte by byte.
 
-    with WorldEndpoint("run1") as world:            # the world process
+    with WorldEndpoint("run1", declaration) as world:     # the world process
         world.wait_for_driver(timeout=30)
         while ...:
-            seq = world.publish(obs.frame, truth)
-            act = world.wait_action(seq).action       # lock-step; free-running: world.latest_action()
+            seq = world.publish(obs.frames, obs.record, obs.t)
+            act = world.wait_action(seq).action              # lock-step; free-running: world.latest_action()
+        world.end("finished")                                 # or "host lost", "interrupted", ...
 
-    with DriverEndpoint("run1") as driver:          # the driver process
+    with DriverEndpoint("run1") as driver:                  # the driver process
+        decl = driver.declaration                             # what the world declared in the header
         while (msg := driver.wait_frame()) is not None:
-            driver.send_action(msg.seq, Action(...), estimate)
+            driver.send_action(msg.seq, action, estimate)
+        print(driver.end_reason)
+
+Everything that depends on the world (cameras, record lengths, names) comes from its WorldDeclaration on the world
+side and from the header on the driver side; a driver checks the header against what it needs with `require`.
 
 Waiting spins briefly, then sleeps on a futex word in the segment in slices of SLICE seconds; between slices it
 checks that the peer lives (pid exists and is not a zombie, heartbeat younger than peer_timeout). A dead peer
@@ -23,18 +29,20 @@ import os
 import threading
 import time
 import weakref
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from shm_bridge import futex, layout
+from shm_bridge.declaration import DeclarationError, WorldDeclaration
 from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
-from shm_bridge.layout import (CONTROL_SIZE, DRIVER_ATTACHED, DRIVER_DETACHED, DRIVER_MODES, DRIVER_NONE,
-                               MAGIC, N_ACTION, N_INDICATORS, OFFSET, SLOT_COUNT, SLOT_HEADER_SIZE, SLOT_OFFSET,
-                               TRUTH_LEN, VERSION, WORLD_CLOSED, WORLD_RUNNING)
-from shm_bridge.segment import Segment, pid_alive, shm_path, unlink_if_same, validate_name
+from shm_bridge.layout import (ACTION_OFFSET, ACTION_VALUES, DRIVER_ATTACHED, DRIVER_DETACHED, DRIVER_MODES,
+                               DRIVER_NONE, DRIVER_STATUSES, END_REASONS, FIXED_SIZE, MAGIC, OFFSET, SLOT_COUNT,
+                               SLOT_OFFSET, SLOT_TRUTH, STATUS_FAILED, STATUS_FINISHED, VERSION, WORLD_CLOSED,
+                               WORLD_RUNNING, Layout)
+from shm_bridge.segment import SHM_DIR, Segment, pid_alive, shm_path, unlink_if_same, validate_name
 from shm_bridge.signals import Terminated, exit_on_sigterm
-from shm_bridge.vocabulary import INDICATORS, Action
 
 __all__ = ["WorldEndpoint", "DriverEndpoint", "FrameMsg", "ActionMsg", "BridgeError", "PeerGone",
            "ProtocolMismatch", "BridgeTimeout", "Terminated", "exit_on_sigterm"]
@@ -42,70 +50,50 @@ __all__ = ["WorldEndpoint", "DriverEndpoint", "FrameMsg", "ActionMsg", "BridgeEr
 SLICE = 0.1                 # [s] longest single futex sleep; liveness is checked between slices
 HEARTBEAT_INTERVAL = 0.2    # [s] how often each side refreshes its heartbeat
 DEFAULT_SPIN = 100e-6       # [s] busy-wait before sleeping on the futex
+DEFAULT_ATTACH_TIMEOUT = 10.0   # [s] a driver waits this long for the world's segment to appear
 _MASK32 = 0xFFFFFFFF
 _NOTHING = object()
 
 # word indices into the whole-mapping uint32 / int32 / uint64 views
-_U32 = {n: OFFSET[n] // 4 for n in ("version", "header_size", "height", "width", "channels", "frame_size",
-                                    "truth_len", "n_indicators", "slot_count", "slot_size", "mode", "byte_order",
-                                    "driver_bell", "world_state", "world_bell", "driver_state", "paused",
-                                    "driver_mode", "world_pid", "driver_pid")}
+_U32 = {n: OFFSET[n] // 4 for n in ("version", "byte_order", "mode", "driver_bell", "world_state", "world_pid",
+                                    "end_reason", "world_bell", "driver_state", "driver_pid", "driver_status",
+                                    "paused", "driver_mode", "behaviour")}
 _U64 = {n: OFFSET[n] // 8 for n in ("layout_size", "world_heartbeat_ns", "frame_seq", "driver_heartbeat_ns",
-                                    "driver_seen_seq", "action_lock", "action_seq")}
-_ACTION_BLOCK = (OFFSET["action"], OFFSET["estimate"] + 8 * N_INDICATORS)   # action then estimate, contiguous
-assert OFFSET["estimate"] == OFFSET["action"] + 8 * N_ACTION
+                                    "driver_seen_seq")}
 
 
 # --- messages ------------------------------------------------------------------------------------------------------
 @dataclass
 class FrameMsg:
-    """One frame as the driver took it: seq (1, 2, ...), frame (h, w, 3) uint8 RGB and truth (TRUTH_LEN
-    float64, layout.TRUTH_FIELDS), both copies; paused and driver_mode as they were when it was taken."""
+    """One frame as the driver took it: seq (1, 2, ...), the images (one (h, w, c) uint8 array per camera, in the
+    header's camera order), the truth record (float64, the header's truth names) and the simulated time t, all
+    copies; the shared flags as they were when it was taken."""
 
     seq: int
-    frame: np.ndarray
-    truth: np.ndarray
+    frames: tuple
+    record: np.ndarray
+    t: float
     paused: bool = False
     driver_mode: str = "network"
+    behaviour: int = 0
 
     @property
-    def indicators(self) -> np.ndarray:
-        """The 14 true indicators, canonical order."""
-        return self.truth[:N_INDICATORS]
-
-    @property
-    def t(self) -> float:
-        """Simulated time [s]."""
-        return float(self.truth[layout.TRUTH_INDEX["t"]])
-
-    @property
-    def speed(self) -> float:
-        """Host car's speed [m/s]."""
-        return float(self.truth[layout.TRUTH_INDEX["speed"]])
-
-    @property
-    def ego(self) -> np.ndarray:
-        """[x, y, yaw, s, d] of the host car."""
-        return layout.truth_ego(self.truth)
-
-    def truth_dict(self) -> dict:
-        return layout.unpack_truth(self.truth)
+    def frame(self) -> np.ndarray:
+        """The first camera's image."""
+        return self.frames[0]
 
 
 @dataclass
 class ActionMsg:
-    """The driver's answer to frame `seq`: the action and its estimate of the 14 indicators (NaN: none sent)."""
+    """The driver's answer to frame `seq`: the action and its estimate (NaN: none sent), float64 arrays."""
 
     seq: int
-    action: Action
-    estimate: np.ndarray = field(default_factory=lambda: np.full(N_INDICATORS, np.nan))
+    action: np.ndarray
+    estimate: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def has_estimate(self) -> bool:
         return bool(np.isfinite(self.estimate).any())
-
-    def estimate_dict(self) -> dict[str, float]:
-        return {n: float(v) for n, v in zip(INDICATORS, self.estimate)}
 
 
 # --- resources shared by the endpoint, its heartbeat thread and its finalizer (never the endpoint itself) --------
@@ -161,9 +149,11 @@ class _Endpoint:
     _role = "?"
     _peer_role = "?"
 
-    def _setup(self, segment: Segment, link: _Link, own_bell: str, peer_timeout: float | None, spin: float):
+    def _setup(self, segment: Segment, layout_: Layout, link: _Link, own_bell: str, peer_timeout: float | None,
+               spin: float):
         self._seg = segment
         self._link = link
+        self.layout = layout_
         self._u32, self._i32, self._u64 = segment.u32, segment.i32, segment.u64
         self._own_bell = _U32[own_bell]
         self._own_bell_address = segment.address + OFFSET[own_bell]
@@ -172,21 +162,28 @@ class _Endpoint:
         self._next_check = 0
         self._gone: PeerGone | None = None
         self._closed = False
-        h, w = self._u32[_U32["height"]], self._u32[_U32["width"]]
-        frame_size, size = self._u32[_U32["frame_size"]], self._u32[_U32["slot_size"]]
-        self.height, self.width, self.channels = int(h), int(w), int(self._u32[_U32["channels"]])
-        self.lockstep = self._u32[_U32["mode"]] == layout.MODE_LOCKSTEP
+        self.lockstep = layout_.lockstep
+        self.modes = layout_.modes
         buf = segment.buf
-        self._slot_lock, self._slot_seq, self._slot_truth, self._slot_frame = [], [], [], []
+        truth_len = len(layout_.truth)
+        self._slot_lock, self._slot_seq, self._slot_t, self._slot_truth, self._slot_images = [], [], [], [], []
         for i in range(SLOT_COUNT):
-            base = CONTROL_SIZE + i * size
+            base = layout_.slot_offset(i)
             self._slot_lock.append((base + SLOT_OFFSET["lock"]) // 8)
             self._slot_seq.append((base + SLOT_OFFSET["seq"]) // 8)
-            t0 = base + SLOT_OFFSET["truth"]
-            self._slot_truth.append(buf[t0:t0 + 8 * TRUTH_LEN].view(np.float64))
-            f0 = base + SLOT_HEADER_SIZE
-            self._slot_frame.append(buf[f0:f0 + frame_size].reshape(self.height, self.width, self.channels))
-        self._action_block = buf[_ACTION_BLOCK[0]:_ACTION_BLOCK[1]].view(np.float64)
+            t0 = base + SLOT_OFFSET["t"]
+            self._slot_t.append(buf[t0:t0 + 8].view(np.float64))
+            r0 = base + SLOT_TRUTH
+            self._slot_truth.append(buf[r0:r0 + 8 * truth_len].view(np.float64))
+            self._slot_images.append(tuple(
+                buf[base + c.offset:base + c.offset + c.size].reshape(c.height, c.width, c.channels)
+                for c in layout_.cameras))
+        a0 = layout_.action_offset
+        self._action_lock = (a0 + ACTION_OFFSET["action_lock"]) // 8
+        self._action_seq = (a0 + ACTION_OFFSET["action_seq"]) // 8
+        self._n_action = len(layout_.action)
+        n_values = self._n_action + len(layout_.estimate)
+        self._action_block = buf[a0 + ACTION_VALUES:a0 + ACTION_VALUES + 8 * n_values].view(np.float64)
         self._finalizer = weakref.finalize(self, link.shutdown)
         link.thread.start()
 
@@ -224,6 +221,23 @@ class _Endpoint:
         elif value not in range(len(DRIVER_MODES)):
             raise ValueError(f"driver_mode must be 0 (network) or 1 (manual), got {value!r}")
         self._u32[_U32["driver_mode"]] = int(value)
+        self._link.ring()
+
+    @property
+    def behaviour(self) -> str | None:
+        """The behavioural mode (a shared flag either side may set); None for a world without modes."""
+        self._require_open()
+        if not self.modes:
+            return None
+        v = self._u32[_U32["behaviour"]]
+        return self.modes[v] if v < len(self.modes) else f"unknown({v})"
+
+    @behaviour.setter
+    def behaviour(self, mode: str) -> None:
+        self._require_open()
+        if mode not in self.modes:
+            raise ValueError(f"behavioural mode must be one of {', '.join(self.modes) or '(none)'}, got {mode!r}")
+        self._u32[_U32["behaviour"]] = self.modes.index(mode)
         self._link.ring()
 
     # --- waiting and liveness --------------------------------------------------------------------------------------
@@ -306,7 +320,7 @@ class _Endpoint:
             return
         self._closed = True
         self._before_close()
-        self._slot_truth = self._slot_frame = self._action_block = None
+        self._slot_truth = self._slot_images = self._slot_t = self._action_block = None
         self._u32 = self._i32 = self._u64 = None
         self._finalizer()
 
@@ -323,7 +337,8 @@ class _Endpoint:
 
 # --- the world side ------------------------------------------------------------------------------------------------
 class WorldEndpoint(_Endpoint):
-    """Creates /dev/shm/NAME (0600), publishes frames with their truth and reads the driver's actions.
+    """Creates /dev/shm/NAME (0600) laid out for `declaration`, publishes frames with their truth and reads the
+    driver's actions.
 
     lockstep=True: after publish(frame n) the world calls wait_action(n) (TORCS's `written` flag).
     lockstep=False (free-running): the world never waits; latest_action() gives the newest action, if any.
@@ -334,23 +349,17 @@ class WorldEndpoint(_Endpoint):
     _role = "world"
     _peer_role = "driver"
 
-    def __init__(self, name: str, height: int = 210, width: int = 280, lockstep: bool = True,
+    def __init__(self, name: str, declaration: WorldDeclaration, lockstep: bool = True,
                  peer_timeout: float | None = 2.0, *, spin: float = DEFAULT_SPIN):
         layout.check_native_byte_order()
         if not futex.available():
             raise BridgeError("the shared-memory bridge needs Linux futexes (unsupported platform)")
-        for label, v in (("height", height), ("width", width)):
-            if not isinstance(v, (int, np.integer)) or v <= 0:
-                raise ValueError(f"{label} must be a positive integer, got {v!r}")
-        height, width = int(height), int(width)
-        if height * width * layout.CHANNELS > 0x7FFFFFFF - SLOT_HEADER_SIZE:
-            raise ValueError(f"a {height}x{width} frame is too large for the bridge")
-        seg = _create(name, layout.layout_size(height, width))
+        if not isinstance(declaration, WorldDeclaration):
+            raise TypeError("WorldEndpoint needs the world's WorldDeclaration")
+        lay = layout.layout_for(declaration, lockstep)
+        seg = _create(name, lay.layout_size)
         try:
-            header = seg.buf[:CONTROL_SIZE].view(layout.CONTROL_DTYPE)[0]
-            for key, value in layout.header_values(height, width, lockstep).items():
-                header[key] = value
-            del header
+            lay.write_header(seg.buf)
             seg.i32[_U32["world_pid"]] = os.getpid()
             seg.u64[_U64["world_heartbeat_ns"]] = time.monotonic_ns()
             seg.u32[_U32["world_state"]] = WORLD_RUNNING
@@ -360,9 +369,12 @@ class WorldEndpoint(_Endpoint):
             seg.unlink()
             seg.close()
             raise
+        self.declaration = declaration
         self._peer_heartbeat = _U64["driver_heartbeat_ns"]
         self._seq = 0
-        self._setup(seg, link, "world_bell", peer_timeout, spin)
+        self._setup(seg, lay, link, "world_bell", peer_timeout, spin)
+        self._shapes = tuple(c.shape for c in declaration.cameras)
+        self._truth_len = len(declaration.truth)
 
     # --- the driver ------------------------------------------------------------------------------------------------
     def _peer_state(self):
@@ -371,6 +383,19 @@ class WorldEndpoint(_Endpoint):
             return None, 0
         pid = self._i32[_U32["driver_pid"]]
         return ("left" if state == DRIVER_DETACHED else "attached"), pid
+
+    def _lose(self, message: str, pid: int, orderly: bool = False) -> PeerGone:
+        gone = super()._lose(message, pid, orderly)
+        gone.finished = orderly and self._u32 is not None and \
+            self._u32[_U32["driver_status"]] == STATUS_FINISHED
+        if gone.finished:
+            gone.args = (f"the driver (pid {pid}) finished the run",)
+        return gone
+
+    def _gone_again(self) -> PeerGone:
+        again = super()._gone_again()
+        again.finished = getattr(self._gone, "finished", False)
+        return again
 
     @property
     def driver_attached(self) -> bool:
@@ -382,6 +407,13 @@ class WorldEndpoint(_Endpoint):
         """The driver's pid (0 before one attached)."""
         self._require_open()
         return int(self._i32[_U32["driver_pid"]])
+
+    @property
+    def driver_status(self) -> str:
+        """"driving", "finished" (the driver ended the run in order) or "failed"."""
+        self._require_open()
+        v = self._u32[_U32["driver_status"]]
+        return DRIVER_STATUSES[v] if v < len(DRIVER_STATUSES) else f"unknown({v})"
 
     @property
     def driver_seen_seq(self) -> int:
@@ -405,17 +437,21 @@ class WorldEndpoint(_Endpoint):
         self._wait(ready, timeout, f"no driver attached to shared memory {self.name!r}")
 
     # --- frames ----------------------------------------------------------------------------------------------------
-    def publish(self, frame: np.ndarray, truth) -> int:
-        """Write frame (h, w, 3) uint8 and its truth record (TRUTH_LEN float64 or a mapping) as the next frame;
+    def publish(self, frames, record, t: float = 0.0) -> int:
+        """Write the images (one (h, w, c) uint8 array per camera, or a single array for a one-camera world), the
+        truth record (float64 in declaration order, or a mapping) and the simulated time t [s] as the next frame;
         return its seq. Never waits. Raises PeerGone when the driver has died or left."""
         self._require_open()
-        if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or \
-                frame.shape != (self.height, self.width, self.channels):
-            shape = getattr(frame, "shape", None)
-            dtype = getattr(frame, "dtype", type(frame).__name__)
-            raise ValueError(f"frame must be a ({self.height}, {self.width}, {self.channels}) uint8 array, "
-                             f"got {shape} {dtype}")
-        truth = layout.check_truth(truth)
+        if isinstance(frames, np.ndarray):
+            frames = (frames,)
+        shapes = self._shapes
+        if len(frames) != len(shapes) or any(
+                not isinstance(f, np.ndarray) or f.dtype != np.uint8 or f.shape != shape
+                for f, shape in zip(frames, shapes)):
+            got = [(getattr(f, "shape", None), str(getattr(f, "dtype", type(f).__name__))) for f in frames]
+            raise ValueError(f"frames must be {len(shapes)} uint8 image(s) of shape(s) {list(shapes)}, got {got}")
+        if isinstance(record, Mapping) or np.shape(record) != (self._truth_len,):
+            record = self.declaration.check_record(record)
         self._check_peer()
         seq = self._seq + 1
         i = seq % SLOT_COUNT
@@ -423,8 +459,10 @@ class WorldEndpoint(_Endpoint):
         version = u64[lock]
         u64[lock] = version + 1                 # odd: being written
         u64[self._slot_seq[i]] = seq
-        self._slot_truth[i][:] = truth
-        np.copyto(self._slot_frame[i], frame)
+        self._slot_t[i][0] = t
+        self._slot_truth[i][:] = record
+        for dst, src in zip(self._slot_images[i], frames):
+            np.copyto(dst, src)
         u64[lock] = version + 2                 # even: complete
         u64[_U64["frame_seq"]] = seq
         self._seq = seq
@@ -433,8 +471,8 @@ class WorldEndpoint(_Endpoint):
 
     # --- actions ---------------------------------------------------------------------------------------------------
     def _read_action(self):
-        """(seq, 17 float64 copy) of the action record, or None while the driver is in the middle of a write."""
-        u64, lock, aseq = self._u64, _U64["action_lock"], _U64["action_seq"]
+        """(seq, action + estimate float64 copy), or None while the driver is in the middle of a write."""
+        u64, lock, aseq = self._u64, self._action_lock, self._action_seq
         for _ in range(1000):
             version = u64[lock]
             if version & 1:
@@ -445,15 +483,15 @@ class WorldEndpoint(_Endpoint):
                 return seq, values
         return None
 
-    @staticmethod
-    def _message(seq: int, values: np.ndarray) -> ActionMsg:
-        return ActionMsg(int(seq), Action(float(values[0]), float(values[1]), float(values[2])),
-                         values[N_ACTION:])
+    def _message(self, seq: int, values: np.ndarray) -> ActionMsg:
+        n = self._n_action
+        return ActionMsg(int(seq), values[:n], values[n:])
 
     def wait_action(self, seq: int, timeout: float | None = None) -> ActionMsg:
         """Lock-step: wait for the driver's action for frame `seq` (or a later one) and return it.
 
-        BridgeTimeout after `timeout` seconds, PeerGone when the driver died or left."""
+        BridgeTimeout after `timeout` seconds, PeerGone when the driver died or left (`finished` set when it
+        ended the run in order)."""
         self._require_open()
 
         def ready():
@@ -473,6 +511,17 @@ class WorldEndpoint(_Endpoint):
             return None
         return self._message(*r)
 
+    # --- the end ---------------------------------------------------------------------------------------------------
+    def end(self, reason: str = "finished") -> None:
+        """Close the run, telling the driver why: "finished", "host lost", "interrupted", "driver finished" or
+        "error" (a driver reads it as DriverEndpoint.end_reason)."""
+        if self._closed:
+            return
+        if reason not in END_REASONS[1:]:
+            raise ValueError(f"end reason must be one of {', '.join(END_REASONS[1:])}, got {reason!r}")
+        self._u32[_U32["end_reason"]] = END_REASONS.index(reason)
+        self.close()
+
 
 def _create(name: str, size: int) -> Segment:
     """Create the segment; a leftover of a dead world under the same name is removed first."""
@@ -489,16 +538,16 @@ def _create(name: str, size: int) -> Segment:
 
 def _stale_or_busy(name: str) -> str | None:
     """Remove /dev/shm/NAME when it is a bridge segment whose world is dead (None); else why it must stay."""
-    seg = Segment.open(name, CONTROL_SIZE)
+    seg = Segment.open(name, FIXED_SIZE)
     if seg is None:
         return None if not os.path.exists(shm_path(name)) else \
             f"shared memory {name!r} already exists (being created, or not a bridge segment)"
     try:
-        if bytes(seg.buf[:len(MAGIC)]) != MAGIC or seg.u32[_U32["version"]] != VERSION:
-            return (f"shared memory {name!r} already exists and is not a version-{VERSION} bridge segment "
+        if bytes(seg.buf[:len(MAGIC)]) != MAGIC:
+            return (f"shared memory {name!r} already exists and is not a bridge segment "
                     f"(remove {shm_path(name)} if it is stale)")
-        pid = seg.i32[_U32["world_pid"]]
-        if seg.u32[_U32["world_state"]] != WORLD_CLOSED and pid_alive(pid):
+        pid, closed = world_of(seg)
+        if not closed and pid_alive(pid):
             return f"shared memory {name!r} is in use by another world process (pid {pid})"
         seg.unlink()
         return None
@@ -506,25 +555,74 @@ def _stale_or_busy(name: str) -> str | None:
         seg.close()
 
 
+# where protocol version 1 kept the world's state and pid (so that version-1 leftovers can be reclaimed too)
+_V1_WORLD_STATE, _V1_WORLD_PID = 68 // 4, 72 // 4
+
+
+def world_of(seg: Segment) -> tuple[int, bool]:
+    """(world pid, closed?) of a bridge segment of protocol version 1 or 2 (pid 0 for another version)."""
+    version = seg.u32[_U32["version"]]
+    if version == 1:
+        return int(seg.i32[_V1_WORLD_PID]), seg.u32[_V1_WORLD_STATE] == WORLD_CLOSED
+    if version == VERSION:
+        return int(seg.i32[_U32["world_pid"]]), seg.u32[_U32["world_state"]] == WORLD_CLOSED
+    return 0, True
+
+
+def reclaim(prefix: str) -> list[str]:
+    """Remove the bridge segments named PREFIX* whose world process is dead or closed (left by a run killed
+    with SIGKILL, whose peer died too); returns the names removed. Segments of live worlds stay."""
+    removed = []
+    try:
+        entries = os.listdir(SHM_DIR)
+    except OSError:
+        return removed
+    for entry in entries:
+        if not entry.startswith(prefix):
+            continue
+        try:
+            seg = Segment.open(entry, FIXED_SIZE)
+        except BridgeError:
+            continue
+        if seg is None:
+            continue
+        try:
+            if bytes(seg.buf[:len(MAGIC)]) != MAGIC:
+                continue
+            pid, closed = world_of(seg)
+            if closed or not pid_alive(pid):
+                if seg.unlink():
+                    removed.append(entry)
+        finally:
+            seg.close()
+    return removed
+
+
 # --- the driver side -----------------------------------------------------------------------------------------------
 class DriverEndpoint(_Endpoint):
     """Attaches to the world's segment, takes frames and sends actions.
 
-    attach_timeout: seconds to wait for the world to create the segment. peer_timeout: seconds without a world
-    heartbeat before the world counts as dead (None: pid test only). Only one driver may attach at a time.
+    The world's declaration comes from the header (`declaration`, `layout`); `require(...)` checks that it offers
+    what this driver needs. attach_timeout: seconds to wait for the world to create the segment. peer_timeout:
+    seconds without a world heartbeat before the world counts as dead (None: pid test only). Only one driver may
+    attach at a time.
     """
 
     _role = "driver"
     _peer_role = "world"
 
-    def __init__(self, name: str, attach_timeout: float = 10.0, peer_timeout: float | None = 2.0, *,
-                 spin: float = DEFAULT_SPIN):
+    def __init__(self, name: str, attach_timeout: float = DEFAULT_ATTACH_TIMEOUT,
+                 peer_timeout: float | None = 2.0, *, spin: float = DEFAULT_SPIN):
         layout.check_native_byte_order()
         if not futex.available():
             raise BridgeError("the shared-memory bridge needs Linux futexes (unsupported platform)")
         name = validate_name(name)
-        seg = _attach(name, attach_timeout)
+        seg, lay = _attach(name, attach_timeout)
         try:
+            try:
+                declaration = lay.declaration_object()
+            except DeclarationError as e:
+                raise ProtocolMismatch(f"shared memory {name!r}: {e}") from None
             try:
                 fcntl.flock(seg.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -538,10 +636,13 @@ class DriverEndpoint(_Endpoint):
         except BaseException:
             seg.close()
             raise
+        self.declaration = declaration
         self._peer_heartbeat = _U64["world_heartbeat_ns"]
         self._last_seq = 0
+        self._n_estimate = len(lay.estimate)
+        self._end_reason = "none"
         self.discarded_copies = 0   # copies thrown away because the world rewrote the slot meanwhile
-        self._setup(seg, link, "driver_bell", peer_timeout, spin)
+        self._setup(seg, lay, link, "driver_bell", peer_timeout, spin)
 
     def _peer_state(self):
         if self._u32[_U32["world_state"]] == WORLD_CLOSED:
@@ -549,6 +650,7 @@ class DriverEndpoint(_Endpoint):
         return "attached", int(self._i32[_U32["world_pid"]])
 
     def _before_close(self) -> None:
+        self._end_reason = self.end_reason
         if self._u32[_U32["world_state"]] != WORLD_CLOSED and not pid_alive(self._i32[_U32["world_pid"]]):
             self._link.unlink = True   # the world died unnoticed: its segment would be left behind
 
@@ -558,9 +660,54 @@ class DriverEndpoint(_Endpoint):
         return int(self._i32[_U32["world_pid"]])
 
     @property
+    def world(self) -> str:
+        return self.layout.world
+
+    @property
+    def end_reason(self) -> str:
+        """Why the world ended the run ("none" while it runs): "finished", "host lost", "interrupted",
+        "driver finished" or "error"."""
+        if self._closed:
+            return self._end_reason
+        v = self._u32[_U32["end_reason"]]
+        return END_REASONS[v] if v < len(END_REASONS) else f"unknown({v})"
+
+    @property
     def last_seq(self) -> int:
         """The seq of the newest frame this driver has taken (0: none yet)."""
         return self._last_seq
+
+    def require(self, world: str | None = None, cameras: Sequence | None = None, truth: Sequence[str] = (),
+                action: Sequence[str] | None = None, estimate: Sequence[str] = (), modes: Sequence[str] = ()) -> None:
+        """Check that the world offers what this driver needs, else ProtocolMismatch in one line: its name, camera
+        names with (height, width) ((name, None) accepts any size), truth fields, the exact action, estimate
+        fields and behavioural modes. Fields are found by name; their order is the header's."""
+        lay, problems = self.layout, []
+        if world is not None and lay.world != world:
+            problems.append(f"it serves world {lay.world!r}, not {world!r}")
+        cams = {c.name: (c.height, c.width) for c in lay.cameras}
+        for cam in cameras or ():
+            cname, size = (cam, None) if isinstance(cam, str) else cam
+            if cname not in cams:
+                problems.append(f"it has no camera {cname!r} (cameras: {', '.join(cams)})")
+            elif size is not None and tuple(size) != cams[cname]:
+                problems.append(f"camera {cname!r} is {cams[cname][1]}x{cams[cname][0]}, not {size[1]}x{size[0]}")
+        have = {n for n, _ in lay.truth}
+        missing = [n for n in truth if n not in have]
+        if missing:
+            problems.append(f"its truth record lacks {', '.join(missing)}")
+        names = tuple(a[0] for a in lay.action)
+        if action is not None and tuple(action) != names:
+            problems.append(f"its action is ({', '.join(names)}), not ({', '.join(action)})")
+        have = {n for n, _ in lay.estimate}
+        missing = [n for n in estimate if n not in have]
+        if missing:
+            problems.append(f"its estimate has no place for {', '.join(missing)}")
+        missing = [m for m in modes if m not in lay.modes]
+        if missing:
+            problems.append(f"it has no behavioural mode {', '.join(missing)}")
+        if problems:
+            raise ProtocolMismatch(f"shared memory {self.name!r} does not fit this driver: {'; '.join(problems)}")
 
     # --- frames ----------------------------------------------------------------------------------------------------
     def _take_frame(self):
@@ -576,67 +723,81 @@ class DriverEndpoint(_Endpoint):
             lock = self._slot_lock[i]
             version = u64[lock]
             if not version & 1 and u64[self._slot_seq[i]] == seq:
-                frame = self._slot_frame[i].copy()
-                truth = self._slot_truth[i].copy()
+                images = tuple(img.copy() for img in self._slot_images[i])
+                record = self._slot_truth[i].copy()
+                t = float(self._slot_t[i][0])
                 if u64[lock] == version:
                     self._last_seq = seq
                     u64[_U64["driver_seen_seq"]] = seq
                     u32 = self._u32
                     mode = u32[_U32["driver_mode"]]
-                    return FrameMsg(int(seq), frame, truth, bool(u32[_U32["paused"]]),
-                                    DRIVER_MODES[mode] if mode < len(DRIVER_MODES) else f"unknown({mode})")
+                    return FrameMsg(int(seq), images, record, t, bool(u32[_U32["paused"]]),
+                                    DRIVER_MODES[mode] if mode < len(DRIVER_MODES) else f"unknown({mode})",
+                                    int(u32[_U32["behaviour"]]))
                 self.discarded_copies += 1
             seq = u64[_U64["frame_seq"]]   # the world moved on while we copied: take the newer frame
         return _NOTHING
 
     def wait_frame(self, timeout: float | None = None) -> FrameMsg | None:
-        """The next frame (lock-step) or the newest one (free-running); None once the world closed the run.
+        """The next frame (lock-step) or the newest one (free-running); None once the world closed the run
+        (`end_reason` says why).
 
         BridgeTimeout after `timeout` seconds, PeerGone when the world process died."""
         self._require_open()
         return self._wait(self._take_frame, timeout, "no frame from the world")
 
     # --- actions ---------------------------------------------------------------------------------------------------
-    def send_action(self, seq: int, action: Action, estimate: np.ndarray | None = None) -> None:
-        """Answer frame `seq` with `action` (an Action or [steer, accel, brake]) and the estimated indicators."""
+    def send_action(self, seq: int, action, estimate=None) -> None:
+        """Answer frame `seq` with `action` (the world's action values, in header order; an object with
+        `as_array()` is accepted) and the estimate (NaN: none)."""
         self._require_open()
         self._check_peer()
-        a = action.as_array() if isinstance(action, Action) else np.asarray(action, dtype=np.float64)
-        if a.shape != (N_ACTION,):
-            raise ValueError(f"action must be an Action or 3 numbers [steer, accel, brake], got shape {a.shape}")
+        a = action.as_array() if hasattr(action, "as_array") else np.asarray(action, dtype=np.float64)
+        if a.shape != (self._n_action,):
+            names = ", ".join(x[0] for x in self.layout.action)
+            raise ValueError(f"action must hold {self._n_action} values ({names}), got shape {a.shape}")
         if estimate is None:
-            est = np.full(N_INDICATORS, np.nan)
+            est = np.full(self._n_estimate, np.nan)
         else:
             est = np.asarray(estimate, dtype=np.float64)
-            if est.shape != (N_INDICATORS,):
-                raise ValueError(f"estimate must hold the {N_INDICATORS} indicators in canonical order, "
+            if est.shape != (self._n_estimate,):
+                raise ValueError(f"estimate must hold {self._n_estimate} values (the header's estimate names), "
                                  f"got shape {est.shape}")
-        u64, lock = self._u64, _U64["action_lock"]
+        u64, lock = self._u64, self._action_lock
         version = u64[lock]
         u64[lock] = version + 1
-        u64[_U64["action_seq"]] = int(seq)
+        u64[self._action_seq] = int(seq)
         block = self._action_block
-        block[:N_ACTION] = a
-        block[N_ACTION:] = est
+        block[:self._n_action] = a
+        block[self._n_action:] = est
         u64[lock] = version + 2
         self._link.ring()
 
+    def finish(self, failed: bool = False) -> None:
+        """Leave the run in order: the world ends it as "driver finished" (status "failed" with failed=True)."""
+        if self._closed:
+            return
+        self._u32[_U32["driver_status"]] = STATUS_FAILED if failed else STATUS_FINISHED
+        self.close()
 
-def _attach(name: str, timeout: float) -> Segment:
-    """Open the world's segment, waiting up to `timeout` s for it to appear, and check its header."""
+
+def _attach(name: str, timeout: float) -> tuple[Segment, Layout]:
+    """Open the world's segment, waiting up to `timeout` s for it to appear, and check its header.
+
+    A zero magic means "not ready yet" (keep waiting); any other magic than "DSBRIDGE" means "not ours" (refuse)."""
     deadline = time.monotonic() + timeout
     delay = 0.001
     while True:
-        seg = Segment.open(name, CONTROL_SIZE)
+        seg = Segment.open(name, FIXED_SIZE)
         if seg is not None:
             try:
                 magic = bytes(seg.buf[:len(MAGIC)])
                 if magic == MAGIC:
-                    problem = _check_header(seg)
-                    if problem is None:
-                        return seg
-                    if problem != "stale":
-                        raise ProtocolMismatch(problem)
+                    result = _check_header(seg)
+                    if isinstance(result, Layout):
+                        return seg, result
+                    if result != "stale":
+                        raise ProtocolMismatch(result)
                 elif magic != bytes(len(MAGIC)):
                     raise ProtocolMismatch(f"shared memory {name!r} is not a drivestudio bridge segment "
                                            f"(magic {magic!r}, expected {MAGIC!r})")
@@ -651,8 +812,8 @@ def _attach(name: str, timeout: float) -> Segment:
         delay = min(delay * 2, 0.05)
 
 
-def _check_header(seg: Segment) -> str | None:
-    """None when the header matches this implementation, "stale" for a dead world's leftover (removed),
+def _check_header(seg: Segment):
+    """The Layout when the header is a consistent version-2 header, "stale" for a dead world's leftover (removed),
     else the mismatch in one line."""
     u32, name = seg.u32, seg.name
     if u32[_U32["byte_order"]] != layout.BYTE_ORDER_MARK:
@@ -660,17 +821,17 @@ def _check_header(seg: Segment) -> str | None:
     version = u32[_U32["version"]]
     if version != VERSION:
         return f"shared memory {name!r} has protocol version {version}, this driver speaks {VERSION}"
-    h, w, c = (int(u32[_U32[k]]) for k in ("height", "width", "channels"))
+    try:
+        lay = Layout.read(seg.buf)
+    except ValueError as e:
+        return f"shared memory {name!r} has a corrupt header ({e})"
+    problems = lay.mismatches(seg.buf)
     declared = int(seg.u64[_U64["layout_size"]])
-    expected = layout.layout_size(h, w, c)
-    fixed = {"header_size": CONTROL_SIZE, "truth_len": TRUTH_LEN, "n_indicators": N_INDICATORS,
-             "slot_count": SLOT_COUNT, "frame_size": h * w * c, "slot_size": layout.slot_size(h * w * c)}
-    bad = [f"{k} {u32[_U32[k]]} (expected {v})" for k, v in fixed.items() if u32[_U32[k]] != v]
-    if declared != expected or seg.size < declared or bad or c != layout.CHANNELS:
-        return (f"shared memory {name!r} declares a layout of {declared} bytes ({seg.size} mapped) for "
-                f"{h}x{w}x{c} frames, this driver expects {expected}" + (f": {', '.join(bad)}" if bad else ""))
+    if problems or seg.size < declared:
+        return (f"shared memory {name!r} declares a layout of {declared} bytes ({seg.size} mapped) that its own "
+                f"description contradicts" + (f": {', '.join(problems)}" if problems else ""))
     pid = seg.i32[_U32["world_pid"]]
     if u32[_U32["world_state"]] == WORLD_CLOSED or not pid_alive(pid):
         unlink_if_same(seg.path, seg.dev, seg.ino)   # a dead world's leftover: remove it, wait for a new one
         return "stale"
-    return None
+    return lay

@@ -9,13 +9,15 @@ class BridgeError(RuntimeError):
 class PeerGone(BridgeError):
     """The other process died, stopped responding, or left the run.
 
-    pid: the peer's process id (0 when unknown); orderly: True when it detached or closed on purpose.
+    pid: the peer's process id (0 when unknown); orderly: True when it detached or closed on purpose;
+    finished: True when a driver ended the run in order (DriverEndpoint.finish): a success, not a failure.
     """
 
-    def __init__(self, message: str, pid: int = 0, orderly: bool = False):
+    def __init__(self, message: str, pid: int = 0, orderly: bool = False, finished: bool = False):
         super().__init__(message)
         self.pid = pid
         self.orderly = orderly
+        self.finished = finished
 
 
 class ProtocolMismatch(BridgeError):
@@ -24,3 +26,7 @@ class ProtocolMismatch(BridgeError):
 
 class BridgeTimeout(BridgeError, TimeoutError):
     """A wait with a timeout ran out (no driver attached, no frame, no action)."""
+
+
+class BadName(BridgeError, ValueError):
+    """A shared-memory name that is not a plain file name (a usage error)."""

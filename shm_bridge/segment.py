@@ -14,7 +14,7 @@ import stat
 
 import numpy as np
 
-from shm_bridge.errors import BridgeError
+from shm_bridge.errors import BadName, BridgeError
 
 SHM_DIR = "/dev/shm"
 MODE = 0o600
@@ -24,10 +24,10 @@ _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,199}")
 def validate_name(name: str) -> str:
     """The segment name without a leading '/', or BridgeError for a name that is not a plain file name."""
     if not isinstance(name, str):
-        raise BridgeError(f"shared-memory name must be a string, got {type(name).__name__}")
+        raise BadName(f"shared-memory name must be a string, got {type(name).__name__}")
     bare = name[1:] if name.startswith("/") else name
     if not _NAME.fullmatch(bare):
-        raise BridgeError(f"bad shared-memory name {name!r}: use 1-200 characters from A-Z a-z 0-9 . _ - "
+        raise BadName(f"bad shared-memory name {name!r}: use 1-200 characters from A-Z a-z 0-9 . _ - "
                           "(not starting with '.' or '-')")
     return bare
 

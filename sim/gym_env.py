@@ -11,7 +11,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 
 from .camera import CameraConfig
 from .world import Observation, World, WorldConfig

@@ -1,7 +1,8 @@
 """Exact ground-truth affordance indicators (docs/affordances.md, rule by rule).
 
 Everything is computed from track coordinates: the host car's (s, d, heading relative to the tangent) and
-the other cars' (s, d). Names, order and inactive values come from the shared vocabulary.
+the other cars' (s, d). Names, order and inactive values come from the highway's declaration
+(shm_bridge/worlds/highway.py).
 """
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from shm_bridge.vocabulary import GAP_INACTIVE, GAP_MAX, INACTIVE, INDEX, INDICATORS, indicators_to_dict
+from shm_bridge.worlds.highway import (GAP_INACTIVE, GAP_MAX, HIGHWAY, INACTIVE, INDEX, INDICATORS,
+                                      indicators_to_dict)
 
 from .track import Track, wrap_angle
 
@@ -103,7 +105,7 @@ class GroundTruth:
     """Everything the world knows about one instant, for labels, controllers and overlays.
 
     indicators: the 14 in canonical order. ego: [x, y, yaw, s, d] (m, m, rad, m, m). cars: (n, 5) with the
-    same columns for every other car. lanes_left: lanes to the left of the host car's lane (seed 002 §6.5).
+    same columns for every other car. lanes_left: lanes to the left of the host car's lane (Liu and Wang, section 6.5).
     """
 
     indicators: np.ndarray
@@ -131,3 +133,18 @@ def ground_truth(track: Track, ego: np.ndarray, ego_heading: float, speed: float
         lanes_left=track.lane_of(d), lanes=track.lanes, lane_width=track.lane_width, speed=float(speed),
         in_lane=bool(in_lane_active(track, d)), on_marking=on_marking_index(track, d) is not None,
         ego=np.asarray(ego, dtype=np.float64), cars=cars)
+
+
+# the truth record after the 14 indicators, in the declaration's order (checked at import)
+_RECORD_TAIL = ("lanes_left", "lanes", "lane_width", "speed", "in_lane", "on_marking", "x", "y", "yaw", "s", "d",
+                "collision", "off_road")
+assert HIGHWAY.truth_names == INDICATORS + _RECORD_TAIL, "sim/truth.py packs the highway's truth record by position"
+
+
+def truth_record(truth: GroundTruth, collision: bool, off_road: bool) -> np.ndarray:
+    """The highway's truth record (float64, HIGHWAY.truth order): what the bridge carries and datasets store."""
+    out = np.empty(len(INDICATORS) + len(_RECORD_TAIL))
+    out[:len(INDICATORS)] = truth.indicators
+    out[len(INDICATORS):] = (truth.lanes_left, truth.lanes, truth.lane_width, truth.speed, truth.in_lane,
+                             truth.on_marking, *truth.ego, collision, off_road)
+    return out

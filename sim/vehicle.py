@@ -1,6 +1,6 @@
 """The host car: a kinematic bicycle integrated in track (Frenet) coordinates.
 
-Driven by TORCS-style commands (shm_bridge.vocabulary.Action). Integrating in (s, d, heading relative to the
+Driven by TORCS-style commands (shm_bridge.worlds.highway.Action). Integrating in (s, d, heading relative to the
 tangent) keeps the ground truth exact: no projection from world coordinates is needed each step.
 """
 from __future__ import annotations
@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from shm_bridge.vocabulary import STEER_LOCK_RAD, Action
+from shm_bridge.worlds.highway import STEER_LOCK_RAD, Action
 
 from .track import Track
 

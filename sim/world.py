@@ -10,14 +10,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import HIGHWAY, Action
 
 from .camera import CameraConfig
 from .collision import overlaps
 from .scenario import Scenario
 from .track import Track, load_track
 from .traffic import CarStates, ScriptedTraffic
-from .truth import GroundTruth, ground_truth
+from .truth import GroundTruth, ground_truth, truth_record
 from .vehicle import VehicleParams, VehicleState, step_vehicle
 
 LOST_MARGIN = 6.0  # [m] beyond the road edge the host car is lost and the episode ends
@@ -47,10 +47,31 @@ class Observation:
     off_road: bool = False          # the host car's centre is beyond a road edge now
     lost: bool = False              # so far off the road that the episode cannot go on
 
+    # what the world-independent loop, bridge and recorders read (docs/architecture.md)
+    @property
+    def frames(self) -> tuple:
+        """One image per camera of the declaration: the front camera's."""
+        return (self.frame,)
+
+    @property
+    def record(self) -> np.ndarray:
+        """The truth record, float64 in the order of the highway's declaration."""
+        return truth_record(self.truth, self.collision, self.off_road)
+
+    @property
+    def end(self) -> str | None:
+        """Why the episode cannot go on (None: it can)."""
+        return "host lost" if self.lost else None
+
 
 class World:
+    """The highway world. `declaration` is HIGHWAY with the camera size of this world's configuration."""
+
     def __init__(self, config: WorldConfig | None = None, scenario: Scenario | None = None):
         self.config = config = config or WorldConfig()
+        cam = config.camera
+        self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width)
+        self.dt = config.dt
         self.scenario = scenario
         if scenario is not None:
             self.track: Track = scenario.track
@@ -121,7 +142,10 @@ class World:
     def cars(self) -> CarStates:
         return self._traffic.states()
 
-    def step(self, action: Action, render: bool | None = None) -> Observation:
+    def step(self, action, render: bool | None = None) -> Observation:
+        """Advance one step under `action`: an Action, or [steer, accel, brake] as the declaration orders it."""
+        if not isinstance(action, Action):
+            action = Action.from_array(action)
         t0 = time.perf_counter()
         self.ego = step_vehicle(self.ego, action, self.config.dt, self.track, self.config.vehicle)
         t1 = time.perf_counter()
@@ -147,9 +171,6 @@ class World:
             frame = self._render(ego, cars)
             self.timings["render"] += time.perf_counter() - t1
         return Observation(frame, truth, self.t, collision, off_road, lost)
-
-    def render(self) -> np.ndarray:
-        return self._render(self.ego_pose(), self._traffic.states())
 
     def _render(self, ego: np.ndarray, cars: CarStates) -> np.ndarray:
         if self._renderer is None or self._renderer_seed != self.seed:

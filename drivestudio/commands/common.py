@@ -1,41 +1,83 @@
-"""Options shared by the verbs that build a world (serve, drive, record)."""
+"""What the verbs share: choosing a world (`--world` plus that world's own options), output folders, models."""
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
+from .. import worlds
 from ..errors import UsageError
+from ..numbers import seed as seed_type
+
+DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 
 
-def add_world_options(p, cars_default: int = 12) -> None:
+def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = True) -> None:
+    """--world, --seed, --renderer, and every world's own options for `verb` (each in its own group)."""
     g = p.add_argument_group("world")
-    g.add_argument("--track", default=None, help="track preset, track file or procedural:SEED (default oval)")
-    g.add_argument("--lanes", type=int, help="lane count 1-4 (default: the track's)")
-    g.add_argument("--cars", type=int, default=cars_default, help=f"AI cars driven by SUMO (default {cars_default})")
-    g.add_argument("--seed", type=int, default=0, help="seed of the scene and the traffic (default 0)")
-    g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
-    g.add_argument("--start-speed", type=float, default=15.0, help="host car's speed at the start [m/s]")
+    g.add_argument("--world", default="highway", choices=worlds.names(), help="which world (default highway)")
+    if seed_default is not None:
+        g.add_argument("--seed", type=seed_type(), default=seed_default,
+                       help=f"seed of the scene and the traffic (default {seed_default})")
+    if renderer:
+        g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
+    for plugin in worlds.all_plugins():
+        plugin.add_options(p, verb)
 
 
-def world_config(args, render: bool):
-    from sim.world import WorldConfig
-    if args.lanes is not None and not 1 <= args.lanes <= 4:
-        raise UsageError("--lanes must be from 1 to 4")
-    return WorldConfig(track=args.track or "oval", lanes=args.lanes, cars=args.cars, seed=args.seed,
-                       renderer=args.renderer, render=render, start_speed=args.start_speed)
+def plugin_for(args, verb: str):
+    """The selected world's plugin; options of another world are refused in one line."""
+    plugin = worlds.get(args.world)
+    for other in worlds.all_plugins():
+        if other.name != plugin.name:
+            given = [f for f in other.options_given(args, verb) if f not in plugin._flags.get(verb, {})]
+            if given:
+                raise UsageError(f"{', '.join(given)} belong{'s' if len(given) == 1 else ''} to the {other.name} "
+                                 f"world, not to --world {plugin.name}")
+    return plugin
+
+
+def add_device_option(p, default: str = "cpu") -> None:
+    p.add_argument("--device", default=default, type=device_type,
+                   help=f"torch device: cpu, cuda, cuda:N or auto (default {default})")
+
+
+def device_type(text: str) -> str:
+    import argparse
+    if not DEVICE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"--device must be cpu, cuda, cuda:N or auto, got {text!r}")
+    return text
+
+
+def check_device(name: str) -> str:
+    """The device name, or UsageError when it names a GPU this machine does not have."""
+    if name.startswith("cuda") or name == "mps":
+        import torch
+        if name.startswith("cuda") and not torch.cuda.is_available():
+            raise UsageError(f"--device {name}: no CUDA device is available here")
+        if name.startswith("cuda:") and int(name[5:]) >= torch.cuda.device_count():
+            raise UsageError(f"--device {name}: this machine has {torch.cuda.device_count()} CUDA device(s)")
+        if name == "mps" and not torch.backends.mps.is_available():
+            raise UsageError("--device mps: no Apple GPU is available here")
+    return name
 
 
 def run_dir(out: str | None, prefix: str) -> Path:
-    path = Path(out) if out else Path("runs") / f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}"
-    path.mkdir(parents=True, exist_ok=True)
+    """The output folder (checked before any work, then created): --out, or runs/PREFIX-TIME."""
+    from perception.files import make_dir
+    return make_dir(Path(out) if out is not None else Path("runs") / f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}")
+
+
+def check_checkpoint_path(model: str) -> Path:
+    path = Path(model)
+    if not path.is_file():
+        raise UsageError(f"--model must be a world's driver (oracle, expert) or a checkpoint file; no such file: "
+                         f"{model}")
     return path
 
 
-def load_perception(model: str, device: str = "cpu"):
-    """None for the oracle (the truth itself), else a predictor loaded from a checkpoint."""
-    if model == "oracle":
-        return None
-    if not Path(model).is_file():
-        raise UsageError(f"--model must be 'oracle' or a checkpoint file; no such file: {model}")
+def load_predictor_for(model: str, world: str, device: str = "cpu"):
+    """The predictor of a checkpoint, which must be a model of `world`."""
+    check_checkpoint_path(model)
     from perception.predictor import load_predictor
-    return load_predictor(model, device=device)
+    return load_predictor(model, device=check_device(device), world=world)

@@ -1,46 +1,62 @@
-"""drivestudio drive: the driver side of the loop, or both sides at once.
+"""drivestudio drive: the driver side of the loop, or both sides at once, for any world.
 
-    drive --shm NAME --model oracle|CKPT                   the driver, attached to a running `serve`
-    drive --model oracle|CKPT --track T --seconds S        world and driver as two processes over the bridge
+    drive --shm NAME --model M                             the driver, attached to a running `serve`
+    drive --model M [--world W ...] --seconds S            world and driver as two processes over the bridge
     drive ... --in-process                                 the same loop in one process (no bridge)
+
+M is one of the world's own drivers (highway: oracle; sidewalk: expert) or a checkpoint of that world.
 """
 from __future__ import annotations
 
+import argparse
+
 from ..errors import UsageError
-from .common import add_world_options, run_dir, world_config
+from ..numbers import positive
+from .common import add_device_option, add_world_options, check_device, plugin_for, run_dir
 
 
 def register(sub) -> None:
-    p = sub.add_parser("drive", help="drive closed loop with the oracle or a trained model",
-                       description=__doc__.split("\n", 1)[1], formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
-    p.add_argument("--model", default="oracle", help="'oracle' (perfect perception) or a checkpoint (default oracle)")
-    p.add_argument("--device", default="cpu", help="torch device for a model (default cpu)")
-    p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver")
-    add_world_options(p)
-    p.add_argument("--seconds", type=float, default=60.0, help="simulated seconds (default 60)")
-    p.add_argument("--realtime", action="store_true", help="pace to wall-clock 10 Hz (default: as fast as it can)")
+    p = sub.add_parser("drive", help="drive closed loop with a world's own driver or a trained model",
+                       description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", default=None, help="'oracle' (highway), 'expert' (sidewalk) or a checkpoint "
+                                                 "(default: the world's own driver)")
+    add_device_option(p)
+    p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
+                                 "world and its options come from there")
+    add_world_options(p, "drive")
+    p.add_argument("--seconds", type=positive("--seconds", 10 * 24 * 3600.0), default=60.0,
+                   help="simulated seconds (default 60)")
+    p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",
                    help="the world never waits for the driver (default: lock-step)")
     p.add_argument("--in-process", action="store_true", help="one process, no shared memory")
-    p.add_argument("--record", help="write the run's box overlays (truth and estimate) as this .mp4")
+    p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/drive-TIME)")
-    p.add_argument("--stats-out", help=__import__("argparse").SUPPRESS)  # driver side: timings for the parent
+    p.add_argument("--stats-out", help=argparse.SUPPRESS)  # driver side: timings for the parent
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from .. import drive_session
-    from .common import load_perception
+    from perception.files import check_output
 
-    world_given = any(getattr(args, k) is not None for k in ("track", "lanes"))
-    if args.shm and (world_given or args.in_process or args.record):
-        raise UsageError("with --shm the world runs elsewhere: --track, --lanes, --in-process and --record do "
-                         "not apply")
-    perception = load_perception(args.model, args.device)
+    from .. import drive_session
+
+    check_device(args.device)
     if args.shm:
-        return drive_session.run_driver_side(args.shm, perception, args.stats_out)
-    cfg = world_config(args, render=args.model != "oracle" or not args.in_process or bool(args.record))
+        given = [f for f in ("--record", "--in-process", "--free-running") if getattr(args, f[2:].replace("-", "_"))]
+        if given:
+            raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
+        from shm_bridge.segment import validate_name
+        validate_name(args.shm)
+        return drive_session.run_driver_side(args.shm, args.model or "oracle", args, args.stats_out)
+    plugin = plugin_for(args, "drive")
+    args.model = args.model or plugin.expert_names[0]
+    if args.record:
+        check_output(args.record, (".mp4",), "video")
     out = run_dir(args.out, "drive")
+    if args.model not in plugin.expert_names:
+        from .common import check_checkpoint_path
+        check_checkpoint_path(args.model)
     if args.in_process:
-        return drive_session.run_in_process(args, cfg, perception, out)
-    return drive_session.run_both_sides(args, cfg, out)
+        return drive_session.run_in_process(args, plugin, out)
+    return drive_session.run_both_sides(args, plugin, out)

@@ -1,43 +1,46 @@
-"""drivestudio evaluate --data DIR --model CKPT [--model CKPT ...]: MAE per indicator as seed 002's Table 3."""
+"""drivestudio evaluate --data DIR --model CKPT [--model CKPT ...]: MAE per output; for the highway as Liu and
+Wang's Table 3."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..numbers import count
+from .common import add_device_option, check_device
 
 
 def register(sub) -> None:
-    p = sub.add_parser("evaluate", help="MAE per indicator of trained models, as the paper's Table 3",
-                       description="Mean absolute error per indicator of one or more checkpoints on a split of a "
-                                   "dataset, one row per model beside the paper's three (Table 3), split by regime "
-                                   "(in lane, on marking, overlap) and by lane count, with inference latency and "
-                                   "throughput. Writes mae.md, mae.csv, mae_by_regime.csv, mae_by_lanes.csv, "
-                                   "speed.csv, mae.png and evaluation.json to --out.")
+    p = sub.add_parser("evaluate", help="MAE per output of trained models (the highway: as Liu and Wang's Table 3)",
+                       description="Mean absolute error per output of one or more checkpoints on a split of a "
+                                   "dataset of their world, with inference latency and throughput; for the highway "
+                                   "one row per model beside Liu and Wang's three (their Table 3), split by regime "
+                                   "(in lane, on marking, overlap) and by lane count. Writes mae.md, mae.csv, "
+                                   "mae_by_regime.csv, mae_by_lanes.csv, speed.csv, mae.png and evaluation.json.")
     p.add_argument("--data", required=True, help="dataset folder written by `drivestudio generate`")
     p.add_argument("--model", required=True, action="append", metavar="CKPT",
                    help="checkpoint written by `drivestudio train` (repeat for several models)")
     p.add_argument("--split", default="test", choices=("train", "val", "test", "all"),
                    help="frames to measure on (default test)")
     p.add_argument("--out", default="out/evaluate", help="folder for the report (default out/evaluate)")
-    p.add_argument("--device", default="cpu", help="cpu (default), cuda or cuda:N")
-    p.add_argument("--batch-size", type=int, default=32, help="frames per forward pass (default 32)")
-    p.add_argument("--workers", type=int, default=0, help="processes decoding frames (default 0)")
-    p.add_argument("--latency-frames", type=int, default=100,
-                   help="frames timed one at a time for the latency figure (default 100)")
+    add_device_option(p)
+    p.add_argument("--batch-size", type=count("--batch-size", 1, 4096), default=32,
+                   help="samples per forward pass (default 32)")
+    p.add_argument("--workers", type=count("--workers", 0, 64), default=0, help="processes decoding frames (0)")
+    p.add_argument("--latency-frames", type=count("--latency-frames", 1, 100000), default=100,
+                   help="samples timed one at a time for the latency figure (default 100)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    if args.batch_size < 1 or args.latency_frames < 1 or args.workers < 0:
-        raise UsageError("--batch-size and --latency-frames must be at least 1, --workers not negative")
-    if args.device.startswith("cuda"):
-        import torch
-        if not torch.cuda.is_available():
-            raise UsageError(f"--device {args.device}: no CUDA device is available here")
-
     from perception.evaluate import evaluate
+    from perception.files import check_output_dir
+
+    check_device(args.device)
+    check_output_dir(args.out)
+    for path in args.model:
+        from .common import check_checkpoint_path
+        check_checkpoint_path(path)
 
     from ..outputs import write_json, write_png, write_text
 

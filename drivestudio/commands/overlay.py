@@ -1,130 +1,125 @@
-"""drivestudio overlay --data DIR --model CKPT|oracle --out DIR: box overlays of chosen frames (or a video)."""
+"""drivestudio overlay --data DIR --model CKPT|oracle --out DIR: truth beside estimate for chosen samples (PNG or
+a video). The highway draws DeepDriving's top-down box overlays; every world draws its own (worlds' plugins)."""
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
 from ..errors import UsageError
+from ..numbers import count, seed
+from .common import add_device_option, check_device
 
 
 def register(sub) -> None:
-    p = sub.add_parser("overlay", help="draw ground truth and estimate as top-down box overlays (PNG or MP4)",
-                       description="For each chosen frame: the camera frame beside a top-down view of the lanes, "
-                                   "the truth as filled boxes (host red, cars yellow) and the estimate as "
-                                   "outlines (host green, cars purple), with an error bar per indicator.")
+    p = sub.add_parser("overlay", help="draw ground truth and estimate side by side (highway: top-down box "
+                                       "overlays), as PNGs or an MP4",
+                       description="For each chosen sample: the camera frame(s) beside the world's view of truth and "
+                                   "estimate. The highway: a top-down view of the lanes, the truth as filled boxes "
+                                   "(host red, cars yellow) and the estimate as outlines (host green, cars purple), "
+                                   "with an error bar per indicator.")
     p.add_argument("--data", required=True, help="dataset folder")
-    p.add_argument("--model", default="oracle", help="a checkpoint, or 'oracle' to draw the truth alone")
-    p.add_argument("--out", required=True, help="folder for the PNGs")
+    p.add_argument("--model", default="oracle", help="a checkpoint of the dataset's world, or 'oracle' to draw the "
+                                                     "truth alone")
+    p.add_argument("--out", help="folder for the PNGs (not with --video)")
     p.add_argument("--split", choices=("train", "val", "test", "all"), default="test", help="(default test)")
     p.add_argument("--select", choices=("first", "random", "worst"), default="first",
-                   help="first N frames, a random sample, or the N worst by error (default first)")
-    p.add_argument("-n", type=int, help="how many frames (default 20; with --video the whole episode)")
-    p.add_argument("--seed", type=int, default=0, help="seed of --select random")
+                   help="first N samples, a random sample, or the N worst by error (default first)")
+    p.add_argument("-n", type=count("-n", 1, 10**6), help="how many samples (default 20; with --video the whole "
+                                                           "episode)")
+    p.add_argument("--seed", type=seed(), default=0, help="seed of --select random")
     p.add_argument("--video", help="write consecutive overlays of one episode as this .mp4 instead")
-    p.add_argument("--episode", type=int, help="the episode for --video (default: the split's first)")
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--episode", type=count("--episode", 0, 10**9), help="the episode for --video (default: the "
+                                                                        "split's first)")
+    add_device_option(p)
     p.set_defaults(func=run)
-
-
-def _predict(predictor, images):
-    """(estimates (B, 14) in canonical order, lanes_left (B,) or None) of a batch of frames, one forward pass."""
-    import numpy as np
-
-    from shm_bridge.vocabulary import INDEX, INDICATORS
-    outputs = predictor.outputs(images)
-    est = np.zeros((len(images), len(INDICATORS)))
-    for i, name in enumerate(predictor.labels):
-        if name in INDEX:
-            est[:, INDEX[name]] = outputs[:, i]
-    lanes_left = outputs[:, predictor.labels.index("lanes_left")] if "lanes_left" in predictor.labels else None
-    return est, lanes_left
 
 
 def run(args) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from perception.overlay import mean_normalised_error
-    from perception.shards import Dataset
-    from shm_bridge.vocabulary import INDICATORS
+    from perception.datasets import FrameDataset
+    from perception.files import check_output, check_output_dir
+    from perception.shards import DatasetError
 
+    from .. import worlds
     from ..outputs import VideoWriter, write_png
-    from ..overlays import overlay_record
-    from .common import load_perception
 
-    if args.n is not None and args.n < 1:
-        raise UsageError("-n must be at least 1")
+    check_device(args.device)
+    if args.video:
+        check_output(args.video, (".mp4",), "video")
+        if args.out:
+            raise UsageError("--out goes with PNG overlays; --video writes one file")
+    elif not args.out:
+        raise UsageError("give --out FOLDER for PNG overlays, or --video FILE.mp4")
+    else:
+        check_output_dir(args.out)
     if args.n is None and not args.video:
         args.n = 20
-    ds = Dataset(Path(args.data))
-    shards = ds.select(None if args.split == "all" else args.split)
-    if not shards:
-        raise UsageError(f"the dataset has no frames in split '{args.split}'")
-    predictor = load_perception(args.model, args.device)
+    split = None if args.split == "all" else args.split
+    predictor = None
+    if args.model != "oracle":
+        from .common import load_predictor_for
+        from perception.shards import Dataset
+        predictor = load_predictor_for(args.model, Dataset(Path(args.data)).world, args.device)
+    try:
+        ds = FrameDataset(args.data, split, targets=None if predictor is None else predictor.labels,
+                          normalised=False)
+    except DatasetError as e:
+        raise UsageError(str(e)) from None
+    plugin = worlds.get(ds.data.world)
     label = "oracle" if predictor is None else predictor.name
 
     if args.video:
-        episodes = {s.episode: s for s in shards}
-        ep = args.episode if args.episode is not None else shards[0].episode
+        episodes = {s.episode: k for k, s in enumerate(ds.shards)}
+        ep = args.episode if args.episode is not None else ds.shards[0].episode
         if ep not in episodes:
             raise UsageError(f"episode {ep} is not in split '{args.split}' (episodes: "
                              f"{', '.join(str(e) for e in sorted(episodes))})")
-        count = episodes[ep].frames if args.n is None else min(args.n, episodes[ep].frames)
-        wanted = [(episodes[ep], i) for i in range(count)]
+        wanted = [i for i in range(len(ds)) if ds.locate(i)[0] == episodes[ep]]
+        wanted = wanted if args.n is None else wanted[:args.n]
+    elif args.select == "random":
+        rng = np.random.default_rng(args.seed)
+        wanted = sorted(rng.choice(len(ds), min(args.n, len(ds)), replace=False).tolist())
+    elif args.select == "first":
+        wanted = list(range(min(args.n, len(ds))))
     else:
-        index = [(s, i) for s in shards for i in range(s.frames)]
-        if args.select == "random":
-            rng = np.random.default_rng(args.seed)
-            wanted = [index[i] for i in sorted(rng.choice(len(index), min(args.n, len(index)), replace=False))]
-        elif args.select == "first":
-            wanted = index[:args.n]
-        else:
-            wanted = index  # ranked below, once every frame is estimated
+        wanted = list(range(len(ds)))  # ranked below, once every sample is estimated
 
-    readers = {}
-
-    def load(item):
-        shard, row = item
-        if shard.file not in readers:
-            readers[shard.file] = ds.reader(shard)
-        image, record = readers[shard.file].row(row)
-        truth = np.array([record[n] for n in INDICATORS], dtype=np.float64)
-        return image, record, truth
-
-    items = []  # (record, image, truth, estimate, lanes_left)
-    batch = []
+    items = []  # (images at the step, record, {output: estimate} or None)
+    batch: list = []
 
     def flush():
         if not batch:
             return
-        if predictor is None:
-            est, ll = [truth for _, _, truth in batch], None
-        else:
-            est, ll = _predict(predictor, [image for image, _, _ in batch])
-        for k, (image, record, truth) in enumerate(batch):
-            items.append((record, image, truth, np.asarray(est[k]), None if ll is None else float(ll[k])))
+        est = None
+        if predictor is not None:
+            est = predictor.batch([ds.images(*ds.locate(i)) for i in batch],
+                                  [m if m >= 0 else None for m in (ds.mode_of(i) for i in batch)]
+                                  if predictor.modes else None)
+        for k, i in enumerate(batch):
+            images, record = ds.record(i)
+            items.append((images, record, None if est is None else dict(zip(predictor.outputs, est[k]))))
         batch.clear()
 
-    for item in tqdm(wanted, desc="estimating", unit="frame", disable=len(wanted) < 200, file=sys.stderr,
-                     mininterval=1.0 if sys.stderr.isatty() else 30.0):
-        batch.append(load(item))
+    for i in tqdm(wanted, desc="estimating", unit="sample", disable=len(wanted) < 200, file=sys.stderr,
+                  mininterval=1.0 if sys.stderr.isatty() else 30.0):
+        batch.append(i)
         if len(batch) == 32:
             flush()
     flush()
     if args.select == "worst" and not args.video:
-        items.sort(key=lambda it: -mean_normalised_error(it[2], it[3]))
+        items.sort(key=lambda it: -plugin.overlay_error(it[1], it[2]))
         items = items[:args.n]
 
-    out = Path(args.out)
     writer = VideoWriter(args.video) if args.video else None
     try:
-        for record, image, truth, est, ll in items:
-            title = f"episode {record['episode']} frame {record['step']}  {record['track']}, {record['lanes']} lanes"
-            img = overlay_record(image, record, truth, None if predictor is None else est, title, ll, label)
+        for images, record, est in items:
+            img = plugin.overlay(images, record, est, label)
             if writer is not None:
                 writer.write(img)
             else:
-                write_png(out / f"overlay-ep{record['episode']:04d}-{record['step']:04d}.png", img)
+                write_png(Path(args.out) / f"overlay-ep{record['episode']:04d}-{record['step']:04d}.png", img)
     except BaseException:
         if writer is not None:
             writer.abort()
@@ -133,5 +128,5 @@ def run(args) -> int:
         writer.close()
         print(f"wrote {writer.frames} overlays to {args.video}")
     else:
-        print(f"wrote {len(items)} overlays to {out}/")
+        print(f"wrote {len(items)} overlays to {args.out}/")
     return 0

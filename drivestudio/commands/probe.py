@@ -16,7 +16,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from shm_bridge.vocabulary import indicators_to_dict
+    from shm_bridge.worlds.highway import indicators_to_dict
     from sim.scenario import load_scenario
     from sim.world import World, WorldConfig
 

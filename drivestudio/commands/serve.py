@@ -1,25 +1,36 @@
-"""drivestudio serve --shm NAME: the world side of the shared-memory loop (TORCS's role)."""
+"""drivestudio serve --shm NAME: the world side of the shared-memory loop (TORCS's role), for any world."""
 from __future__ import annotations
 
-from .common import add_world_options, run_dir, world_config
+from ..numbers import positive
+from .common import add_world_options, plugin_for, run_dir
 
 
 def register(sub) -> None:
     p = sub.add_parser("serve", help="run the world and publish frames + truth over shared memory",
-                       description="Create the shared-memory segment NAME, wait for a driver "
-                                   "(`drivestudio drive --shm NAME`), then step the world on its actions. "
-                                   "Protocol: docs/shm-protocol.md.")
+                       description="Create the shared-memory segment NAME, describe the world in its header, wait "
+                                   "for a driver (`drivestudio drive --shm NAME`, or your own program: "
+                                   "docs/shm-protocol.md), then step the world on its actions.")
     p.add_argument("--shm", required=True, help="name of the shared-memory segment (/dev/shm/NAME)")
-    add_world_options(p)
-    p.add_argument("--seconds", type=float, help="simulated seconds to run (default: until Ctrl-C)")
-    p.add_argument("--realtime", action="store_true", help="pace to wall-clock 10 Hz (default: as fast as it can)")
+    add_world_options(p, "serve")
+    p.add_argument("--seconds", type=positive("--seconds", 10 * 24 * 3600.0),
+                   help="simulated seconds to run (default: until Ctrl-C)")
+    p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",
                    help="never wait for the driver; use its newest action (default: lock-step)")
-    p.add_argument("--wait", type=float, default=120.0, help="seconds to wait for a driver (default 120)")
+    p.add_argument("--wait", type=positive("--wait", 24 * 3600.0), default=120.0,
+                   help="seconds to wait for a driver to attach (default 120)")
+    p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/serve-TIME)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from perception.files import check_output
+    from shm_bridge.segment import validate_name
+
     from ..drive_session import run_world_side
-    return run_world_side(args, world_config(args, render=True), run_dir(args.out, "serve"))
+    validate_name(args.shm)
+    plugin = plugin_for(args, "serve")
+    if args.record:
+        check_output(args.record, (".mp4",), "video")
+    return run_world_side(args, plugin, run_dir(args.out, "serve"))

@@ -1,14 +1,16 @@
-"""drivestudio stats DIR: what a dataset covers, as a table, a JSON file and per-indicator histograms."""
+"""drivestudio stats DIR: what a dataset covers, as a table, a JSON file and per-label histograms."""
 from __future__ import annotations
 
 from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("stats", help="summarise a dataset's coverage and plot per-indicator histograms",
-                       description="Frames, tracks, in-lane / on-marking / overlap shares, frames per lane "
-                                   "position, near cars, angle spread and lane changes of a dataset; histograms "
-                                   "of every indicator as PNG. Reads labels only.")
+    p = sub.add_parser("stats", help="summarise a dataset's coverage and plot per-label histograms",
+                       description="Frames per split (and how the split was made), and what the data covers: for the "
+                                   "highway the in-lane / on-marking / overlap shares, frames per lane position, near "
+                                   "cars, angle spread and lane changes; for any world the spread of every label, the "
+                                   "balance of behavioural modes and the share of every flag (collisions, "
+                                   "corrections). Histograms as PNG. Reads labels only.")
     p.add_argument("data", help="dataset folder")
     p.add_argument("--split", choices=("train", "val", "test", "all"), default="all")
     p.add_argument("--out", help="folder for stats.json and the histograms (default DATA/stats)")
@@ -17,17 +19,18 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from perception.dataset_stats import histograms, summarize, table
+    from perception.files import check_output_dir
     from perception.shards import Dataset
 
     from ..outputs import write_json, write_text
 
     ds = Dataset(Path(args.data))
+    out = check_output_dir(Path(args.out) if args.out else Path(args.data) / "stats")
     summary, values = summarize(ds, None if args.split == "all" else args.split)
-    out = Path(args.out) if args.out else Path(args.data) / "stats"
     text = table(summary)
     write_json(out / "stats.json", summary)
     write_text(out / "stats.md", text + "\n")
-    pngs = histograms(values, out)
+    pngs = histograms(values, out, ds.declaration)
     print(text)
     print(f"\nwrote {out / 'stats.json'} and {len(pngs)} histogram PNGs in {out}/")
     return 0

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from shm_bridge.vocabulary import lane_centres, markings
+from shm_bridge.worlds.highway import lane_centres, markings
 
 from .segments import Segment, wrap_angle
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from controller import ChenController, ChenParams
-from shm_bridge.vocabulary import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
+from shm_bridge.worlds.highway import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
 from sim.track import load_track
 from sim.traffic import ScriptedTraffic
 from sim.truth import affordances

@@ -8,7 +8,7 @@ import torch
 
 from perception.datasets import FrameDataset, FrameStream
 from perception.shards import DatasetError
-from shm_bridge.vocabulary import PAPER_INDICATORS, denormalise, label_set
+from shm_bridge.worlds.highway import PAPER_INDICATORS, denormalise, label_set
 
 
 @pytest.fixture(scope="module")

@@ -144,7 +144,7 @@ def test_a_controller_drives_the_gymnasium_environment():
 DRIVER_SCRIPT = r'''
 import sys, time
 from shm_bridge.endpoints import DriverEndpoint
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 name = sys.argv[1]
 with DriverEndpoint(name, attach_timeout=60) as ep:
     ep.driver_mode = "manual"          # an expert takes over: our (absurd) commands must not steer the car

@@ -8,7 +8,7 @@ import pytest
 
 from perception.overlay import (CANVAS, GREEN, HOST_Y, PX_PER_M, PURPLE, RED, YELLOW, compose, draw_topdown,
                                 estimate_host, mean_normalised_error)
-from shm_bridge.vocabulary import INDEX
+from shm_bridge.worlds.highway import INDEX
 from sim.track import load_track
 from sim.truth import affordances
 

@@ -8,7 +8,7 @@ from drivestudio.cli import main
 from perception.checkpoint import CheckpointError, load_checkpoint, load_model, save_checkpoint
 from perception.models import build, load_trunk
 from perception.train import train
-from shm_bridge.vocabulary import label_set
+from shm_bridge.worlds.highway import label_set
 
 from .frames import dataset, gist_checkpoint, tiny_config
 

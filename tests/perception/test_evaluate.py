@@ -1,4 +1,4 @@
-"""`drivestudio evaluate` writes the MAE per indicator in the layout of seed 002's Table 3 (Markdown, CSV, PNG),
+"""`drivestudio evaluate` writes the MAE per indicator in the layout of Liu and Wang's Table 3 (Markdown, CSV, PNG),
 split by regime and by lane count, with latency and throughput."""
 import csv
 import json
@@ -10,7 +10,7 @@ from drivestudio.cli import main
 from perception.datasets import FrameDataset
 from perception.evaluate import TABLE3, evaluate
 from perception.predictor import load_predictor
-from shm_bridge.vocabulary import PAPER_INDICATORS
+from shm_bridge.worlds.highway import PAPER_INDICATORS
 
 from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
 

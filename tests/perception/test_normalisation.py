@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from perception.models import build
-from shm_bridge.vocabulary import INACTIVE, INDICATORS, NORMALISATION, denormalise, label_set, normalise
+from shm_bridge.worlds.highway import INACTIVE, INDICATORS, NORMALISATION, denormalise, label_set, normalise
 
 from .frames import dataset
 

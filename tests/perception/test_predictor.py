@@ -4,7 +4,7 @@ import pytest
 
 from perception.datasets import FrameDataset
 from perception.predictor import load_predictor
-from shm_bridge.vocabulary import INDICATORS, label_set
+from shm_bridge.worlds.highway import INDICATORS, label_set
 
 from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint
 

@@ -7,7 +7,7 @@ import torch
 from perception.checkpoint import load_checkpoint
 from perception.datasets import FrameDataset
 from perception.train import PAPER, TrainConfig, curve_paths, euclidean_loss, train
-from shm_bridge.vocabulary import label_set
+from shm_bridge.worlds.highway import label_set
 
 from .frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 
 from tests.shm_bridge.processes import spawn
 

@@ -15,7 +15,7 @@ import pytest
 from shm_bridge import layout
 from shm_bridge.endpoints import (ActionMsg, BridgeError, BridgeTimeout, DriverEndpoint, PeerGone, ProtocolMismatch,
                                   WorldEndpoint)
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 
 
 def _frame(value: int, h: int = 210, w: int = 280) -> np.ndarray:

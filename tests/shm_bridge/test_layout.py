@@ -11,7 +11,7 @@ import pytest
 
 from shm_bridge import layout
 from shm_bridge.layout import CONTROL_FIELDS, SLOT_FIELDS, TRUTH_FIELDS, TRUTH_LEN
-from shm_bridge.vocabulary import INDICATORS
+from shm_bridge.worlds.highway import INDICATORS
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "shm-protocol.md"
 

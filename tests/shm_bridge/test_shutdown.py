@@ -13,7 +13,7 @@ import pytest
 
 from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEndpoint
 from shm_bridge.signals import exit_on_sigterm
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 
 from tests.shm_bridge.processes import spawn
 

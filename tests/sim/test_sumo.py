@@ -4,7 +4,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from shm_bridge.vocabulary import Action
+from shm_bridge.worlds.highway import Action
 from sim.collision import overlaps
 from sim.errors import TrafficError
 from sim.sumo_network import network_for

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from shm_bridge.vocabulary import INACTIVE, INDICATORS, indicators_to_dict
+from shm_bridge.worlds.highway import INACTIVE, INDICATORS, indicators_to_dict
 from sim.track import load_track
 from sim.truth import affordances, ground_truth
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from shm_bridge.vocabulary import STEER_LOCK_RAD, Action
+from shm_bridge.worlds.highway import STEER_LOCK_RAD, Action
 from sim.collision import overlaps
 from sim.track import load_track
 from sim.vehicle import VehicleParams, VehicleState, step_vehicle
