@@ -207,21 +207,32 @@ def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int
                on_frames) -> None:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     procs = [subprocess.Popen([sys.executable, "-m", "drivestudio.generate", "worker"], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, text=True, bufsize=1, env=env,
-                              cwd=os.getcwd()) for _ in range(min(workers, len(todo)))]
+                              stdout=subprocess.PIPE, env=env, cwd=os.getcwd()) for _ in range(min(workers, len(todo)))]
     queue = list(todo)
     busy: dict = {}
+    pending: dict = {p: b"" for p in procs}   # bytes read from a worker that do not yet end in a newline
     sel = selectors.DefaultSelector()
 
     def give(proc) -> None:
         if queue:
             ep = queue.pop(0)
-            proc.stdin.write(json.dumps({"ref": ref, "episode": asdict(ep), "config": asdict(cfg),
-                                         "out": str(out)}) + "\n")
+            job = {"ref": ref, "episode": asdict(ep), "config": asdict(cfg), "out": str(out)}
+            proc.stdin.write((json.dumps(job) + "\n").encode())
             proc.stdin.flush()
             busy[proc] = ep
         else:
             proc.stdin.close()
+
+    def handle(proc, line: bytes) -> None:
+        msg = json.loads(line)
+        if "progress" in msg:
+            on_frames(msg["progress"])
+        elif "done" in msg:
+            busy.pop(proc)
+            on_done(msg["done"])
+            give(proc)
+        else:
+            raise RunError(msg.get("error", "a worker failed"))
 
     try:
         for p in procs:
@@ -230,22 +241,16 @@ def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int
         while busy:
             for key, _ in sel.select(timeout=1.0):
                 proc = key.data
-                line = proc.stdout.readline()
-                if not line:
+                chunk = os.read(proc.stdout.fileno(), 1 << 16)   # raw reads: no line may hide in a buffer
+                if not chunk:
                     sel.unregister(proc.stdout)
                     if proc in busy:
                         raise RunError(f"a worker died while recording episode {busy[proc].index} "
                                        f"(exit status {proc.wait()})")
                     continue
-                msg = json.loads(line)
-                if "progress" in msg:
-                    on_frames(msg["progress"])
-                elif "done" in msg:
-                    busy.pop(proc)
-                    on_done(msg["done"])
-                    give(proc)
-                else:
-                    raise RunError(msg.get("error", "a worker failed"))
+                *lines, pending[proc] = (pending[proc] + chunk).split(b"\n")
+                for line in lines:
+                    handle(proc, line)
         for p in procs:
             p.wait(timeout=30)
     finally:

@@ -18,6 +18,7 @@ class CameraConfig:
     near: float = 0.3           # [m]
     far: float = 300.0          # [m]
     cull_distance: float = 220.0  # [m] nothing farther is drawn
+    eye_left: float = 0.0       # [m] to the left of the car's axis: one camera of a stereo pair
 
     @property
     def aspect(self) -> float:
@@ -37,6 +38,8 @@ class CameraConfig:
         """Eye position and unit viewing direction for a car at (x, y) [m] with yaw [rad]."""
         c, s = math.cos(yaw), math.sin(yaw)
         eye = np.array([x + self.eye_forward * c, y + self.eye_forward * s, self.eye_height])
+        if self.eye_left:   # only then: a centred camera's eye stays bit for bit what it was
+            eye[:2] += (-self.eye_left * s, self.eye_left * c)
         p = math.radians(self.pitch_deg)
         return eye, np.array([math.cos(p) * c, math.cos(p) * s, math.sin(p)])
 

@@ -19,15 +19,16 @@ SUBPIXEL_BITS = 4  # cv2 fixed-point precision
 
 
 class GroundPainter:
-    def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig):
+    def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig, materials=GROUND_MATERIALS):
+        """materials: the ground materials in painting order (the highway's by default; another world's own)."""
         self.camera = camera
-        self._colours = [tuple(int(c) for c in look.lit(look.colours[m][:3])) for m in GROUND_MATERIALS]
+        self._colours = [tuple(int(c) for c in look.lit(look.colours[m][:3])) for m in materials]
         # per chunk: all polygon vertices in one array; per polygon its material rank and vertex range
         self._verts: list[np.ndarray] = []
         self._tables: list[np.ndarray] = []  # (n_polygons, 3) int: rank, start, end
         for chunk in chunks:
             verts, table, n = [], [], 0
-            for rank, mat in enumerate(GROUND_MATERIALS):
+            for rank, mat in enumerate(materials):
                 for poly in chunk.ground.get(mat, []):
                     verts.append(poly)
                     table.append((rank, n, n + len(poly)))

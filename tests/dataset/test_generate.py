@@ -1,5 +1,6 @@
 """Dataset generation with real workers, real SUMO and real rendering; kill and resume with real processes."""
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -40,16 +41,25 @@ def reference(tmp_path_factory):
 
 def test_generate_writes_the_frames_and_a_manifest(reference):
     m = read_manifest(reference)
-    assert m["complete"] and m["frames"] == 60 and len(m["shards"]) == 3
+    assert m["version"] == 2 and m["complete"] and m["frames"] == 60 and len(m["shards"]) == 3
     assert m["renderer"] == "tiny" and m["software"]["pybullet"] and m["config"]["seed"] == 0
+    assert m["world"]["name"] == "highway" and m["world"]["cameras"][0] == {"name": "front", "height": 105,
+                                                                            "width": 140, "channels": 3}
     ds = Dataset(reference)
+    assert ds.world == "highway" and ds.declaration.cameras[0].shape == (105, 140, 3)
     assert [s.episode for s in ds.shards] == [0, 1, 2]
-    assert [s.lanes for s in ds.shards] == [2, 3, 2] and [s.track for s in ds.shards] == ["oval", "oval", "hairpins"]
-    img, rec = ShardReader(reference / ds.shards[1].file).row(7)
-    assert img.shape == (105, 140, 3) and img.dtype == np.uint8
-    assert rec["episode"] == 1 and rec["step"] == 7 and rec["lanes"] == 3 and len(rec["ego"]) == 5
+    assert [s.params["lanes"] for s in ds.shards] == [2, 3, 2]
+    assert [s.params["track"] for s in ds.shards] == ["oval", "oval", "hairpins"]
+    for s in ds.shards:   # each shard's size and checksum are in the manifest
+        assert s.size == (reference / s.file).stat().st_size and len(s.sha256) == 64 and ds.verify(s) is None
+    images, rec = ds.reader(ds.shards[1]).row(7)
+    assert len(images) == 1 and images[0].shape == (105, 140, 3) and images[0].dtype == np.uint8
+    assert rec["episode"] == 1 and rec["step"] == 7 and rec["lanes"] == 3
+    assert {"x", "y", "yaw", "s", "d", "collision", "off_road"} <= set(rec)
     assert len(rec["action"]) == 3 and rec["track"] == "oval"
+    assert rec["t"] == pytest.approx(5.0 + 0.7)   # after 5 s of unrecorded warm-up
     assert not list(reference.glob(".*.tmp"))
+    assert pq.read_schema(reference / ds.shards[0].file).names[0] == "image_front"
 
 
 def test_split_is_by_whole_episode():
@@ -83,12 +93,15 @@ def test_killed_run_resumes_without_loss_or_duplicates(reference, tmp_path, sig)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert _wait_for(lambda: any(out.glob("shard-*.parquet")) or any(out.glob(".shard-*.tmp")), 120)
     workers = _children_of(proc.pid)
+    shm_before = set(os.listdir("/dev/shm"))
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
     if sig == signal.SIGINT:
         assert proc.returncode == 130 and "interrupted" in err
-    # no worker outlives the run
+    # no worker outlives the run, and nothing is left in /dev/shm (no semaphores: workers talk over pipes)
     assert workers and _wait_for(lambda: not any(Path(f"/proc/{w}").exists() for w in workers), 10)
+    assert not [n for n in set(os.listdir("/dev/shm")) - shm_before if n.startswith("sem.")]
+    assert not [n for n in os.listdir("/dev/shm") if n.startswith("sem.mp-")]
     r = generate(out, workers=2)
     assert "60 frames in 3 episodes" in r.stdout
     m = read_manifest(out)
@@ -113,13 +126,60 @@ def test_corrupt_shard_is_named(reference, tmp_path):
     shard = broken / "shard-000001.parquet"
     shard.write_bytes(shard.read_bytes()[: shard.stat().st_size // 2])
     with pytest.raises(DatasetError, match="shard-000001.parquet is corrupt or truncated"):
-        ShardReader(shard)
+        ShardReader(shard, Dataset(broken).declaration)
+    with pytest.raises(DatasetError, match="shard-000001.parquet is damaged"):
+        Dataset(broken).reader(Dataset(broken).shards[1])   # the manifest's size does not match
     r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(broken)], capture_output=True, text=True)
     assert r.returncode == 2 and "shard-000001.parquet" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_resume_regenerates_a_damaged_shard(reference, tmp_path):
+    import shutil
+    out = tmp_path / "ds"
+    shutil.copytree(reference, out)
+    shard = out / "shard-000002.parquet"
+    shard.write_bytes(shard.read_bytes()[:-100])                 # truncated after the manifest listed it
+    r = generate(out, workers=1)
+    assert "recording episode 2 again" in r.stdout + r.stderr and "60 frames in 3 episodes" in r.stdout
+    assert content(out) == content(reference)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(out), "--out", str(tmp_path / "s")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def test_a_manifest_that_is_not_json_gets_one_line(reference, tmp_path):
+    import shutil
+    out = tmp_path / "ds"
+    shutil.copytree(reference, out)
+    (out / "manifest.json").write_bytes(b"\xff\xfe not utf-8 \x00")
+    for verb in (["stats", str(out)], ["evaluate", "--data", str(out), "--model", str(out / "manifest.json")],
+                 ["generate", "--out", str(out), *SMALL, "--quiet"]):
+        r = subprocess.run([sys.executable, "-m", "drivestudio", *verb], capture_output=True, text=True)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, verb
+
+
+def test_a_version_1_dataset_still_reads(tmp_path):
+    """A dataset written by the previous release (format 1: one `image` column, `ego` as a list) reads as
+    version 2: the same images and labels, ego split into x, y, yaw, s, d."""
+    import shutil
+    v1 = Path(__file__).parent / "fixtures" / "v1"
+    ds = Dataset(v1)
+    assert ds.version == 1 and ds.world == "highway" and ds.frames() == 10
+    images, rec = ds.reader(ds.shards[0]).row(3)
+    raw = pq.read_table(v1 / ds.shards[0].file).to_pylist()[3]
+    assert rec["s"] == raw["ego"][3] and rec["d"] == raw["ego"][4] and rec["dist_MM"] == raw["dist_MM"]
+    assert rec["collision"] is False and images[0].shape == (210, 280, 3)
+    from perception.datasets import FrameDataset
+    assert len(FrameDataset(v1, split="all")) == 10
+    copy = tmp_path / "v1"
+    shutil.copytree(v1, copy)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(copy), "--out", str(tmp_path / "s")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "| frames | 10 |" in r.stdout
+
+
 @pytest.mark.parametrize("args, message", [
-    (["--frames", "0"], "--frames must be at least 1"),
+    (["--frames", "0"], "--frames must be an integer from 1"),
     (["--lanes", "2,7"], "--lanes must list lane counts from 1 to 4"),
     (["--cars", "x"], "expected N or A-B"),
     (["--tracks", "nowhere"], "unknown track preset 'nowhere'"),

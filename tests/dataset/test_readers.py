@@ -1,4 +1,5 @@
-"""The PyTorch readers on a real generated dataset."""
+"""The PyTorch readers on a real generated highway dataset (the moments of a stereo world: tests/drivestudio/
+test_second_world.py and tests/sidewalk)."""
 import subprocess
 import sys
 
@@ -8,7 +9,7 @@ import torch
 
 from perception.datasets import FrameDataset, FrameStream
 from perception.shards import DatasetError
-from shm_bridge.worlds.highway import PAPER_INDICATORS, denormalise, label_set
+from shm_bridge.worlds.highway import HIGHWAY, PAPER_INDICATORS, label_set
 
 
 @pytest.fixture(scope="module")
@@ -21,14 +22,15 @@ def data(tmp_path_factory):
 
 
 def test_map_style_random_access(data):
-    ds = FrameDataset(data, split="train", labels=label_set(fast=True))
+    ds = FrameDataset(data, split="train", targets=label_set(fast=True))
     assert len(ds) == 160  # episodes 0-7 of 10
-    img, target = ds[37]
+    img, mode, target = ds[37]
     assert img.shape == (3, 210, 280) and img.dtype == torch.uint8
+    assert mode.item() == -1   # the highway has no behavioural modes
     assert target.shape == (14,) and target.dtype == torch.float32
-    raw_img, record = ds.record(37)
-    np.testing.assert_array_equal(img.numpy().transpose(1, 2, 0), raw_img)
-    values = denormalise(target.numpy(), label_set(fast=True))
+    raw_images, record = ds.record(37)
+    np.testing.assert_array_equal(img.numpy().transpose(1, 2, 0), raw_images[0])
+    values = HIGHWAY.denormalise(target.numpy(), label_set(fast=True))
     for name, v in zip(label_set(fast=True), values):
         expected = record[name]
         if name == "angle" and abs(expected) > 0.55:
@@ -47,26 +49,41 @@ def test_splits_partition_the_frames(data):
 
 
 def test_stream_yields_every_frame_once_in_shuffled_order(data):
-    stream = FrameStream(data, split="train", labels=PAPER_INDICATORS, seed=1, buffer=64)
-    targets = [t for _, t in stream]
+    stream = FrameStream(data, split="train", targets=PAPER_INDICATORS, seed=1, buffer=64)
+    targets = [t for _, _, t in stream]
     assert len(targets) == 160
     ordered = FrameDataset(data, split="train")
-    reference = {tuple(np.round(ordered[i][1].numpy(), 5)) for i in range(len(ordered))}
+    reference = {tuple(np.round(ordered[i][2].numpy(), 5)) for i in range(len(ordered))}
     assert {tuple(np.round(t.numpy(), 5)) for t in targets} == reference
-    first = [tuple(np.round(t.numpy(), 5)) for _, t in FrameStream(data, split="train", seed=1, buffer=64)]
-    assert first != [tuple(np.round(ordered[i][1].numpy(), 5)) for i in range(len(ordered))]  # shuffled
+    first = [tuple(np.round(t.numpy(), 5)) for _, _, t in FrameStream(data, split="train", seed=1, buffer=64)]
+    assert first != [tuple(np.round(ordered[i][2].numpy(), 5)) for i in range(len(ordered))]  # shuffled
+
+
+def test_stream_in_order_matches_random_access_and_carries_context(data):
+    ordered = FrameDataset(data, split="test", normalised=False)
+    stream = list(FrameStream(data, split="test", normalised=False, shuffle=False, context=("lanes", "speed")))
+    assert len(stream) == len(ordered) == 20
+    for i in (0, 7, 19):
+        img, _, target, context = stream[i]
+        np.testing.assert_array_equal(img.numpy(), ordered[i][0].numpy())
+        np.testing.assert_array_equal(target.numpy(), ordered[i][2].numpy())
+        _, record = ordered.record(i)
+        assert context[0].item() == record["lanes"] == 3
+        assert context[1].item() == pytest.approx(record["speed"], rel=1e-6)
 
 
 def test_stream_splits_shards_across_dataloader_workers(data):
     loader = torch.utils.data.DataLoader(FrameStream(data, split="train", seed=0), batch_size=16, num_workers=2)
-    images = torch.cat([x for x, _ in loader])
+    images = torch.cat([x for x, _, _ in loader])
     assert images.shape == (160, 3, 210, 280)
 
 
 def test_missing_labels_and_split_are_errors(data):
     with pytest.raises(DatasetError, match="no labels"):
-        FrameDataset(data, labels=("angle", "colour"))
+        FrameDataset(data, targets=("angle", "colour"))
     with pytest.raises(DatasetError, match="unknown split"):
         FrameDataset(data, split="holdout")
     with pytest.raises(DatasetError, match="not a dataset"):
         FrameDataset(data.parent)
+    with pytest.raises(DatasetError, match="no column colour"):
+        FrameStream(data, context=("colour",))

@@ -8,7 +8,7 @@ from drivestudio.cli import main
 from perception.checkpoint import CheckpointError, load_checkpoint, load_model, save_checkpoint
 from perception.models import build, load_trunk
 from perception.train import train
-from shm_bridge.worlds.highway import label_set
+from shm_bridge.worlds.highway import HIGHWAY, label_set
 
 from .frames import dataset, gist_checkpoint, tiny_config
 
@@ -82,7 +82,7 @@ def test_a_different_normalisation_is_refused(tmp_path):
 
 
 def test_imagenet_weights_must_match_the_trunk(tmp_path):
-    model = build("vgg16", label_set(), frozen=True)
+    model = build("vgg16", HIGHWAY, label_set(), frozen=True)
     torch.save({"features.0.weight": torch.zeros(64, 3, 3, 3)}, tmp_path / "partial.pth")
     with pytest.raises(CheckpointError, match="not a torchvision VGG-16 ImageNet state dict"):
         load_trunk(model, tmp_path / "partial.pth")
@@ -93,13 +93,13 @@ def test_imagenet_weights_must_match_the_trunk(tmp_path):
 
 
 def test_alexnet_takes_a_torchvision_alexnet_trunk(tmp_path):
-    model = build("alexnet", label_set())
+    model = build("alexnet", HIGHWAY, label_set())
     donor = {f"features.{k}": v + 1.0 for k, v in model.net.features.state_dict().items()}
     donor["classifier.1.weight"] = torch.zeros(4096, 9216)  # torchvision's head is ignored
     torch.save(donor, tmp_path / "alexnet.pth")
     assert load_trunk(model, tmp_path / "alexnet.pth") == 10
     with pytest.raises(CheckpointError, match="not a torchvision AlexNet"):
-        load_trunk(build("alexnet", label_set()), _vgg_trunk(tmp_path))
+        load_trunk(build("alexnet", HIGHWAY, label_set()), _vgg_trunk(tmp_path))
 
 
 def _vgg_trunk(tmp_path):

@@ -43,8 +43,8 @@ def test_table3_csv_is_the_mae_of_each_indicator(report):
     # recompute GIST's MAE of dist_MM from its predictions on the test frames
     predict = load_predictor(gist_checkpoint()[0])
     test = FrameDataset(dataset(), "test", PAPER_INDICATORS, normalised=False)
-    truth = np.stack([test[i][1].numpy() for i in range(len(test))])
-    pred = predict.predict_batch([test[i][0].permute(1, 2, 0).numpy() for i in range(len(test))])[:, :13]
+    truth = np.stack([test[i][2].numpy() for i in range(len(test))])
+    pred = predict.batch([test[i][0].permute(1, 2, 0).numpy() for i in range(len(test))])[:, :13]
     mae = np.abs(pred - truth).mean(0)
     assert float(ours["dist_MM"]) == pytest.approx(mae[6], rel=1e-3)
     assert float(ours["angle"]) == pytest.approx(mae[0], rel=1e-3)

@@ -5,7 +5,7 @@ import torch
 
 from perception.gist import GistDescriptor, gabor_bank
 from perception.models import IMAGENET_MEAN, build, describe, make_spec
-from shm_bridge.worlds.highway import label_set
+from shm_bridge.worlds.highway import HIGHWAY, label_set
 
 LABEL_SETS = [label_set(), label_set(fast=True), label_set(fast=True, lanes_left=True)]
 
@@ -19,17 +19,17 @@ def frames():
 @pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
 def test_alexnet_outputs_one_value_per_label(frames, labels):
     with torch.no_grad():
-        assert build("alexnet", labels)(frames).shape == (2, len(labels))
+        assert build("alexnet", HIGHWAY, labels)(frames).shape == (2, len(labels))
 
 
 @pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
 def test_gist_outputs_one_value_per_label(frames, labels):
     with torch.no_grad():
-        assert build("gist", labels)(frames).shape == (2, len(labels))
+        assert build("gist", HIGHWAY, labels)(frames).shape == (2, len(labels))
 
 
 def test_alexnet_is_five_convs_then_4096_4096_256_n_without_dropout_or_sigmoid():
-    net = build("alexnet", label_set()).net
+    net = build("alexnet", HIGHWAY, label_set()).net
     convs = [m for m in net.features if isinstance(m, torch.nn.Conv2d)]
     linears = [m for m in net.regressor if isinstance(m, torch.nn.Linear)]
     assert len(convs) == 5
@@ -40,7 +40,7 @@ def test_alexnet_is_five_convs_then_4096_4096_256_n_without_dropout_or_sigmoid()
 
 @pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
 def test_vgg16_frozen_outputs_one_value_per_label_and_trains_only_the_head(frames, labels):
-    model = build("vgg16", labels, frozen=True, batch_norm=False)
+    model = build("vgg16", HIGHWAY, labels, frozen=True, batch_norm=False)
     head = [m for m in model.net.regressor if isinstance(m, torch.nn.Linear)]
     assert [m.out_features for m in head] == [4096, 256, len(labels)]
     assert not any(p.requires_grad for p in model.net.features.parameters())
@@ -53,7 +53,7 @@ def test_vgg16_frozen_outputs_one_value_per_label_and_trains_only_the_head(frame
 
 
 def test_vgg16_unfrozen_with_batch_norm_trains_everything(frames):
-    model = build("vgg16", label_set(), frozen=False, batch_norm=True, mean=IMAGENET_MEAN)
+    model = build("vgg16", HIGHWAY, label_set(), frozen=False, batch_norm=True, mean=IMAGENET_MEAN)
     assert any(isinstance(m, torch.nn.BatchNorm2d) for m in model.net.features)
     assert all(p.requires_grad for p in model.parameters())
     model.train()
@@ -63,9 +63,11 @@ def test_vgg16_unfrozen_with_batch_norm_trains_everything(frames):
 
 
 def test_input_handling_is_part_of_the_model(frames):
-    spec = make_spec("alexnet", label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2))
-    model = build("alexnet", label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2)).eval()
-    assert spec["input"] == {"height": 210, "width": 280, "mean": [0.4, 0.5, 0.6], "std": [0.2, 0.2, 0.2]}
+    spec = make_spec("alexnet", HIGHWAY, label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2))
+    model = build("alexnet", HIGHWAY, label_set(), mean=(0.4, 0.5, 0.6), std=(0.2, 0.2, 0.2)).eval()
+    assert spec["input"] == {"channels": 3, "height": 210, "width": 280, "instants": [0], "cameras": ["front"],
+                             "modes": [], "scaling": "standardise", "mean": [0.4, 0.5, 0.6], "std": [0.2, 0.2, 0.2]}
+    assert spec["world"] == "highway" and spec["outputs"] == spec["labels"] == list(label_set())
     with torch.no_grad():
         a = model(frames)
         b = model(frames.float() / 255.0)  # float frames are taken as already in [0, 1]

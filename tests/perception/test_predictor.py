@@ -1,44 +1,54 @@
-"""load_predictor: a frame in, the 14 indicators in canonical order out, as the closed loop's Driver wants."""
+"""load_predictor: a sample's images in, the model's outputs (denormalised, named) out; the highway's Chen driver puts
+them into the 14 indicators in canonical order."""
 import numpy as np
 import pytest
 
 from perception.datasets import FrameDataset
 from perception.predictor import load_predictor
-from shm_bridge.worlds.highway import INDICATORS, label_set
+from shm_bridge.worlds.highway import HIGHWAY, INDICATORS, label_set
 
 from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint
 
 
 @pytest.fixture(scope="module")
 def frame():
-    image, _ = FrameDataset(dataset(), "test")[0]
+    image, _, _ = FrameDataset(dataset(), "test")[0]
     return image.permute(1, 2, 0).numpy()
 
 
-def test_a_13_output_model_gives_14_indicators_with_fast_zero(frame):
+def _percept(frame, speed=10.0, lanes=2):
+    from types import SimpleNamespace
+    record = HIGHWAY.pack({n: 0.0 for n in HIGHWAY.truth_names})
+    record[HIGHWAY.index("speed")], record[HIGHWAY.index("lanes")] = speed, lanes
+    return SimpleNamespace(frames=(frame,), record=record, t=0.0)
+
+
+def test_a_13_output_model_gives_13_named_outputs(frame):
     predict = load_predictor(alexnet_checkpoint()[0])
     out = predict(frame)
-    assert out.shape == (14,) and out.dtype == np.float64
-    assert out[INDICATORS.index("fast")] == 0.0
-    assert predict.name == "alexnet" and predict.labels == label_set()
-    assert np.all(np.isfinite(out))
+    assert out.shape == (13,) and out.dtype == np.float64 and np.all(np.isfinite(out))
+    assert predict.name == "alexnet" and predict.labels == label_set() == predict.outputs
+    assert predict.world == "highway" and predict.instants == (0,) and predict.cameras == ("front",)
 
 
 def test_outputs_are_denormalised_indicators(frame):
     predict = load_predictor(gist_checkpoint()[0])
-    out = predict(frame)
+    out = predict.named(frame)
     # gaps in metres (not ~0.1..0.9), markings in metres with their signs
-    assert out[INDICATORS.index("dist_MM")] > 5.0
-    assert out[INDICATORS.index("toMarking_ML")] < 0 < out[INDICATORS.index("toMarking_MR")]
+    assert out["dist_MM"] > 5.0
+    assert out["toMarking_ML"] < 0 < out["toMarking_MR"]
 
 
-def test_lanes_left_is_dropped_from_the_14_and_fast_is_kept(frame):
+def test_the_chen_driver_places_outputs_into_the_estimate_record(frame):
+    from drivestudio.worlds.highway import ChenDriver
     predict = load_predictor(gist15_checkpoint())
-    out = predict(frame)
-    everything = predict.labels_of(frame)
-    assert out.shape == (14,) and predict.labels[-1] == "lanes_left"
-    assert out[13] == pytest.approx(everything["fast"])
+    everything = predict.named(frame)
     assert set(everything) == set(INDICATORS) | {"lanes_left"}
+    action, estimate = ChenDriver(predict).act(_percept(frame))
+    assert estimate.shape == (15,)   # the highway's estimate record: 14 indicators, then lanes_left
+    assert estimate[13] == pytest.approx(everything["fast"]) and estimate[14] == pytest.approx(everything["lanes_left"])
+    _, estimate13 = ChenDriver(load_predictor(gist_checkpoint()[0])).act(_percept(frame))
+    assert np.isnan(estimate13[13:]).all() and np.isfinite(estimate13[:13]).all()
 
 
 def test_frames_of_another_size_are_resized(frame):
@@ -51,16 +61,24 @@ def test_frames_of_another_size_are_resized(frame):
 
 def test_bad_frames_are_refused():
     predict = load_predictor(gist_checkpoint()[0])
-    with pytest.raises(ValueError, match="uint8 RGB"):
+    with pytest.raises(ValueError, match="uint8 images"):
         predict(np.zeros((210, 280), dtype=np.uint8))
-    with pytest.raises(ValueError, match="uint8 RGB"):
+    with pytest.raises(ValueError, match="uint8 images"):
         predict(np.zeros((210, 280, 3), dtype=np.float32))
+    with pytest.raises(ValueError, match="reads 3 channels"):
+        predict([np.zeros((210, 280, 3), np.uint8)] * 2)
 
 
 def test_the_closed_loop_driver_accepts_it(frame):
-    from drivestudio.loop import Driver
+    from drivestudio.worlds.highway import ChenDriver
 
-    driver = Driver(perception=load_predictor(gist_checkpoint()[0]))
-    action, estimate = driver.act(frame, np.zeros(14), speed=10.0, lanes=2)
-    assert driver.name == "gist" and estimate.shape == (14,)
-    assert -1.0 <= action.steer <= 1.0
+    driver = ChenDriver(load_predictor(gist_checkpoint()[0]))
+    action, estimate = driver.act(_percept(frame))
+    assert driver.name == "gist" and estimate.shape == (15,)
+    assert action.shape == (3,) and -1.0 <= action[0] <= 1.0
+
+
+def test_a_checkpoint_of_another_world_is_refused():
+    from perception.checkpoint import CheckpointError
+    with pytest.raises(CheckpointError, match="a model of the highway world, not of the sidewalk world"):
+        load_predictor(gist_checkpoint()[0], world="sidewalk")

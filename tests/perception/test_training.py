@@ -6,7 +6,8 @@ import torch
 
 from perception.checkpoint import load_checkpoint
 from perception.datasets import FrameDataset
-from perception.train import PAPER, TrainConfig, curve_paths, euclidean_loss, train
+from perception.models import family
+from perception.train import TrainConfig, curve_paths, euclidean_loss, train
 from shm_bridge.worlds.highway import label_set
 
 from .frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
@@ -14,9 +15,9 @@ from .frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, w
 
 def test_paper_settings_are_the_defaults():
     cfg = TrainConfig()
-    assert (cfg.optimizer, cfg.momentum, cfg.lr_step, cfg.lr_gamma) == ("sgd", 0.9, 1000, 0.9)
-    assert PAPER["alexnet"] == {"iterations": 10_000, "batch_size": 15, "lr": 1e-2}
-    assert PAPER["vgg16"] == {"iterations": 15_000, "batch_size": 10, "lr": 1e-4}
+    assert (cfg.optimizer, cfg.momentum, cfg.lr_step, cfg.lr_gamma) == (None, 0.9, 1000, 0.9)   # None: sgd
+    assert family("alexnet").defaults == {"iterations": 10_000, "batch_size": 15, "lr": 1e-2}
+    assert family("vgg16").defaults == {"iterations": 15_000, "batch_size": 10, "lr": 1e-4}
 
 
 def test_euclidean_loss_is_half_the_mean_squared_norm():
@@ -75,8 +76,8 @@ def test_gist_fit_beats_predicting_the_training_mean():
     path, record = gist_checkpoint()
     sweep = record["history"]
     assert len(sweep) > 3 and all({"alpha", "train_loss", "val_loss"} <= set(r) for r in sweep)
-    train_targets = torch.stack([y for _, y in FrameDataset(dataset(), "train")])
-    val_targets = torch.stack([y for _, y in FrameDataset(dataset(), "val")])
+    train_targets = torch.stack([y for _, _, y in FrameDataset(dataset(), "train")])
+    val_targets = torch.stack([y for _, _, y in FrameDataset(dataset(), "val")])
     constant = euclidean_loss(train_targets.mean(0).expand_as(val_targets), val_targets)
     assert min(r["val_loss"] for r in sweep) < float(constant)
     assert curve_paths(path)[0].exists() and curve_paths(path)[1].exists()

@@ -7,18 +7,17 @@ import time
 
 import numpy as np
 
-from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.worlds.highway import Action
+from shm_bridge.worlds.highway import HIGHWAY, Action
+
+from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
 from tests.shm_bridge.processes import spawn
 
 
 
 def truth_for(seq: int) -> np.ndarray:
-    t = np.full(layout.TRUTH_LEN, float(seq))
-    t[layout.TRUTH_INDEX["t"]] = seq * 0.1
-    return t
+    return np.full(TRUTH_LEN, float(seq))
 
 
 def action_for(seq: int) -> Action:
@@ -38,7 +37,7 @@ def driver_main(name: str, pause: str) -> int:
             increasing &= msg.seq > last
             last = msg.seq
             lo, hi = int(msg.frame.min()), int(msg.frame.max())
-            if lo != hi or lo != msg.seq % 256 or not np.array_equal(msg.truth, truth_for(msg.seq)):
+            if lo != hi or lo != msg.seq % 256 or not np.array_equal(msg.record, truth_for(msg.seq)):
                 torn += 1
             driver.send_action(msg.seq, action_for(msg.seq))
             if float(pause) > 0:
@@ -51,7 +50,7 @@ def driver_main(name: str, pause: str) -> int:
 def _run_world(name: str, duration: float, driver_pause: float) -> tuple[dict, int, list]:
     frame = np.empty((210, 280, 3), dtype=np.uint8)
     answers = []
-    with WorldEndpoint(name, lockstep=False) as world:
+    with WorldEndpoint(name, HIGHWAY, lockstep=False) as world:
         proc = spawn("test_free_running", "driver_main", name, driver_pause)
         try:
             world.wait_for_driver(timeout=20)
@@ -76,7 +75,7 @@ def test_free_running_frames_are_never_torn(name):
     assert stats["taken"] > 100 and stats["increasing"]
     assert published > stats["taken"]            # the world ran ahead and the driver skipped frames
     for act in answers:                           # every action read whole, and for a frame that existed
-        assert 1 <= act.seq <= published and act.action == action_for(act.seq)
+        assert 1 <= act.seq <= published and same(act.action, action_for(act.seq))
     assert [a.seq for a in answers] == sorted(a.seq for a in answers)
 
 
@@ -89,7 +88,7 @@ def test_free_running_world_does_not_wait_for_a_slow_driver(name):
 
 
 def test_free_running_in_one_process_takes_the_newest_frame(name):
-    with WorldEndpoint(name, height=3, width=4, lockstep=False) as world, DriverEndpoint(name) as driver:
+    with WorldEndpoint(name, small(3, 4), lockstep=False) as world, DriverEndpoint(name) as driver:
         for seq in range(1, 6):
             world.publish(np.full((3, 4, 3), seq, np.uint8), truth_for(seq))
         msg = driver.wait_frame(timeout=1)

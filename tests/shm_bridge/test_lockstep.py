@@ -12,7 +12,9 @@ import pytest
 
 from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.worlds.highway import Action
+from shm_bridge.worlds.highway import HIGHWAY, Action
+
+from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
 from tests.shm_bridge.processes import REPO, spawn
 
@@ -24,9 +26,11 @@ def frame_for(seq: int, h: int = 210, w: int = 280) -> np.ndarray:
 
 
 def truth_for(seq: int) -> np.ndarray:
-    t = np.linspace(-1.0, 1.0, layout.TRUTH_LEN) * seq
-    t[layout.TRUTH_INDEX["t"]] = seq * 0.1
-    return t
+    return np.linspace(-1.0, 1.0, TRUTH_LEN) * seq
+
+
+def estimate_for(seq: int) -> np.ndarray:
+    return np.linspace(0.0, 1.0, ESTIMATE_LEN) * seq
 
 
 def action_for(seq: int) -> Action:
@@ -41,10 +45,13 @@ def driver_main(name: str) -> int:
             if msg.seq != last + 1:
                 print(f"skipped from {last} to {msg.seq}", file=sys.stderr)
                 return 3
-            if not (msg.frame == msg.seq % 256).all() or not np.array_equal(msg.truth, truth_for(msg.seq)):
+            if not (msg.frame == msg.seq % 256).all() or not np.array_equal(msg.record, truth_for(msg.seq)):
                 print(f"frame {msg.seq} is not the one published", file=sys.stderr)
                 return 4
-            driver.send_action(msg.seq, action_for(msg.seq), msg.truth[:14] * 2)
+            if msg.t != msg.seq * 0.1:
+                print(f"frame {msg.seq} has time {msg.t}", file=sys.stderr)
+                return 5
+            driver.send_action(msg.seq, action_for(msg.seq), estimate_for(msg.seq))
             last = msg.seq
     print(last)
     return 0
@@ -52,28 +59,28 @@ def driver_main(name: str) -> int:
 
 def world_main(name: str, n: str) -> int:
     """A world process: publish n frames lock-step and check every answer."""
-    with WorldEndpoint(name) as world:
+    with WorldEndpoint(name, HIGHWAY) as world:
         world.wait_for_driver(timeout=10)
         for seq in range(1, int(n) + 1):
-            assert world.publish(frame_for(seq), truth_for(seq)) == seq
+            assert world.publish(frame_for(seq), truth_for(seq), seq * 0.1) == seq
             act = world.wait_action(seq, timeout=10)
-            if act.seq != seq or act.action != action_for(seq):
+            if act.seq != seq or not same(act.action, action_for(seq)):
                 print(f"wrong answer {act} to frame {seq}", file=sys.stderr)
                 return 3
     return 0
 
 
 def test_lockstep_with_a_driver_process(name):
-    with WorldEndpoint(name, lockstep=True) as world:
+    with WorldEndpoint(name, HIGHWAY, lockstep=True) as world:
         proc = spawn("test_lockstep", "driver_main", name)
         try:
             world.wait_for_driver(timeout=20)
             assert world.driver_pid == proc.pid
             for seq in range(1, N_FRAMES + 1):
-                assert world.publish(frame_for(seq), truth_for(seq)) == seq
+                assert world.publish(frame_for(seq), truth_for(seq), seq * 0.1) == seq
                 act = world.wait_action(seq, timeout=10)
-                assert act.seq == seq and act.action == action_for(seq)
-                np.testing.assert_array_equal(act.estimate, truth_for(seq)[:14] * 2)
+                assert act.seq == seq and same(act.action, action_for(seq))
+                np.testing.assert_array_equal(act.estimate, estimate_for(seq))
                 assert world.driver_seen_seq == seq
         finally:
             world.close()
@@ -86,7 +93,8 @@ def test_lockstep_with_a_world_process(name):
     proc = spawn("test_lockstep", "world_main", name, N_FRAMES)
     try:
         with DriverEndpoint(name, attach_timeout=20) as driver:
-            assert driver.lockstep and (driver.height, driver.width) == (210, 280)
+            assert driver.lockstep and driver.world == "highway"
+            assert [(c.name, c.height, c.width) for c in driver.layout.cameras] == [("front", 210, 280)]
             seqs = []
             while (msg := driver.wait_frame(timeout=10)) is not None:
                 assert (msg.frame == msg.seq % 256).all()
@@ -106,17 +114,32 @@ def test_the_documented_c_driver(name, tmp_path):
     (tmp_path / "ds_driver.c").write_text(example)
     subprocess.run(["cc", "-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-o", "ds_driver", "ds_driver.c"],
                    cwd=tmp_path, check=True)
-    with WorldEndpoint(name) as world:
+    with WorldEndpoint(name, HIGHWAY) as world:
         proc = subprocess.Popen([str(tmp_path / "ds_driver"), name], stderr=subprocess.PIPE, text=True)
         try:
             world.wait_for_driver(timeout=10)
             for seq in range(1, 301):
-                world.publish(frame_for(seq), truth_for(seq))
+                world.publish(frame_for(seq), truth_for(seq), seq * 0.1)
                 act = world.wait_action(seq, timeout=10)
                 assert act.seq == seq
-                assert act.action == Action((seq % 256) / 255.0, seq * 0.1, 0.0)
-                np.testing.assert_array_equal(act.estimate, truth_for(seq)[:14])
+                assert same(act.action, [(seq % 256) / 255.0, seq * 0.1, 0.0])
+                np.testing.assert_array_equal(act.estimate[:14], truth_for(seq)[:14])
+                assert np.isnan(act.estimate[14:]).all()
         finally:
-            world.close()
+            world.end("finished")
             _, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
+    assert "end_reason 1" in err   # the C driver read why the world ended the run
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+def test_the_documented_c_driver_refuses_another_world(name, tmp_path):
+    text = (REPO / "docs" / "shm-protocol.md").read_text(encoding="utf-8")
+    example = re.search(r"<!-- example ds_driver.c -->\n```c\n(.*?)```", text, re.S).group(1)
+    (tmp_path / "ds_bridge.h").write_text(layout.c_header())
+    (tmp_path / "ds_driver.c").write_text(example)
+    subprocess.run(["cc", "-std=c11", "-O2", "-Wall", "-o", "ds_driver", "ds_driver.c"], cwd=tmp_path, check=True)
+    from shm_bridge import worlds
+    with WorldEndpoint(name, worlds.get("sidewalk")):
+        r = subprocess.run([str(tmp_path / "ds_driver"), name], capture_output=True, text=True, timeout=20)
+    assert r.returncode == 2 and "does not serve a highway" in r.stderr

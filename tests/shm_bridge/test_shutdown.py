@@ -13,12 +13,14 @@ import pytest
 
 from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEndpoint
 from shm_bridge.signals import exit_on_sigterm
-from shm_bridge.worlds.highway import Action
+from shm_bridge.worlds.highway import HIGHWAY, Action
+
+from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
 from tests.shm_bridge.processes import spawn
 
 FRAME = np.zeros((210, 280, 3), dtype=np.uint8)
-TRUTH = np.zeros(28)
+TRUTH = np.zeros(TRUTH_LEN)
 
 
 def _application(body) -> int:
@@ -38,7 +40,7 @@ def _application(body) -> int:
 
 def world_forever(name: str) -> int:
     def body():
-        with WorldEndpoint(name) as world:
+        with WorldEndpoint(name, HIGHWAY) as world:
             world.wait_for_driver(timeout=20)
             while True:
                 world.wait_action(world.publish(FRAME, TRUTH), timeout=20)
@@ -95,7 +97,7 @@ def test_interrupted_world_process_removes_the_segment(name, sig, status):
 
 
 def test_sigterm_of_the_driver_process_is_an_orderly_detach(name):
-    with WorldEndpoint(name) as world:
+    with WorldEndpoint(name, HIGHWAY) as world:
         proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)
@@ -113,7 +115,7 @@ def test_sigterm_of_the_driver_process_is_an_orderly_detach(name):
 
 
 def test_sigkill_of_the_driver(name):
-    with WorldEndpoint(name) as world:
+    with WorldEndpoint(name, HIGHWAY) as world:
         proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)
@@ -173,7 +175,7 @@ def test_driver_application_reports_a_killed_world_in_one_line(name):
 
 
 def test_busy_driver_is_not_declared_dead(name):
-    with WorldEndpoint(name, peer_timeout=0.6) as world:
+    with WorldEndpoint(name, HIGHWAY, peer_timeout=0.6) as world:
         proc = spawn("test_shutdown", "driver_forever", name, 1.5)   # 1.5 s of pure-Python work on the first frame
         try:
             world.wait_for_driver(timeout=20)
@@ -187,7 +189,7 @@ def test_busy_driver_is_not_declared_dead(name):
 
 
 def test_frozen_driver_is_declared_dead(name):
-    with WorldEndpoint(name, peer_timeout=0.5) as world:
+    with WorldEndpoint(name, HIGHWAY, peer_timeout=0.5) as world:
         proc = spawn("test_shutdown", "driver_forever", name)
         try:
             world.wait_for_driver(timeout=20)

@@ -1,0 +1,187 @@
+"""The sidewalk world's experts, one per behavioural mode (Chowdhuri, Pankaj and Zipser, MultiNet, 2017):
+
+- direct: follow the path at a steady pace and steer round obstacles;
+- follow: keep an even distance behind the lead car, modulating speed with it;
+- furtive: creep slowly close beside the bordering hedges and bushes; where there is no border, speed up along
+  the path until one is found.
+
+They read the truth record only (SIDEWALK's fields: what a driver process over the bridge receives), so the same
+expert drives in the world's process, over the bridge and as the correction rule's reference.
+
+Each mode chooses a lateral target (an offset d from the centreline) and a speed; one steering law and one motor
+law turn them into commands. Steering is pure pursuit of a point `lookahead` metres along the path at the
+target offset, the path ahead taken as a circle of the record's curvature_ahead; the wheel angle that gives the
+pursued curvature is exact for the car's kinematic bicycle. The motor command is the target speed (the car's
+speed control follows it).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from shm_bridge.worlds.sidewalk import (CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD,
+                                       TOP_SPEED, WHEELBASE)
+
+BORDER_CAP = 5.0     # [m] the record's border distance where there is no border
+GAP_CAP = 30.0       # [m] the record's obstacle_gap / lead_gap when there is nothing
+
+
+@dataclass(frozen=True)
+class ExpertParams:
+    cruise: float = 3.0            # [m/s] direct
+    lateral_accel: float = 2.2     # [m/s^2] at most in bends
+    near_obstacle: float = 2.0     # [m/s] at most with an obstacle within 3 m (direct, follow)
+    edge_margin: float = 0.12      # [m] kept between the body and the path's edge
+    pass_margin: float = 0.18      # [m] kept between the body and an obstacle it passes
+    ramp: tuple = (1.0, 4.0)       # [m] obstacle_gap over which the car swings out (fully out below the first)
+    follow_gap: float = 1.2        # [m] lead_gap follow mode keeps
+    follow_gain: float = 1.2       # [1/s] speed per metre of gap error
+    follow_max: float = 4.5        # [m/s]
+    furtive_slow: float = 0.9      # [m/s] beside a border
+    furtive_fast: float = 3.6      # [m/s] looking for one
+    hug_margin: float = 0.06       # [m] between the body and the path's edge on the bordered side (furtive)
+    lookahead: tuple = (0.6, 0.35, 1.6)   # [m] pure pursuit distance: base + gain * speed, at most the last
+
+
+_I = {n: i for i, n in enumerate(SIDEWALK.truth_names)}
+
+
+def field(record, name: str) -> float:
+    return float(record[_I[name]])
+
+
+def wheel_angle_for(kappa: float) -> float:
+    """Front-wheel angle [rad, positive left] for which the kinematic bicycle's reference point (its body's
+    centre) turns on curvature kappa [1/m]: tan(delta) = kappa * L / sqrt(1 - (kappa * l_r)^2)."""
+    k = max(-1.0 / REAR_TO_CG + 1e-6, min(1.0 / REAR_TO_CG - 1e-6, kappa))
+    return math.atan(k * WHEELBASE / math.sqrt(1.0 - (k * REAR_TO_CG) ** 2))
+
+
+def steer_command(wheel_angle: float) -> float:
+    """The steering command [0, 1] for a wheel angle (positive left): 0.5 straight, 1 full right."""
+    return min(1.0, max(0.0, 0.5 - wheel_angle / (2.0 * STEER_LOCK_RAD)))
+
+
+def motor_command(speed: float) -> float:
+    """The motor command [0, 1] for a forward speed [m/s]: 0.5 stop, 1 top speed."""
+    return min(1.0, max(0.0, 0.5 + speed / (2.0 * TOP_SPEED)))
+
+
+def pursue(record, target_d: float, lookahead: float) -> float:
+    """Pure pursuit: the curvature [1/m] that brings the car to the point `lookahead` metres along the path at
+    offset target_d, the path ahead taken as a circle of curvature curvature_ahead."""
+    d, psi = field(record, "d"), field(record, "heading")
+    k = field(record, "curvature_ahead")
+    a = k * lookahead
+    if abs(k) > 1e-9:
+        px, py = math.sin(a) / k, (1.0 - math.cos(a)) / k
+    else:
+        px, py = lookahead, 0.0
+    px, py = px - target_d * math.sin(a), py + target_d * math.cos(a)
+    dx, dy = px, py - d
+    c, s = math.cos(psi), math.sin(psi)
+    x, y = c * dx + s * dy, -s * dx + c * dy
+    return 2.0 * y / max(x * x + y * y, 1e-6)
+
+
+def _smooth(u: float) -> float:
+    u = min(1.0, max(0.0, u))
+    return 0.5 - 0.5 * math.cos(math.pi * u)
+
+
+class SidewalkExpert:
+    """The three experts behind one act(record) -> (steer, motor, why); the mode is the record's behaviour."""
+
+    def __init__(self, params: ExpertParams = ExpertParams()):
+        self.p = params
+
+    # --- lateral targets ---------------------------------------------------------------------------------------
+    def limits(self, record) -> tuple[float, float]:
+        """The range of centre offsets [m] that keep the body edge_margin inside the path."""
+        hw = field(record, "path_width") / 2 - CAR_WIDTH / 2 - self.p.edge_margin
+        return -hw, hw
+
+    def furtive_side(self, record) -> float:
+        """+1 to hug a border on the left, -1 on the right, 0 where there is none. With borders on both sides the
+        nearer one wins, judged half a second ahead at the present heading (so that a car crossing the path
+        does not change its mind halfway)."""
+        left, right = field(record, "border_left"), field(record, "border_right")
+        if min(left, right) >= BORDER_CAP - 1e-6:
+            return 0.0
+        ahead = field(record, "speed") * math.sin(field(record, "heading")) * 0.5   # lateral move, + left
+        return 1.0 if left - ahead <= right + ahead else -1.0
+
+    def nominal(self, record, mode: str) -> float:
+        """The offset [m] a mode keeps when no obstacle is in the way."""
+        if mode == "furtive":
+            side = self.furtive_side(record)
+            hw = field(record, "path_width") / 2 - CAR_WIDTH / 2 - self.p.hug_margin
+            return side * hw
+        return 0.0
+
+    def around_obstacle(self, record, want: float) -> float:
+        """The offset to drive at: `want`, or, when the next obstacle lies in the way of the car going from where
+        it is to `want`, an offset beside it, blended in over the last metres before it (fully from ramp[0] on).
+
+        Beside it means on the left or on the right of it, at least `tight` from its centre (the body clears it)
+        and `pass_margin` more where the path leaves room; of the two sides the one that costs the least swerving,
+        2 |side - d| + |side - want|, wins (moving from where the car is counts double). So a car already beside an
+        obstacle's edge stays there, and one that would have to cut across in front of it passes on its side."""
+        gap = field(record, "obstacle_gap")
+        if gap >= GAP_CAP - 1e-6:
+            return want
+        d = field(record, "d")
+        od, ow = field(record, "obstacle_d"), field(record, "obstacle_width")
+        tight = ow / 2 + CAR_WIDTH / 2 + 0.08
+        comfort = ow / 2 + CAR_WIDTH / 2 + self.p.pass_margin
+        if min(d, want) >= od + tight or max(d, want) <= od - tight:
+            return want                               # it passes beside it as it is
+        lim = field(record, "path_width") / 2 - CAR_WIDTH / 2 - min(self.p.edge_margin, self.p.hug_margin)
+        sides = []
+        if od + tight <= lim:
+            sides.append(min(lim, max(min(lim, od + comfort), want)))
+        if od - tight >= -lim:
+            sides.append(max(-lim, min(max(-lim, od - comfort), want)))
+        if not sides:                                  # no room at all (a path file may do that): the roomier side
+            sides = [lim if lim - od >= od + lim else -lim]
+        side = min(sides, key=lambda p: 2 * abs(p - d) + abs(p - want))
+        w = 1.0 if gap <= self.p.ramp[0] else _smooth((self.p.ramp[1] - gap) / (self.p.ramp[1] - self.p.ramp[0]))
+        return (1.0 - w) * want + w * side
+
+    # --- speeds ------------------------------------------------------------------------------------------------
+    def bend_speed(self, record) -> float:
+        k = max(abs(field(record, "curvature")), abs(field(record, "curvature_ahead")))
+        return math.sqrt(self.p.lateral_accel / k) if k > 1e-9 else math.inf
+
+    def speed(self, record, mode: str) -> tuple[float, str]:
+        p = self.p
+        bend = self.bend_speed(record)
+        near = field(record, "obstacle_gap") < 3.0
+        if mode == "follow" and field(record, "lead_gap") < GAP_CAP - 1e-6:
+            gap = field(record, "lead_gap")
+            v = field(record, "lead_speed") + p.follow_gain * (gap - p.follow_gap)
+            v = 0.0 if gap < 0.4 else min(p.follow_max, max(0.0, v))
+            return min(v, bend), "following"
+        if mode == "furtive":
+            if self.furtive_side(record) != 0.0:
+                return min(p.furtive_slow, bend), "creeping beside a border"
+            return min(p.furtive_fast, bend, p.near_obstacle if near else math.inf), "looking for a border"
+        return min(p.cruise, bend, p.near_obstacle if near else math.inf), "cruising"
+
+    # --- commands ----------------------------------------------------------------------------------------------
+    def act(self, record, mode: str | None = None) -> tuple[float, float, str]:
+        """(steer, motor, what it is doing) for a truth record; the mode defaults to the record's behaviour."""
+        mode = mode or MODES[int(field(record, "behaviour"))]
+        lim = field(record, "path_width") / 2 - CAR_WIDTH / 2 - min(self.p.edge_margin, self.p.hug_margin)
+        target = min(lim, max(-lim, self.around_obstacle(record, self.nominal(record, mode))))
+        v, why = self.speed(record, mode)
+        base, gain, most = self.p.lookahead
+        look = min(most, base + gain * abs(field(record, "speed")))
+        steer = steer_command(wheel_angle_for(pursue(record, target, look)))
+        return steer, motor_command(v), why
+
+    def action(self, record, mode: str | None = None) -> np.ndarray:
+        steer, motor, _ = self.act(record, mode)
+        return np.array([steer, motor])

@@ -1,0 +1,186 @@
+"""The stereo camera and the renderer of both its images.
+
+The rig is ZED-like (MultiNet's cars carried a ZED): two identical pinhole cameras BASELINE apart, side by side
+across the car, optical axes parallel, level across and pitched PITCH_DEG down, at EYE_HEIGHT above the ground.
+A parallel rig is rectified by construction, so a point at depth Z [m] along the optical axis appears
+focal_px * BASELINE / Z pixels further right in the left image than in the right one (its disparity), on the
+same row. At the default 336x188 per camera (2x2-averaged, the network's 94x168):
+
+    vertical field of view 56 deg, horizontal 2 * atan(tan(28 deg) * 336 / 188) = 87.1 deg
+    focal length 94 / tan(28 deg) = 176.8 px (88.4 px at 168x94); disparity 21.2 px at 1 m, 4.2 px at 5 m
+
+Each image is composed in three layers, as the highway's (sim/renderer.py): the backdrop (sky gradient, a
+distant skyline that turns with the car, the grass), the ground painted as exact projected polygons
+(sim/ground_painter.py) and the objects painted far to near (sim/sidewalk/painter.py).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from sim.camera import CameraConfig
+
+from .layout import Layout
+from .look import SidewalkLook, make_look
+from .ground import StereoGroundPainter
+from .painter import PieceSet, StereoObjectPainter, face_colours
+from .scenery import DETAIL, GROUND_BASE, GROUND_OVER, GROUND_UNDER, build_scenery, lead_pieces
+from .shapes import concat
+
+BASELINE = 0.12           # [m] between the two cameras' centres (ZED: 120 mm)
+EYE_HEIGHT = 0.24         # [m] above the ground
+EYE_FORWARD = 0.10        # [m] ahead of the car body's centre
+PITCH_DEG = -5.0          # [deg] looking down
+FOV_DEG = 56.0            # [deg] vertical field of view
+SIZE = (188, 336)         # (rows, columns) per camera
+CULL = 60.0               # [m] nothing farther is drawn (a 0.3 m object there is under 1 px wide)
+PANORAMA = 1440           # columns of the skyline panorama (0.25 deg each)
+
+
+@dataclass(frozen=True)
+class StereoConfig:
+    width: int = SIZE[1]
+    height: int = SIZE[0]
+    fov_deg: float = FOV_DEG
+    baseline: float = BASELINE
+
+    def camera(self, side: str) -> CameraConfig:
+        """The left or right camera (or the rig's centre, between them)."""
+        offset = {"left": self.baseline / 2, "right": -self.baseline / 2, "centre": 0.0}[side]
+        return CameraConfig(width=self.width, height=self.height, fov_deg=self.fov_deg, eye_height=EYE_HEIGHT,
+                            eye_forward=EYE_FORWARD, pitch_deg=PITCH_DEG, near=0.05, far=200.0,
+                            cull_distance=CULL, eye_left=offset)
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length [px] (square pixels)."""
+        return self.height / 2 / math.tan(math.radians(self.fov_deg) / 2)
+
+    @property
+    def hfov_deg(self) -> float:
+        return math.degrees(self.camera("left").hfov)
+
+    def disparity(self, depth: float) -> float:
+        """[px] of a point `depth` metres along the optical axis."""
+        return self.focal_px * self.baseline / depth
+
+    def describe(self) -> dict:
+        return {"width": self.width, "height": self.height, "baseline_m": self.baseline,
+                "focal_px": round(self.focal_px, 3), "vfov_deg": self.fov_deg, "hfov_deg": round(self.hfov_deg, 3),
+                "eye_height_m": EYE_HEIGHT, "eye_forward_m": EYE_FORWARD, "pitch_deg": PITCH_DEG}
+
+
+def in_view(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float, hfov: float,
+            cull: float) -> np.ndarray:
+    """Which bounding circles reach into a view wedge of width hfov [rad] and depth cull [m] from (x, y, yaw)."""
+    v = centres - (x, y)
+    dist = np.hypot(v[:, 0], v[:, 1])
+    bearing = np.abs((np.arctan2(v[:, 1], v[:, 0]) - yaw + np.pi) % (2 * np.pi) - np.pi)
+    margin = np.arcsin(np.clip(radii / np.maximum(dist, 1e-6), 0.0, 1.0))
+    return ((dist <= radii + 0.5) | (bearing <= hfov / 2 + margin)) & (dist - radii < cull)
+
+
+class StereoRenderer:
+    def __init__(self, layout: Layout, seed: int, config: StereoConfig = StereoConfig()):
+        self.config = config
+        self.look: SidewalkLook = make_look(seed, layout.path.style)
+        chunks = build_scenery(layout, self.look)
+        self._centres = np.array([c.ground.centre for c in chunks]).reshape(-1, 2)
+        self._radii = np.array([c.ground.radius for c in chunks])
+        self.cameras = {side: config.camera(side) for side in ("left", "right")}
+        centre = config.camera("centre")
+        ground = [c.ground for c in chunks]
+        self._ground = [StereoGroundPainter(ground, self.look, centre, m, config.baseline)
+                        for m in (GROUND_UNDER, GROUND_BASE, GROUND_OVER)]
+        self._objects = StereoObjectPainter(centre, config.baseline, CULL)
+        self._pieces = PieceSet([c.pieces for c in chunks], self.look)
+        lead = lead_pieces()
+        self._lead = (concat(lead), np.concatenate([face_colours(p, self.look) for p in lead]),
+                      np.array([p.centre for p in lead]))
+        self._sky, self._pano, self._band = self._make_backdrop(self.cameras["left"], layout.seed)
+        self._cols = {side: self._column_angles(cam) for side, cam in self.cameras.items()}
+        self.faces_painted = 0
+
+    # --- backdrop ----------------------------------------------------------------------------------------------
+    def _make_backdrop(self, cam: CameraConfig, seed: int):
+        """(static backdrop: sky gradient above the horizon, grass below; the skyline panorama (rows, PANORAMA,
+        3); the rows it covers)."""
+        look = self.look
+        rows = np.arange(cam.height)[:, None] + 0.5
+        horizon = cam.horizon_row()
+        t = np.clip((horizon - rows) / max(horizon, 1.0), 0.0, 1.0)
+        sky = (np.array(look.sky_horizon) * (1 - t) + np.array(look.sky_top) * t) * 255.0
+        grass = np.broadcast_to(look.lit(look.grass).astype(np.float64), sky.shape)
+        col = np.where(rows < horizon, sky, grass).astype(np.uint8)
+        backdrop = np.ascontiguousarray(np.broadcast_to(col[:, None, :], (cam.height, cam.width, 3)))
+        # the skyline: a silhouette of elevation angles around the full circle, far enough to show no disparity
+        rng = np.random.default_rng([int(seed), 0x5C1])
+        a = np.arange(PANORAMA) * 2 * math.pi / PANORAMA
+        elev = np.zeros(PANORAMA)
+        if look.style == "sidewalk":   # blocks of buildings
+            i = 0
+            while i < PANORAMA:
+                w = int(rng.integers(20, 90))
+                elev[i:i + w] = rng.uniform(0.03, 0.16)
+                i += w + int(rng.integers(0, 25))
+        else:                          # a treeline: a sum of bumps
+            for k in range(1, 40):
+                elev += rng.uniform(0, 0.012 / k ** 0.5) * np.sin(k * a + rng.uniform(0, 6.3))
+            elev = np.clip(0.045 + elev + 0.02 * rng.random(PANORAMA) ** 3, 0.01, 0.2)
+        f = cam.height / 2 / math.tan(math.radians(cam.fov_deg) / 2)
+        top = int(max(0, math.floor(horizon - f * math.tan(elev.max()) - 2)))
+        bottom = int(min(cam.height, math.ceil(horizon)))
+        band_rows = np.arange(top, bottom) + 0.5
+        # elevation of each band row's centre above the horizontal
+        e = np.arctan((horizon - band_rows) / f)
+        pano = np.where(e[:, None] < elev[None, :], 1.0, 0.0)[..., None]
+        colour = np.array(look.skyline) * 255.0
+        pano = (pano * colour + (1 - pano) * backdrop[top:bottom, :1, :].astype(np.float64)).astype(np.uint8)
+        return backdrop, pano, (top, bottom)
+
+    def _column_angles(self, cam: CameraConfig) -> np.ndarray:
+        """Per image column, its bearing [rad] left of the optical axis."""
+        f = cam.height / 2 / math.tan(math.radians(cam.fov_deg) / 2)
+        u = np.arange(cam.width) + 0.5
+        return np.arctan((cam.width / 2 - u) / f)
+
+    # --- frames ------------------------------------------------------------------------------------------------
+    def _lead_dynamic(self, lead):
+        if lead is None:
+            return None
+        (faces, normals, index), colours, centres = self._lead
+        c, s = math.cos(lead.yaw), math.sin(lead.yaw)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        off = np.array([lead.x, lead.y, 0.0])
+        n = normals @ rot.T
+        k = self.look.ambient + self.look.diffuse * np.maximum(0.0, n @ np.asarray(self.look.light_direction))
+        base = np.array([self.look.colours["lead"][:3] if i < 1 else self.look.colours["lead_dark"][:3]
+                         for i in index])
+        lit = np.clip(base * k[:, None] * 255.0, 0, 255).astype(np.uint8)
+        return faces @ rot.T + off, n, lit, centres @ rot.T + off, index
+
+    def render(self, x: float, y: float, yaw: float, lead=None) -> tuple[np.ndarray, np.ndarray]:
+        """(left, right) (h, w, 3) uint8 RGB seen from a car at (x, y) [m] with yaw [rad]; `lead` the lead car
+        (x, y, yaw attributes) or None."""
+        cam = self.cameras["left"]
+        visible = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, CULL)
+        dynamic = self._lead_dynamic(lead)
+        out = []
+        top, bottom = self._band
+        for side in ("left", "right"):
+            frame = self._sky.copy()
+            idx = np.round((yaw + self._cols[side]) / (2 * math.pi) * PANORAMA).astype(np.int64) % PANORAMA
+            frame[top:bottom] = self._pano[:, idx]
+            out.append(frame)
+        near = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, DETAIL)
+        for painter, mask in zip(self._ground, (near, visible, near)):
+            painter.paint_pair(out[0], out[1], mask, x, y, yaw)
+        self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
+        return out[0], out[1]
+
+
+def with_size(config: StereoConfig, width: int | None, height: int | None, fov: float | None) -> StereoConfig:
+    return replace(config, **{k: v for k, v in (("width", width), ("height", height), ("fov_deg", fov))
+                              if v is not None})

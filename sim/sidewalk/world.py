@@ -1,0 +1,170 @@
+"""The sidewalk world: a path with its borders and obstacles, the car, the lead car of follow mode, the stereo
+camera and the exact truth record, stepped together at 30 Hz (docs/sidewalk.md).
+
+    world = SidewalkWorld(SidewalkConfig(path="park", mode="furtive", seed=3))
+    obs = world.step(np.array([0.5, 0.6]))      # steer, motor in [0, 1]
+    obs.frames                                  # (left, right) (h, w, 3) uint8 RGB, or (None, None)
+    obs.record                                  # float64, SIDEWALK's truth order
+
+What the generic loop (drivestudio/loop.py) needs of a world is all here: declaration, dt, observe, step,
+recover, set_mode, timings, close.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from shm_bridge.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
+
+from sim.collision import overlaps
+
+from .car import CAR, CarState, step_car
+from .errors import PathError
+from .layout import Layout, build_layout
+from .lead import START_GAP, LeadCar
+from .paths import SidewalkPath, load_path
+from .stereo import StereoConfig, StereoRenderer
+from .truth import truth_record
+
+NEUTRAL = (0.5, 0.5)    # steer straight, motor stopped
+
+
+@dataclass
+class SidewalkConfig:
+    path: object = "park"              # preset name, path file, "procedural:SEED", a JSON object or a SidewalkPath
+    path_width: float | None = None    # [m] overrides the path's width (1.5 to 3)
+    seed: int = 0                      # looks, borders, trees, obstacle placement, start, lead car
+    mode: str = "direct"               # behavioural mode: direct, follow or furtive
+    obstacles: object = 4.0            # obstacles per 100 m, a list of layout.Obstacle, or an obstacle file
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+    render: bool = True
+    start_s: float | None = None       # [m] where the car starts (default: drawn from the seed)
+    start_speed: float = 0.0           # [m/s]
+
+
+@dataclass
+class Observation:
+    frames: tuple                      # (left, right) uint8 RGB, or (None, None) when not rendered
+    record: np.ndarray                 # the truth record, SIDEWALK's order
+    t: float                           # [s] simulated time
+    end: str | None = None             # why the episode cannot go on ("off the path"), or None
+
+    @property
+    def truth(self) -> dict:
+        return SIDEWALK.unpack(self.record)
+
+
+def check_mode(mode: str) -> str:
+    if mode not in MODES:
+        raise PathError(f"unknown behavioural mode {mode!r} (modes: {', '.join(MODES)})")
+    return mode
+
+
+def check_operation(name: str) -> str:
+    if name not in OPERATIONS:
+        raise PathError(f"unknown operation mode {name!r} (operation modes: {', '.join(OPERATIONS)})")
+    return name
+
+
+class SidewalkWorld:
+    def __init__(self, config: SidewalkConfig | None = None):
+        self.config = config = config or SidewalkConfig()
+        check_mode(config.mode)
+        self.path: SidewalkPath = config.path if isinstance(config.path, SidewalkPath) else \
+            load_path(config.path, config.path_width)
+        self.layout: Layout = build_layout(self.path, config.seed, config.obstacles, config.start_s)
+        st = config.stereo
+        self.declaration = SIDEWALK.with_camera("left", st.height, st.width).with_camera("right", st.height, st.width)
+        self.dt = STEP
+        self.seed = int(config.seed)
+        self.timings = {"render": 0.0, "physics": 0.0, "truth": 0.0}
+        self._renderer: StereoRenderer | None = None
+        self.car = CarState(s=self.layout.start_s, speed=float(config.start_speed))
+        self.command = NEUTRAL
+        self.operation, self.correcting = "expert", False
+        self._next_operation = "expert"
+        self.lead: LeadCar | None = None
+        self.mode = ""
+        self.t = 0.0
+        self._leads = 0
+        self.set_mode(config.mode)
+
+    # --- modes ---------------------------------------------------------------------------------------------------
+    def set_mode(self, name: str) -> None:
+        """Switch the behavioural mode now: follow brings a lead car START_GAP ahead, the others take it away."""
+        check_mode(name)
+        if name == self.mode:
+            return
+        self.mode = name
+        if name == "follow":
+            ahead = self.car.s + START_GAP + CAR.length
+            self.lead = LeadCar(self.layout, self.seed * 1009 + self._leads, ahead,
+                                max(0.0, self.car.speed))
+            self._leads += 1
+        else:
+            self.lead = None
+
+    def set_operation(self, name: str) -> None:
+        """The operation mode of the next command (the supervisor's decision): expert, autonomous or
+        correctional. The record after the step carries it."""
+        self._next_operation = check_operation(name)
+
+    # --- lifecycle -----------------------------------------------------------------------------------------------
+    def close(self) -> None:
+        self._renderer = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @property
+    def renderer(self) -> StereoRenderer:
+        if self._renderer is None:
+            self._renderer = StereoRenderer(self.layout, self.seed, self.config.stereo)
+        return self._renderer
+
+    def recover(self) -> None:
+        """Put a lost car back on the path: on the centreline (or beside an obstacle standing there), along the
+        path, at rest."""
+        s = self.car.s
+        track = self.path.track
+        for _ in range(20):
+            x, y, h = track.pose(s, 0.0)
+            if not overlaps((x, y, h, CAR.length + 0.2, CAR.width + 0.2), self.layout.obstacle_boxes).any():
+                break
+            s = track.wrap_s(s + 0.5)
+        self.car = CarState(s=s, d=0.0, heading=0.0, speed=0.0)
+        self.command = NEUTRAL
+
+    # --- stepping ------------------------------------------------------------------------------------------------
+    def step(self, action, render: bool | None = None) -> Observation:
+        """Advance one step (33 ms) under [steer, motor] (NaN: neutral; clipped to [0, 1])."""
+        steer, motor = self.declaration.clip_action(action).tolist()
+        t0 = time.perf_counter()
+        self.car = step_car(self.car, steer, motor, self.dt, self.path.track)
+        if self.lead is not None:
+            self.lead.step(self.dt)
+        self.timings["physics"] += time.perf_counter() - t0
+        self.command = (steer, motor)
+        self.operation = self._next_operation
+        self.correcting = self.operation == "correctional"
+        self.t += self.dt
+        return self.observe(render)
+
+    def observe(self, render: bool | None = None) -> Observation:
+        t0 = time.perf_counter()
+        lead = self.lead.state if self.lead is not None else None
+        record, lost = truth_record(self.layout, self.car, lead, self.command, MODES.index(self.mode),
+                                    OPERATIONS.index(self.operation), self.correcting)
+        t1 = time.perf_counter()
+        self.timings["truth"] += t1 - t0
+        frames = (None, None)
+        if self.config.render if render is None else render:
+            x, y, yaw = record[SIDEWALK.index("x")], record[SIDEWALK.index("y")], record[SIDEWALK.index("yaw")]
+            frames = self.renderer.render(float(x), float(y), float(yaw), lead)
+            self.timings["render"] += time.perf_counter() - t1
+        return Observation(frames, record, self.t, "off the path" if lost else None)

@@ -1,0 +1,83 @@
+"""The experts of the three behavioural modes: clean driving, and visibly different driving in the same place."""
+import numpy as np
+import pytest
+
+from controller.sidewalk import SidewalkExpert, SidewalkMetrics
+from shm_bridge.worlds.sidewalk import SIDEWALK
+from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
+
+I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
+
+
+def run(mode: str, seconds: float, path="park", seed: int = 3, obstacles=4.0):
+    """(metrics report, records) of the mode's expert driving from the same start."""
+    w = SidewalkWorld(SidewalkConfig(path=path, seed=seed, mode=mode, obstacles=obstacles, render=False))
+    expert, m = SidewalkExpert(), SidewalkMetrics(w.dt)
+    obs = w.observe(False)
+    records = []
+    for _ in range(int(round(seconds / w.dt))):
+        obs = w.step(expert.action(obs.record), False)
+        assert obs.end is None
+        m.update(obs.record)
+        records.append(obs.record)
+    return m.report(), np.array(records)
+
+
+@pytest.fixture(scope="module")
+def drives():
+    return {mode: run(mode, 90.0) for mode in ("direct", "follow", "furtive")}
+
+
+def test_every_mode_drives_cleanly(drives):
+    for mode, (rep, _) in drives.items():
+        assert rep["collisions"] == 0 and rep["off_path_time_s"] == 0.0, mode
+        assert rep["obstacles_met"] >= 3, mode          # and it met obstacles on the way
+
+
+def test_direct_cruises_and_steers_round_obstacles(drives):
+    rep, rec = drives["direct"]
+    assert rep["mean_speed_mps"] > 2.3
+    beside = rec[:, I["obstacle_gap"]] < 0.0
+    assert beside.sum() > 20
+    # alongside an obstacle its body keeps at least 10 cm clear of it (centre to edge: half its width more)
+    gap = np.abs(rec[beside, I["d"]] - rec[beside, I["obstacle_d"]]) - rec[beside, I["obstacle_width"]] / 2
+    assert (gap > 0.1 + 0.1).all()
+    swerve = np.abs(rec[beside, I["d"]]).max()
+    assert swerve > 0.3                                              # it left the centre line to get by
+
+
+def test_follow_keeps_an_even_distance_and_modulates_speed(drives):
+    rep, rec = drives["follow"]
+    assert rep["mean_lead_gap_m"] == pytest.approx(1.2, abs=0.2) and rep["lead_gap_std_m"] < 0.35
+    speed = rec[:, I["speed"]]
+    assert speed.std() > 0.4                                      # its speed varies with the lead car's
+    assert np.corrcoef(speed, rec[:, I["lead_speed"]])[0, 1] > 0.8
+
+
+def test_furtive_creeps_beside_borders_and_hurries_where_there_are_none(drives):
+    rep, rec = drives["furtive"]
+    _, direct = drives["direct"]
+    bordered = np.minimum(rec[:, I["border_left"]], rec[:, I["border_right"]]) < 5.0
+    open_ = ~bordered
+    assert bordered.any() and open_.any()
+    assert rec[bordered, I["speed"]].mean() < 1.2 < 2.5 < rec[open_ & (rec[:, I["obstacle_gap"]] > 4), I["speed"]].max()
+    nearer = lambda r: np.minimum(r[:, I["border_left"]], r[:, I["border_right"]])   # noqa: E731
+    d_bordered = np.minimum(direct[:, I["border_left"]], direct[:, I["border_right"]]) < 5.0
+    assert nearer(rec)[bordered].mean() < nearer(direct)[d_bordered].mean() - 0.3   # much closer than direct
+    assert rep["mean_speed_mps"] < drives["direct"][0]["mean_speed_mps"] - 0.8
+
+
+def test_the_same_place_three_ways(drives):
+    """From the same start, the three modes are three different trajectories."""
+    d = {mode: rec[:300, I["d"]] for mode, (_, rec) in drives.items()}
+    s = {mode: rec[:300, I["speed"]] for mode, (_, rec) in drives.items()}
+    assert np.abs(d["furtive"]).mean() > np.abs(d["direct"]).mean() + 0.3
+    assert abs(s["follow"].mean() - s["direct"].mean()) > 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["direct", "follow", "furtive"])
+def test_ten_minutes_on_a_procedural_loop_with_obstacles(mode):
+    rep, _ = run(mode, 600.0, path="procedural:11", seed=5, obstacles=5.0)
+    assert rep["collisions"] == 0 and rep["off_path_time_s"] == 0.0
+    assert rep["obstacles_met"] >= 20
