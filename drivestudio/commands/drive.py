@@ -24,7 +24,7 @@ def register(sub) -> None:
     p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
                                  "world and its options come from there")
     add_world_options(p, "drive")
-    p.add_argument("--seconds", type=positive("--seconds", 10 * 24 * 3600.0), default=60.0,
+    p.add_argument("--seconds", type=positive(10 * 24 * 3600.0), default=60.0,
                    help="simulated seconds (default 60)")
     p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",

@@ -24,10 +24,10 @@ def register(sub) -> None:
                    help="frames to measure on (default test)")
     p.add_argument("--out", default="out/evaluate", help="folder for the report (default out/evaluate)")
     add_device_option(p)
-    p.add_argument("--batch-size", type=count("--batch-size", 1, 4096), default=32,
+    p.add_argument("--batch-size", type=count(1, 4096), default=32,
                    help="samples per forward pass (default 32)")
-    p.add_argument("--workers", type=count("--workers", 0, 64), default=0, help="processes decoding frames (0)")
-    p.add_argument("--latency-frames", type=count("--latency-frames", 1, 100000), default=100,
+    p.add_argument("--workers", type=count(0, 64), default=0, help="processes decoding frames (0)")
+    p.add_argument("--latency-frames", type=count(1, 100000), default=100,
                    help="samples timed one at a time for the latency figure (default 100)")
     p.set_defaults(func=run)
 

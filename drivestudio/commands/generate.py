@@ -15,15 +15,15 @@ def register(sub) -> None:
                                    "traffic on many tracks) and record every step with its ground truth into Parquet "
                                    "shards. Running the same command again continues an interrupted run.")
     p.add_argument("--out", required=True, help="dataset folder")
-    p.add_argument("--frames", type=count("--frames", 1, 10**8), default=20000,
+    p.add_argument("--frames", type=count(1, 10**8), default=20000,
                    help="steps in the dataset (default 20000)")
     p.add_argument("--encoding", choices=("png", "jpeg"), default="png", help="png (lossless, default) or jpeg")
-    p.add_argument("--quality", type=count("--quality", 1, 100), default=95, help="JPEG quality (default 95)")
-    p.add_argument("--episode-frames", type=count("--episode-frames", 10, 10**6), default=500,
+    p.add_argument("--quality", type=count(1, 100), default=95, help="JPEG quality (default 95)")
+    p.add_argument("--episode-frames", type=count(10, 10**6), default=500,
                    help="steps per episode and shard (default 500)")
-    p.add_argument("--warmup", type=non_negative("--warmup", 600.0), default=None,
+    p.add_argument("--warmup", type=non_negative(600.0), default=None,
                    help="simulated seconds driven before an episode's recording starts (default 5)")
-    p.add_argument("--workers", type=count("--workers", 1, 256), default=os.cpu_count() or 1,
+    p.add_argument("--workers", type=count(1, 256), default=os.cpu_count() or 1,
                    help="worker processes (default: cores)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local worker processes, or Ray tasks on a cluster (pip install 'drivestudio[cluster]')")

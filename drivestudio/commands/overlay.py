@@ -20,15 +20,15 @@ def register(sub) -> None:
     p.add_argument("--data", required=True, help="dataset folder")
     p.add_argument("--model", default="oracle", help="a checkpoint of the dataset's world, or 'oracle' to draw the "
                                                      "truth alone")
-    p.add_argument("--out", help="folder for the PNGs (not with --video)")
+    p.add_argument("--out", help="folder for the PNGs (required without --video)")
     p.add_argument("--split", choices=("train", "val", "test", "all"), default="test", help="(default test)")
     p.add_argument("--select", choices=("first", "random", "worst"), default="first",
                    help="first N samples, a random sample, or the N worst by error (default first)")
-    p.add_argument("-n", type=count("-n", 1, 10**6), help="how many samples (default 20; with --video the whole "
+    p.add_argument("-n", type=count(1, 10**6), help="how many samples (default 20; with --video the whole "
                                                            "episode)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of --select random")
     p.add_argument("--video", help="write consecutive overlays of one episode as this .mp4 instead")
-    p.add_argument("--episode", type=count("--episode", 0, 10**9), help="the episode for --video (default: the "
+    p.add_argument("--episode", type=count(0, 10**9), help="the episode for --video (default: the "
                                                                         "split's first)")
     add_device_option(p)
     p.set_defaults(func=run)
@@ -48,8 +48,6 @@ def run(args) -> int:
     check_device(args.device)
     if args.video:
         check_output(args.video, (".mp4",), "video")
-        if args.out:
-            raise UsageError("--out goes with PNG overlays; --video writes one file")
     elif not args.out:
         raise UsageError("give --out FOLDER for PNG overlays, or --video FILE.mp4")
     else:

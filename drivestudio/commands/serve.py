@@ -12,12 +12,12 @@ def register(sub) -> None:
                                    "docs/shm-protocol.md), then step the world on its actions.")
     p.add_argument("--shm", required=True, help="name of the shared-memory segment (/dev/shm/NAME)")
     add_world_options(p, "serve")
-    p.add_argument("--seconds", type=positive("--seconds", 10 * 24 * 3600.0),
+    p.add_argument("--seconds", type=positive(10 * 24 * 3600.0),
                    help="simulated seconds to run (default: until Ctrl-C)")
     p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",
                    help="never wait for the driver; use its newest action (default: lock-step)")
-    p.add_argument("--wait", type=positive("--wait", 24 * 3600.0), default=120.0,
+    p.add_argument("--wait", type=positive(24 * 3600.0), default=120.0,
                    help="seconds to wait for a driver to attach (default 120)")
     p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/serve-TIME)")

@@ -24,29 +24,29 @@ def register(sub) -> None:
     p.add_argument("--targets", help="comma-separated labels to learn (default: the world's); +NAME adds to the "
                                      "default, e.g. +fast,+lanes_left")
     length = p.add_mutually_exclusive_group()
-    length.add_argument("--iterations", type=count("--iterations", 1, 10**8),
+    length.add_argument("--iterations", type=count(1, 10**8),
                         help="training iterations (default 10000 alexnet, 15000 vgg16)")
-    length.add_argument("--epochs", type=positive("--epochs", 10**5), help="passes over the training split")
-    p.add_argument("--batch-size", type=count("--batch-size", 1, 65536), help="samples per iteration (default "
+    length.add_argument("--epochs", type=positive(10**5), help="passes over the training split")
+    p.add_argument("--batch-size", type=count(1, 65536), help="samples per iteration (default "
                                                                               "15 alexnet, 10 vgg16)")
-    p.add_argument("--lr", type=positive("--lr", 100.0), help="initial learning rate (default 1e-2 alexnet, "
+    p.add_argument("--lr", type=positive(100.0), help="initial learning rate (default 1e-2 alexnet, "
                                                               "1e-4 vgg16)")
-    p.add_argument("--lr-step", type=count("--lr-step", 1, 10**8), default=1000,
+    p.add_argument("--lr-step", type=count(1, 10**8), default=1000,
                    help="iterations between learning-rate decays (1000)")
-    p.add_argument("--lr-gamma", type=positive("--lr-gamma", 1.0), default=0.9,
+    p.add_argument("--lr-gamma", type=positive(1.0), default=0.9,
                    help="learning-rate decay factor (0.9)")
     p.add_argument("--optimizer", choices=("sgd", "adam", "adadelta"), default=None,
                    help="sgd with momentum 0.9 (default for the highway models), adam, adadelta (MultiNet's)")
-    p.add_argument("--weight-decay", type=finite("--weight-decay", 0.0, 1.0), default=0.0,
+    p.add_argument("--weight-decay", type=finite(0.0, 1.0), default=0.0,
                    help="L2 weight decay (default 0)")
     add_device_option(p, "auto")
     p.add_argument("--no-amp", dest="amp", action="store_false", help="no mixed precision on CUDA")
-    p.add_argument("--workers", type=count("--workers", 0, 64), default=1, help="processes decoding frames (1)")
-    p.add_argument("--val-every", type=count("--val-every", 1, 10**8), default=500,
+    p.add_argument("--workers", type=count(0, 64), default=1, help="processes decoding frames (1)")
+    p.add_argument("--val-every", type=count(1, 10**8), default=500,
                    help="iterations between validations and checkpoints")
-    p.add_argument("--val-frames", type=count("--val-frames", 1, 10**7), default=1000,
+    p.add_argument("--val-frames", type=count(1, 10**7), default=1000,
                    help="validation samples used (default 1000)")
-    p.add_argument("--checkpoint-every", type=positive("--checkpoint-every", 10**6), default=300.0,
+    p.add_argument("--checkpoint-every", type=positive(10**6), default=300.0,
                    help="also save at least every this many seconds (default 300)")
     p.add_argument("--unfreeze", action="store_true", help="vgg16: train the convolutional layers too")
     p.add_argument("--batch-norm", action="store_true", help="vgg16: use VGG-16 with batch normalisation")
@@ -60,7 +60,7 @@ def register(sub) -> None:
     p.add_argument("--modes", help="z2color: behavioural modes to train on (default: all the dataset has)")
     p.add_argument("--mtl", metavar="MODE", help="z2color: the MTL baseline, without the modal input, trained on "
                                                  "one mode's data")
-    p.add_argument("--trials", type=count("--trials", 1, 100), default=1,
+    p.add_argument("--trials", type=count(1, 100), default=1,
                    help="z2color: repeat training with fresh seeds, for curves with confidence intervals (default 1)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")
     p.set_defaults(func=run)

@@ -158,28 +158,28 @@ class Plugin(Plugin):
         g = parser.add_argument_group("highway world (--world highway)")
         if verb in ("render", "drive", "serve"):
             self._add(g, verb, "--track", help="track preset, track file or procedural:SEED (default oval)")
-            self._add(g, verb, "--lanes", type=count("--lanes", 1, MAX_LANES), help="lane count 1-4 (default: the "
+            self._add(g, verb, "--lanes", type=count(1, MAX_LANES), help="lane count 1-4 (default: the "
                       "track's)")
-            self._add(g, verb, "--cars", type=count("--cars", 0, 300),
+            self._add(g, verb, "--cars", type=count(0, 300),
                       help=f"AI cars driven by SUMO (default {DEFAULT_CARS})")
-            self._add(g, verb, "--start-speed", type=non_negative("--start-speed", 60.0),
+            self._add(g, verb, "--start-speed", type=non_negative(60.0),
                       help=f"host car's speed at the start [m/s] (default {START_SPEED:g})")
         if verb == "drive":
-            self._add(g, verb, "--smoothing", type=finite("--smoothing", 0.0, 0.95),
+            self._add(g, verb, "--smoothing", type=finite(0.0, 0.95),
                       help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
                            "none; docs/controller.md)")
         if verb in ("render", "generate"):
-            self._add(g, verb, "--width", type=count("--width", 16, 4096), help="frame width [px] (default 280)")
-            self._add(g, verb, "--height", type=count("--height", 16, 4096), help="frame height [px] (default 210)")
-            self._add(g, verb, "--fov", type=finite("--fov", 10.0, 150.0),
+            self._add(g, verb, "--width", type=count(16, 4096), help="frame width [px] (default 280)")
+            self._add(g, verb, "--height", type=count(16, 4096), help="frame height [px] (default 210)")
+            self._add(g, verb, "--fov", type=finite(10.0, 150.0),
                       help="vertical field of view [deg] (default 60)")
         if verb == "render":
-            self._add(g, verb, "--warmup", type=non_negative("--warmup", 3600.0),
+            self._add(g, verb, "--warmup", type=non_negative(3600.0),
                       help="simulated seconds to drive before the frame is taken (without a scenario)")
         if verb == "generate":
             self._add(g, verb, "--tracks", help="comma-separated tracks: presets, files, procedural:SEED "
                                                 "(default: every preset plus --procedural procedural tracks)")
-            self._add(g, verb, "--procedural", type=count("--procedural", 0, 1000),
+            self._add(g, verb, "--procedural", type=count(0, 1000),
                       help="procedural tracks added to the default list (3)")
             self._add(g, verb, "--lanes", help="lane counts to cycle through (default 1,2,3)", dest="lane_counts")
             self._add(g, verb, "--cars", help="AI cars per episode: N or a range A-B (default 12-30)",

@@ -171,6 +171,21 @@ def compose(left: np.ndarray, right: np.ndarray, top: np.ndarray | None, text: s
 
 
 # --- option values -----------------------------------------------------------------------------------------------
+class _one_line:
+    """PathError (bad paths, obstacle files, modes) as the application's UsageError: one line, exit status 2.
+    (drivestudio/errors.py does not list sim.sidewalk.errors.PathError yet.)"""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        from sim.sidewalk.errors import PathError
+        if kind is not None and issubclass(kind, PathError):
+            raise UsageError(str(value)) from None
+        return False
+
+
+
 def obstacles_value(text):
     """--obstacles: a density (obstacles per 100 m), 'none', or an obstacle file."""
     if text is None:
@@ -220,29 +235,29 @@ class Plugin(Plugin):
                                               "(default park)")
             self._add(g, verb, "--mode", choices=MODES, help="behavioural mode (default direct)")
             self._add(g, verb, "--obstacles", help="obstacles per 100 m (default 4), 'none', or an obstacle file")
-            self._add(g, verb, "--path-width", type=finite("--path-width", 1.5, 3.0),
+            self._add(g, verb, "--path-width", type=finite(1.5, 3.0),
                       help="path width [m], 1.5-3 (default: the path's)")
         if verb in ("drive", "serve"):
             self._add(g, verb, "--operation", choices=OPERATIONS,
                       help="expert, autonomous or correctional (default: expert for --model expert, correctional "
                            "otherwise)")
         if verb in ("render", "generate"):
-            self._add(g, verb, "--width", type=count("--width", 16, 4096), help="frame width [px] (sidewalk: 336)")
-            self._add(g, verb, "--height", type=count("--height", 16, 4096), help="frame height [px] (sidewalk: 188)")
-            self._add(g, verb, "--fov", type=finite("--fov", 10.0, 150.0),
+            self._add(g, verb, "--width", type=count(16, 4096), help="frame width [px] (sidewalk: 336)")
+            self._add(g, verb, "--height", type=count(16, 4096), help="frame height [px] (sidewalk: 188)")
+            self._add(g, verb, "--fov", type=finite(10.0, 150.0),
                       help="vertical field of view [deg] (sidewalk: 56)")
         if verb == "render":
-            self._add(g, verb, "--warmup", type=non_negative("--warmup", 3600.0),
+            self._add(g, verb, "--warmup", type=non_negative(3600.0),
                       help="simulated seconds the expert drives before the frame is taken")
         if verb == "generate":
             self._add(g, verb, "--modes", help="behavioural modes to cycle through, episode by episode (default "
                                                "direct,follow,furtive)")
             self._add(g, verb, "--paths", help="comma-separated paths: presets, files, procedural:SEED (default: "
                                                "every preset plus --procedural procedural paths)")
-            self._add(g, verb, "--procedural", type=count("--procedural", 0, 1000),
+            self._add(g, verb, "--procedural", type=count(0, 1000),
                       help="procedural paths added to the default list (3)")
             self._add(g, verb, "--obstacles", help="obstacles per 100 m (default 4) or 'none'")
-            self._add(g, verb, "--correctional", type=finite("--correctional", 0.0, 1.0),
+            self._add(g, verb, "--correctional", type=finite(0.0, 1.0),
                       help="share of episodes driven by the poor driver under the correction rule (default 0)")
 
     # --- worlds ----------------------------------------------------------------------------------------------------
@@ -260,10 +275,11 @@ class Plugin(Plugin):
     def world(self, args, render: bool):
         from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
         self._check_renderer(args)
-        return SidewalkWorld(SidewalkConfig(path=args.path or DEFAULT_PATH, path_width=args.path_width,
-                                            seed=args.seed, mode=args.mode or "direct",
-                                            obstacles=obstacles_value(args.obstacles), stereo=self._stereo(args),
-                                            render=render))
+        with _one_line():
+            return SidewalkWorld(SidewalkConfig(path=args.path or DEFAULT_PATH, path_width=args.path_width,
+                                                seed=args.seed, mode=args.mode or "direct",
+                                                obstacles=obstacles_value(args.obstacles), stereo=self._stereo(args),
+                                                render=render))
 
     def render(self, args) -> tuple[dict, dict]:
         from ..loop import in_process, run_loop
@@ -336,8 +352,9 @@ class Plugin(Plugin):
         options = {"modes": modes, "paths": paths, "procedural": 3 if args.procedural is None else args.procedural,
                    "obstacles": density, "correctional": args.correctional or 0.0,
                    "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg}
-        for ref in self.path_list(options, 0):   # a bad path fails here, in one line, before any work
-            load_path(ref)
+        with _one_line():
+            for ref in self.path_list(options, 0):   # a bad path fails here, in one line, before any work
+                load_path(ref)
         return options
 
     def declaration_for(self, options: dict):

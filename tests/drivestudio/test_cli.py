@@ -92,9 +92,9 @@ def test_missing_file_and_bad_options(tmp_path):
     r = ds("probe", tmp_path / "missing.json")
     assert r.returncode == 2 and "no such file" in r.stderr and r.stderr.count("\n") == 1
     r = ds("render", "--track", "oval", "--lanes", "9", "-o", tmp_path / "x.png")
-    assert r.returncode == 2 and "lanes must be" in r.stderr
+    assert r.returncode == 2 and "argument --lanes: must be an integer from 1 to 4, got 9" in r.stderr
     r = ds("render", "--track", "oval", "--cars", "500", "-o", tmp_path / "x.png")
-    assert r.returncode == 2 and "number of AI cars" in r.stderr
+    assert r.returncode == 2 and "argument --cars: must be an integer from 0 to 300, got 500" in r.stderr
     r = ds("render")
     assert r.returncode == 2 and "required" in r.stderr and r.stderr.count("\n") == 1
 
