@@ -32,40 +32,42 @@ MIN_PIXELS = 0.75      # a piece whose bounding sphere spans fewer pixels than t
 
 
 class PieceSet:
-    """Static pieces, grouped by chunk, with their faces' colours lit once (the light never moves). A piece may
-    bring a simpler stand-in (Piece.far) painted beyond LOD_DISTANCE: level 0 faces always count, level 1 faces
-    only near, level 2 faces only far."""
+    """Static pieces with their faces' colours lit once (the light never moves). A piece's faces are contiguous:
+    piece i's are [start[i], start[i + 1]). A piece may bring a simpler stand-in (Piece.far) painted beyond
+    LOD_DISTANCE: level 0 faces always count, level 1 faces only near, level 2 faces only far."""
 
     def __init__(self, chunks: list[list[Piece]], look):
-        faces, normals, colours, piece_of, centres, chunk_of, level = [], [], [], [], [], [], []
-        radius, piece_chunk = [], []
-        n_pieces = 0
+        faces, normals, colours, level, centres, radius, piece_chunk, counts = [], [], [], [], [], [], [], []
         for c, pieces in enumerate(chunks):
             for p in pieces:
-                versions = [(p, 0)] if p.far is None else [(p, 1), (p.far, 2)]
-                for q, lv in versions:
+                n = 0
+                for q, lv in ([(p, 0)] if p.far is None else [(p, 1), (p.far, 2)]):
                     faces.append(q.faces)
                     normals.append(q.normals)
                     colours.append(face_colours(q, look))
-                    piece_of.append(np.full(len(q.faces), n_pieces))
-                    chunk_of.append(np.full(len(q.faces), c))
                     level.append(np.full(len(q.faces), lv, np.int8))
+                    n += len(q.faces)
+                counts.append(n)
                 centres.append(p.centre)
                 radius.append(float(np.linalg.norm(p.faces.reshape(-1, 3) - p.centre, axis=1).max()))
                 piece_chunk.append(c)
-                n_pieces += 1
         self.faces = np.concatenate(faces) if faces else np.zeros((0, 4, 3))
         self.normals = np.concatenate(normals) if normals else np.zeros((0, 3))
         self.colours = np.concatenate(colours) if colours else np.zeros((0, 3), np.uint8)
-        self.piece = np.concatenate(piece_of) if piece_of else np.zeros(0, np.int64)
-        self.centres = np.array(centres).reshape(-1, 3)
-        self.chunk = np.concatenate(chunk_of) if chunk_of else np.zeros(0, np.int64)
         self.level = np.concatenate(level) if level else np.zeros(0, np.int8)
+        self.centres = np.array(centres).reshape(-1, 3)
         self.radius = np.array(radius)                  # [m] per piece: its bounding sphere
         self.piece_chunk = np.array(piece_chunk, dtype=np.int64)
+        self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.piece = np.repeat(np.arange(len(counts)), counts)
         self.first = self.faces[:, 0, :]
-        # faces come chunk by chunk: chunk c's faces are [bounds[c], bounds[c + 1])
-        self.bounds = np.searchsorted(self.chunk, np.arange(len(chunks) + 1))
+
+    def faces_of(self, pieces: np.ndarray) -> np.ndarray:
+        """Indices of the faces of the given pieces (in piece order)."""
+        lo, hi = self.start[pieces], self.start[pieces + 1]
+        n = hi - lo
+        total = int(n.sum())
+        return np.repeat(lo - np.cumsum(n) + n, n) + np.arange(total)
 
 
 def face_colours(p: Piece, look) -> np.ndarray:
@@ -79,7 +81,11 @@ def face_colours(p: Piece, look) -> np.ndarray:
 
 class StereoObjectPainter:
     """Paints both images of a parallel stereo rig: `camera` is the rig's centre camera (eye_left = 0), the
-    eyes sit +-baseline / 2 along its x axis (see sim/sidewalk/ground.py)."""
+    eyes sit +-baseline / 2 along its x axis (see sim/sidewalk/ground.py).
+
+    Culling, all exact (nothing visible is dropped) but for the size test: pieces whose bounding sphere lies
+    outside the view frustum of both eyes, is beyond reach, or spans fewer than MIN_PIXELS; then faces turned
+    away from both eyes, and faces wholly outside one plane of the frustum (the two sides, top, bottom, near)."""
 
     def __init__(self, camera: CameraConfig, baseline: float, max_distance: float):
         self.camera = camera
@@ -88,6 +94,8 @@ class StereoObjectPainter:
         f = 1.0 / math.tan(math.radians(camera.fov_deg) / 2)
         self._fx, self._fy = f / camera.aspect * camera.width / 2, f * camera.height / 2
         self._cx, self._cy = camera.width / 2 - 0.5, camera.height / 2 - 0.5
+        self._tx = (camera.width / 2 + 1) / self._fx     # tan of the half field of view, with a pixel to spare
+        self._ty = (camera.height / 2 + 1) / self._fy
 
     def _pixels(self, cam: np.ndarray) -> np.ndarray:
         """Camera-space points (..., 3: right, up, forward) to cv2 fixed-point pixel coordinates."""
@@ -96,19 +104,19 @@ class StereoObjectPainter:
         v = (-cam[..., 1] / cam[..., 2] * self._fy + self._cy) * scale
         return np.clip(np.stack([u, v], axis=-1), -2e8, 2e8).astype(np.int32)
 
-    def _clip_near(self, poly: np.ndarray) -> np.ndarray:
+    def _clip_near(self, poly: list) -> list:
+        """Sutherland-Hodgman against the near plane, on plain floats."""
         near = self.camera.near
-        pts = poly.tolist()
         out = []
-        for i, a in enumerate(pts):
-            b = pts[i - len(pts) + 1]
+        for i, a in enumerate(poly):
+            b = poly[i - len(poly) + 1]
             a_in, b_in = a[2] >= near, b[2] >= near
             if a_in:
                 out.append(a)
             if a_in != b_in:
                 t = (near - a[2]) / (b[2] - a[2])
                 out.append([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), near])
-        return np.array(out).reshape(-1, 3)
+        return out
 
     def paint_pair(self, left: np.ndarray, right: np.ndarray, static: PieceSet, chunk_visible: np.ndarray, x: float,
                    y: float, yaw: float, dynamic: tuple | None = None) -> int:
@@ -117,17 +125,20 @@ class StereoObjectPainter:
         in the left frame."""
         eye, basis = self.camera.basis(x, y, yaw)
         side = basis[0]
-        # pieces first: in a visible chunk, within reach, and at least MIN_PIXELS across; then their faces
-        dist = np.linalg.norm(static.centres - eye, axis=1) if len(static.centres) else np.zeros(0)
-        wanted = chunk_visible[static.piece_chunk] & (dist < self.max_distance) & \
-            (static.radius * self._fy > MIN_PIXELS * dist)
-        near_lod = dist < LOD_DISTANCE
-        chunks = np.flatnonzero(chunk_visible)
-        lo, hi = static.bounds[chunks], static.bounds[chunks + 1]
-        idx = np.concatenate([np.arange(a, b) for a, b in zip(lo.tolist(), hi.tolist())]) if len(chunks) else \
-            np.zeros(0, np.int64)
+        tx, ty, h = self._tx, self._ty, self.half
+        # pieces: in a visible chunk, within reach, big enough, and their sphere inside the frustum of an eye
+        pc = (static.centres - eye) @ basis.T
+        dist = np.linalg.norm(pc, axis=1)
+        r = static.radius
+        wanted = chunk_visible[static.piece_chunk] & (dist < self.max_distance) & (r * self._fy > MIN_PIXELS * dist)
+        wanted &= (pc[:, 2] + r > self.camera.near) & \
+            (np.abs(pc[:, 0]) - h - pc[:, 2] * tx < r * math.sqrt(1 + tx * tx)) & \
+            (np.abs(pc[:, 1]) - pc[:, 2] * ty < r * math.sqrt(1 + ty * ty))
+        pieces = np.flatnonzero(wanted)
+        idx = static.faces_of(pieces)
         piece, lv = static.piece[idx], static.level[idx]
-        idx = idx[wanted[piece] & ((lv == 0) | ((lv == 1) & near_lod[piece]) | ((lv == 2) & ~near_lod[piece]))]
+        near_lod = dist[piece] < LOD_DISTANCE
+        idx = idx[(lv == 0) | ((lv == 1) & near_lod) | ((lv == 2) & ~near_lod)]
         faces, normals, colours = static.faces[idx], static.normals[idx], static.colours[idx]
         first, piece = static.first[idx], static.piece[idx]
         if dynamic is not None and len(dynamic[0]):
@@ -139,39 +150,42 @@ class StereoObjectPainter:
             piece = np.concatenate([piece, d_piece + len(dist)])
             dist = np.concatenate([dist, np.linalg.norm(d_centres - eye, axis=1)])
         facing = np.einsum("ij,ij->i", normals, eye - first)      # > 0: faces the centre eye
-        across = normals @ side * self.half                       # how the test moves at either eye
-        either = np.flatnonzero(facing + np.abs(across) > 0)      # faces one eye or the other
-        faces, colours, piece, facing, across = faces[either], colours[either], piece[either], facing[either], \
-            across[either]
-        if not len(faces):
-            return 0
-        cam = (faces - eye) @ basis.T                     # (F, 4, 3) in the centre camera: right, up, forward
-        z = cam[..., 2]
+        across = normals @ side * h                               # how that changes at either eye
+        keep = facing + np.abs(across) > 0                        # faces one eye or the other
+        cam = (faces[keep] - eye) @ basis.T                       # (F, 4, 3) in the centre camera: right, up, forward
+        x_, y_, z_ = cam[..., 0], cam[..., 1], cam[..., 2]
         near = self.camera.near
-        zmax, zmin = z.max(axis=1), z.min(axis=1)
+        inside = (z_.max(axis=1) > near) & ((x_ - h - z_ * tx).min(axis=1) < 0) & \
+            ((-x_ - h - z_ * tx).min(axis=1) < 0) & ((y_ - z_ * ty).min(axis=1) < 0) & \
+            ((-y_ - z_ * ty).min(axis=1) < 0)
+        cam, colours, piece = cam[inside], colours[keep][inside], piece[keep][inside]
+        facing, across = facing[keep][inside], across[keep][inside]
+        if not len(cam):
+            return 0
+        whole_all = cam[..., 2].min(axis=1) >= near
         order = np.lexsort((np.arange(len(piece)), -dist[piece]))   # far pieces first, stable within a piece
-        w, h = self.camera.width << SUBPIXEL_BITS, self.camera.height << SUBPIXEL_BITS
-        shift = np.array([self.half, 0.0, 0.0])
+        shift = np.array([h, 0.0, 0.0])
+        fill, line = cv2.fillConvexPoly, cv2.LINE_8
         n = 0
         for frame, sign in ((left, 1.0), (right, -1.0)):
             # the eye at eye_c - sign * half * side: n . (eye - p) changes by -sign * half * (n . side)
-            front = (facing - sign * across > 0) & (zmax > near)
-            idx = order[front[order]]
+            idx = order[(facing - sign * across > 0)[order]]
             c = cam[idx] + sign * shift
             with np.errstate(divide="ignore", invalid="ignore"):
                 pix = self._pixels(c)
-            whole = zmin[idx] >= near
-            out = whole & ((pix[..., 0].max(axis=1) < 0) | (pix[..., 0].min(axis=1) > w) |
-                           (pix[..., 1].max(axis=1) < 0) | (pix[..., 1].min(axis=1) > h))
             polys = list(pix)
-            cols = colours[idx].tolist()
-            for k in np.flatnonzero(~whole).tolist():   # the few faces that cross the near plane
-                clipped = self._clip_near(c[k])
-                polys[k] = self._pixels(clipped) if len(clipped) >= 3 else None
-            fill, line = cv2.fillConvexPoly, cv2.LINE_8
-            for poly, col, skip in zip(polys, cols, out.tolist()):
-                if poly is not None and not skip:
+            clip = np.flatnonzero(~whole_all[idx]).tolist()
+            if clip:   # the few faces that cross the near plane: clipped, then projected together
+                pieces_ = [self._clip_near(p) for p in c[clip].tolist()]
+                flat = [q for p in pieces_ for q in p]
+                projected = self._pixels(np.array(flat).reshape(-1, 3)) if flat else np.zeros((0, 2), np.int32)
+                at = 0
+                for k, p in zip(clip, pieces_):
+                    polys[k] = projected[at:at + len(p)] if len(p) >= 3 else None
+                    at += len(p)
+            for poly, col in zip(polys, colours[idx].tolist()):
+                if poly is not None:
                     fill(frame, poly, col, line, SUBPIXEL_BITS)
             if sign > 0:
-                n = int(len(idx) - out.sum())
+                n = len(idx)
         return n

@@ -26,7 +26,7 @@ from .layout import Layout
 from .look import SidewalkLook, make_look
 from .ground import StereoGroundPainter
 from .painter import PieceSet, StereoObjectPainter, face_colours
-from .scenery import DETAIL, GROUND_BASE, GROUND_OVER, GROUND_UNDER, build_scenery, lead_pieces
+from .scenery import DETAIL, GROUND, GROUND_BASE, build_scenery, lead_pieces
 from .shapes import concat
 
 BASELINE = 0.12           # [m] between the two cameras' centres (ZED: 120 mm)
@@ -91,9 +91,9 @@ class StereoRenderer:
         self._radii = np.array([c.ground.radius for c in chunks])
         self.cameras = {side: config.camera(side) for side in ("left", "right")}
         centre = config.camera("centre")
-        ground = [c.ground for c in chunks]
-        self._ground = [StereoGroundPainter(ground, self.look, centre, m, config.baseline)
-                        for m in (GROUND_UNDER, GROUND_BASE, GROUND_OVER)]
+        detail = tuple(m for m in GROUND if m not in GROUND_BASE)
+        self._ground = StereoGroundPainter([c.ground for c in chunks], self.look, centre, GROUND, config.baseline,
+                                           detail)
         self._objects = StereoObjectPainter(centre, config.baseline, CULL)
         self._pieces = PieceSet([c.pieces for c in chunks], self.look)
         lead = lead_pieces()
@@ -175,8 +175,7 @@ class StereoRenderer:
             frame[top:bottom] = self._pano[:, idx]
             out.append(frame)
         near = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, DETAIL)
-        for painter, mask in zip(self._ground, (near, visible, near)):
-            painter.paint_pair(out[0], out[1], mask, x, y, yaw)
+        self._ground.paint_pair(out[0], out[1], visible, near, x, y, yaw)
         self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
         return out[0], out[1]
 

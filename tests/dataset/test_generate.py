@@ -179,7 +179,7 @@ def test_a_version_1_dataset_still_reads(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--frames", "0"], "--frames must be an integer from 1"),
+    (["--frames", "0"], "argument --frames: must be an integer from 1"),
     (["--lanes", "2,7"], "--lanes must list lane counts from 1 to 4"),
     (["--cars", "x"], "expected N or A-B"),
     (["--tracks", "nowhere"], "unknown track preset 'nowhere'"),

@@ -1,0 +1,131 @@
+"""The sidewalk world's speed and its experts' safety (issue 12's targets: stereo generation >= 150 steps/s with 2
+workers, closed loop over the bridge >= 60 Hz, each expert mode 10 simulated minutes with 0 collisions and 0 s
+off the path).
+
+    python bench/bench_stereo.py [--frames 6000] [--seconds 60] [--minutes 10] [--out /tmp/drivestudio-stereo]
+
+1. Generation: `drivestudio generate --world sidewalk` (the default paths and modes, 336x188 PNG per camera, two
+   images a step), timed end to end (process start-up and every episode's scene set-up included), with 2 and 1
+   workers; then where a step's time goes, in one process.
+2. Closed loop: `drivestudio drive --world sidewalk --model expert --mode M` (two processes over shared memory,
+   lock-step) per mode, from the run's metrics.json.
+3. Safety: each mode's expert drives --minutes simulated minutes on a procedural loop with obstacles (in
+   process, no frames: the truth is the same); collisions, time off the path, obstacles met.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+MODES = ("direct", "follow", "furtive")
+
+
+def generate(out: Path, frames: int, workers: int) -> float:
+    shutil.rmtree(out, ignore_errors=True)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(out),
+                    "--frames", str(frames), "--workers", str(workers), "--quiet"], check=True)
+    return frames / (time.perf_counter() - t0)
+
+
+def breakdown(steps: int = 600) -> dict:
+    """CPU milliseconds per step of one process recording an episode: render (both cameras), PNG (both), the
+    world's step (physics, lead car, truth), the expert, and the scene's set-up spread over the steps."""
+    from drivestudio import worlds
+    from perception.shards import encode_image
+
+    plugin = worlds.get("sidewalk")
+    options = {"modes": list(MODES), "paths": [], "procedural": 3, "obstacles": 4.0, "correctional": 0.0,
+               "width": 336, "height": 188, "fov": 56.0}
+    total = {"set-up": 0.0, "render": 0.0, "png": 0.0, "world": 0.0, "expert": 0.0}
+    n = 0
+    for ep in plugin.plan(options, 3 * steps, steps, 0):
+        t = time.process_time()
+        world, expert, _ = plugin.episode(ep, options, "tiny")
+        obs = world.observe(True)
+        total["set-up"] += time.process_time() - t
+        for _ in range(ep.frames):
+            t0 = time.process_time()
+            frames = obs.frames
+            for img in frames:
+                encode_image(img)
+            t1 = time.process_time()
+            action, _ = expert.act(obs)
+            t2 = time.process_time()
+            obs = world.step(action, False)
+            t3 = time.process_time()
+            x, y, yaw = (float(obs.record[world.declaration.index(k)]) for k in ("x", "y", "yaw"))
+            frames = world.renderer.render(x, y, yaw, world.lead.state if world.lead else None)
+            obs.frames = frames
+            t4 = time.process_time()
+            total["png"] += t1 - t0
+            total["expert"] += t2 - t1
+            total["world"] += t3 - t2
+            total["render"] += t4 - t3
+            n += 1
+    return {k: v / n * 1e3 for k, v in total.items()}
+
+
+def closed_loop(mode: str, seconds: float) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "drivestudio", "drive", "--world", "sidewalk", "--model", "expert",
+                        "--mode", mode, "--seconds", str(seconds), "--out", tmp], check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        return json.loads((Path(tmp) / "metrics.json").read_text())
+
+
+def safety(mode: str, minutes: float, path: str = "procedural:11", seed: int = 5) -> dict:
+    from controller.sidewalk import SidewalkExpert, SidewalkMetrics
+    from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
+    world = SidewalkWorld(SidewalkConfig(path=path, seed=seed, mode=mode, obstacles=5.0, render=False))
+    expert, metrics = SidewalkExpert(), SidewalkMetrics(world.dt)
+    obs = world.observe(False)
+    t0 = time.perf_counter()
+    for _ in range(int(round(minutes * 60 / world.dt))):
+        obs = world.step(expert.action(obs.record), False)
+        metrics.update(obs.record)
+    metrics.wall_time = time.perf_counter() - t0
+    return metrics.report()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=6000, help="steps generated with 2 workers (half with 1)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds of each closed-loop run")
+    ap.add_argument("--minutes", type=float, default=10.0, help="simulated minutes of each safety run")
+    ap.add_argument("--out", default="/tmp/drivestudio-stereo")
+    args = ap.parse_args()
+    out = Path(args.out)
+    two = generate(out / "w2", args.frames, 2)
+    one = generate(out / "w1", args.frames // 2, 1)
+    print(f"stereo generation, 336x188 x 2 cameras, PNG: {two:.0f} steps/s with 2 workers, {one:.0f} steps/s with "
+          f"1 worker (end to end)", flush=True)
+    b = breakdown()
+    print("one process, CPU ms per step: " + ", ".join(f"{k} {v:.2f}" for k, v in b.items())
+          + f"; total {sum(b.values()):.2f}", flush=True)
+    print("\n| mode | loop Hz | render ms | transfer ms | control ms | physics + truth ms |")
+    print("|---|---|---|---|---|---|")
+    for mode in MODES:
+        m = closed_loop(mode, args.seconds)
+        st = m["stage_ms_per_step"]
+        print(f"| {mode} | {m['loop_rate_hz']:.0f} | {st['render']:.2f} | {st['transfer']:.2f} | "
+              f"{st['control']:.3f} | {st['physics'] + st['truth']:.2f} |", flush=True)
+    print(f"\n| mode, {args.minutes:g} min on procedural:11 | distance m | mean speed m/s | collisions | "
+          "off path s | obstacles met | lead gap m (sd) | border m |")
+    print("|---|---|---|---|---|---|---|---|")
+    for mode in MODES:
+        r = safety(mode, args.minutes)
+        lead = f"{r['mean_lead_gap_m']} ({r['lead_gap_std_m']})" if r["mean_lead_gap_m"] is not None else "-"
+        print(f"| {mode} | {r['distance_m']:.0f} | {r['mean_speed_mps']:.2f} | {r['collisions']} | "
+              f"{r['off_path_time_s']} | {r['obstacles_met']} | {lead} | {r['mean_border_distance_m'] or '-'} |",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()

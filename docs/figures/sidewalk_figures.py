@@ -1,0 +1,248 @@
+"""The pictures of docs/sidewalk.md, made from the world itself (`python docs/figures/sidewalk_figures.py`).
+
+    sidewalk-cameras.png      left and right frames: a park, a sidewalk and a forest path, three times of day
+    sidewalk-modes.png        the same place driven three ways: trajectories from above, speed over time
+    sidewalk-stereo.png       a post straight ahead: its disparity, measured against the geometry's prediction
+    sidewalk-correction.png   correctional operation: the poor driver, and where the expert took over
+    sidewalk-moment.png       one data moment: four images and the next ten steering and motor values
+    sidewalk-video.png        a frame of `drive --record`: both cameras and the top-down view
+"""
+from __future__ import annotations
+
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import cv2
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+
+from controller.sidewalk import PoorDriver, SidewalkExpert  # noqa: E402
+from shm_bridge.worlds.sidewalk import SIDEWALK  # noqa: E402
+from sim.sidewalk.car import CarState  # noqa: E402
+from sim.sidewalk.layout import make_obstacle  # noqa: E402
+from sim.sidewalk.stereo import PITCH_DEG, StereoConfig  # noqa: E402
+from sim.sidewalk.topdown import TopDown  # noqa: E402
+from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # noqa: E402
+
+OUT = ROOT / "docs" / "img"
+I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
+
+
+def save(name: str, rgb: np.ndarray) -> None:
+    cv2.imwrite(str(OUT / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    print("wrote", OUT / name)
+
+
+def label(img: np.ndarray, text: str) -> np.ndarray:
+    img = img.copy()
+    cv2.putText(img, text, (6, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(img, text, (6, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (255, 255, 255), 1, cv2.LINE_AA)
+    return img
+
+
+def drive(world, seconds: float, driver=None):
+    driver = driver or SidewalkExpert()
+    obs = world.observe(False)
+    out = [obs.record]
+    for _ in range(int(round(seconds / world.dt))):
+        act = driver.action(obs.record) if hasattr(driver, "action") else np.array(driver.act(obs.record))
+        obs = world.step(act, False)
+        out.append(obs.record)
+    return obs, np.array(out)
+
+
+def cameras() -> None:
+    rows = []
+    for path, seed, mode, secs in (("park", 21, "direct", 8.0), ("sidewalk", 4, "follow", 6.0),
+                                   ("forest", 12, "furtive", 10.0)):
+        w = SidewalkWorld(SidewalkConfig(path=path, seed=seed, mode=mode, render=False))
+        drive(w, secs)
+        left, right = w.observe(True).frames
+        text = f"{path}, {w.renderer.look.time}, {mode}"
+        rows.append(np.hstack([label(left, "left: " + text), np.full((188, 4, 3), 255, np.uint8),
+                               label(right, "right")]))
+        rows.append(np.full((4, rows[-1].shape[1], 3), 255, np.uint8))
+    save("sidewalk-cameras.png", np.vstack(rows[:-1]))
+
+
+def modes() -> None:
+    fig, (top, speed) = plt.subplots(1, 2, figsize=(13, 5.2), gridspec_kw={"width_ratios": [1.25, 1]})
+    colours = {"direct": "tab:blue", "follow": "tab:orange", "furtive": "tab:green"}
+    layout = None
+    for mode in ("direct", "follow", "furtive"):
+        w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode=mode, render=False))
+        layout = w.layout
+        _, rec = drive(w, 40.0)
+        top.plot(rec[:, I["x"]], rec[:, I["y"]], color=colours[mode], lw=1.6, label=mode)
+        t = np.arange(len(rec)) * w.dt
+        speed.plot(t, rec[:, I["speed"]], color=colours[mode], lw=1.4, label=mode)
+        if mode == "follow":
+            speed.plot(t, rec[:, I["lead_speed"]], color=colours[mode], lw=0.8, ls=":", label="lead car")
+        if mode == "furtive":
+            bordered = np.minimum(rec[:, I["border_left"]], rec[:, I["border_right"]]) < 5
+            speed.fill_between(t, 0, 4.2, where=~bordered, color="tab:green", alpha=0.08, lw=0,
+                               label="furtive: no border beside")
+    track = layout.path.track
+    s = np.arange(0, track.length, 0.25)
+    for d in (-layout.path.half_width, layout.path.half_width):
+        x, y, _ = track.pose(s, np.full_like(s, d))
+        top.plot(x, y, color="0.55", lw=0.8)
+    for b in layout.borders:
+        for k in range(len(b.starts)):
+            ss = np.arange(b.starts[k], b.ends[k], 0.25)
+            x, y, _ = track.pose(ss, np.full_like(ss, b.face[k] + b.side * b.depths[k] / 2))
+            top.plot(x, y, color="darkgreen", lw=3.5, alpha=0.45, solid_capstyle="butt")
+    for o in layout.obstacles:
+        c = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1], [1, 1]]) * (o.length / 2, o.width / 2)
+        cy, sy = math.cos(o.world_yaw), math.sin(o.world_yaw)
+        top.fill(o.x + cy * c[:, 0] - sy * c[:, 1], o.y + sy * c[:, 0] + cy * c[:, 1], color="firebrick")
+    start = layout.start_s
+    x0, y0, _ = track.pose(start)
+    top.set_xlim(x0 - 34, x0 + 6)
+    top.set_ylim(y0 - 10, y0 + 26)
+    top.set_aspect("equal")
+    top.set_title("40 s from the same start, seen from above (borders green, obstacles red)")
+    top.legend(loc="lower left")
+    top.set_xlabel("x [m]")
+    top.set_ylabel("y [m]")
+    speed.set_xlabel("t [s]")
+    speed.set_ylabel("speed [m/s]")
+    speed.set_ylim(0, 4.2)
+    speed.set_title("speed: direct cruises, follow keeps 1.2 m behind the lead car, furtive creeps")
+    speed.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(OUT / "sidewalk-modes.png", dpi=90)
+    plt.close(fig)
+    print("wrote", OUT / "sidewalk-modes.png")
+
+
+def stereo() -> None:
+    st = StereoConfig()
+    row = int(st.camera("left").horizon_row())
+    distances = np.array([1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0])
+    measured, crops = [], []
+    for dist in distances:
+        frames = []
+        for items in ([("post", 10.0 + 0.1 + dist, 0.0, 0.0)], []):
+            from tests.sidewalk.helpers import world   # the test's stadium set-up
+            w = world(obstacles=items, borders=((), ()), start_s=10.0, render=True)
+            w.car = CarState(s=10.0)
+            frames.append(w.observe().frames)
+        centres = []
+        for a, b in zip(*frames):
+            cols = np.flatnonzero(np.any(a[row] != b[row], axis=-1))
+            centres.append((cols.min() + cols.max()) / 2)
+        measured.append(centres[0] - centres[1])
+        if dist == 2.0:
+            crops = [f[row - 40:row + 40, 118:218] for f in frames[0]]
+    predicted = st.disparity(1.0) / (distances * math.cos(math.radians(PITCH_DEG)))
+    fig, (img, plot) = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={"width_ratios": [1, 1.3]})
+    both = np.hstack([crops[0], np.full((80, 3, 3), 255, np.uint8), crops[1]])
+    img.imshow(both)
+    img.axhline(40, color="yellow", lw=0.7)
+    img.set_title("a post 2 m ahead: left | right (eye-height row in yellow)")
+    img.axis("off")
+    dd = np.linspace(0.9, 10.5, 100)
+    plot.plot(dd, st.disparity(1.0) / (dd * math.cos(math.radians(PITCH_DEG))), color="0.4",
+              label="baseline x focal / depth")
+    plot.plot(distances, measured, "o", color="tab:red", label="measured on the frames")
+    plot.set_xlabel("distance ahead [m]")
+    plot.set_ylabel("disparity [px]")
+    plot.set_title(f"B = {st.baseline} m, f = {st.focal_px:.1f} px: within "
+                   f"{np.abs(np.array(measured) - predicted).max():.2f} px")
+    plot.legend()
+    fig.tight_layout()
+    fig.savefig(OUT / "sidewalk-stereo.png", dpi=90)
+    plt.close(fig)
+    print("wrote", OUT / "sidewalk-stereo.png")
+
+
+def correction() -> None:
+    from drivestudio.worlds.sidewalk import Supervisor
+    w = SidewalkWorld(SidewalkConfig(path="park", seed=2, render=False))
+    poor, sup = PoorDriver(seed=4), Supervisor(w, "correctional")
+    obs = w.observe(False)
+    rec = []
+    for _ in range(int(60 / w.dt)):
+        applied, _ = sup(obs, np.array(poor.act(obs.record)))
+        obs = w.step(applied, False)
+        rec.append(obs.record)
+    rec = np.array(rec)
+    t = np.arange(1, len(rec) + 1) * w.dt
+    hw = w.path.half_width
+    fig, ax = plt.subplots(figsize=(11, 3.4))
+    ax.fill_between(t, -hw, hw, where=rec[:, I["correcting"]] > 0, color="orange", alpha=0.35, lw=0,
+                    label="the expert corrects")
+    ax.plot(t, rec[:, I["d"]], color="tab:blue", lw=1.2, label="lateral offset d")
+    ax.axhline(hw, color="0.4", lw=0.8)
+    ax.axhline(-hw, color="0.4", lw=0.8)
+    share = rec[:, I["correcting"]].mean()
+    ax.set_title(f"the poor driver on the park path under the correction rule: autonomy {100 * (1 - share):.1f} %, "
+                 "no collision, never off the path")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("d [m] (path edges grey)")
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(OUT / "sidewalk-correction.png", dpi=90)
+    plt.close(fig)
+    print("wrote", OUT / "sidewalk-correction.png")
+
+
+def moment() -> None:
+    import subprocess
+    from perception.datasets import FrameDataset
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "120",
+                        "--episode-frames", "40", "--paths", "park", "--seed", "7", "--out", f"{tmp}/d",
+                        "--workers", "2", "--quiet"], check=True, cwd=ROOT)
+        ds = FrameDataset(f"{tmp}/d", None, normalised=False)
+        i = 2 * len(ds) // 3 + 12    # a furtive moment
+        images, mode, target = ds[i]
+    x = images.numpy()
+    tiles = [x[3 * k:3 * k + 3].transpose(1, 2, 0) for k in range(4)]
+    names = ["left, t - 33 ms", "right, t - 33 ms", "left, t", "right, t"]
+    fig = plt.figure(figsize=(12, 4.6))
+    for k in range(4):
+        ax = fig.add_subplot(2, 3, [1, 2, 4, 5][k])
+        ax.imshow(tiles[k])
+        ax.set_title(names[k], fontsize=9)
+        ax.axis("off")
+    ax = fig.add_subplot(1, 3, 3)
+    steps = np.arange(1, 11) * 33
+    ax.plot(steps, target[:10].numpy(), "o-", label="steer")
+    ax.plot(steps, target[10:].numpy(), "s-", label="motor")
+    ax.set_ylim(0.3, 0.8)
+    ax.set_xlabel("ms after t")
+    ax.set_title(f"targets ({['direct', 'follow', 'furtive'][int(mode)]} mode)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(OUT / "sidewalk-moment.png", dpi=90)
+    plt.close(fig)
+    print("wrote", OUT / "sidewalk-moment.png")
+
+
+def video() -> None:
+    from drivestudio.worlds.sidewalk import compose
+    w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode="follow", render=False))
+    obs, _ = drive(w, 12.0)
+    obs = w.observe(True)
+    r = SIDEWALK.unpack(obs.record)
+    top = TopDown(w.layout, 188, 14.0).draw(r["x"], r["y"], r["yaw"], w.lead.state)
+    a = SidewalkExpert().action(obs.record)
+    save("sidewalk-video.png", compose(*obs.frames, top, f"t {obs.t:5.1f} s  follow  expert  {r['speed']:4.2f} m/s  "
+                                       f"steer {a[0]:.2f}  motor {a[1]:.2f}  expert"))
+
+
+if __name__ == "__main__":
+    OUT.mkdir(parents=True, exist_ok=True)
+    for job in (cameras, modes, stereo, correction, moment, video):
+        job()
+    _ = make_obstacle
