@@ -29,7 +29,10 @@ class CheckpointError(ValueError):
 
 
 def save_checkpoint(path, payload: dict) -> None:
-    atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
+    """Write atomically; a SIGTERM or Ctrl-C during the write takes effect once it is complete."""
+    from shm_bridge.signals import deferred
+    with deferred():
+        atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
 
 
 def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu", world: str | None = None) -> dict:

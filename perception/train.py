@@ -170,7 +170,8 @@ def write_curves(out, history: list[dict], x: str = "iteration", title: str = ""
     if any(r.get("train_loss") for r in history):
         ax.set_yscale("log")
     ax.grid(alpha=0.3)
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend()
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()

@@ -25,9 +25,36 @@ class Terminated(SystemExit):
         return f"terminated by {signal.Signals(self.signum).name}"
 
 
+_deferring = [0]          # depth of deferred() blocks in progress
+_pending: list[int] = []  # a signal that arrived inside one, raised when the outermost ends
+
+
+@contextmanager
+def deferred():
+    """Within the block, Terminated is held back and raised when the block ends: for work that must not be cut
+    in half (writing a checkpoint). Ctrl-C is held back too."""
+    _deferring[0] += 1
+    previous = None
+    if threading.current_thread() is threading.main_thread() and _deferring[0] == 1:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: _pending.append(signum))
+    try:
+        yield
+    finally:
+        _deferring[0] -= 1
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        if _deferring[0] == 0 and _pending:
+            signum = _pending.pop(0)
+            _pending.clear()
+            if signum == signal.SIGINT:
+                raise KeyboardInterrupt
+            raise Terminated(signum)
+
+
 @contextmanager
 def exit_on_sigterm(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP)):
-    """Within the block, the listed signals raise Terminated once (no-op outside the main thread)."""
+    """Within the block, the listed signals raise Terminated once (no-op outside the main thread); inside a
+    deferred() block the signal is raised when that block ends."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -37,6 +64,9 @@ def exit_on_sigterm(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP)):
         if fired:
             return
         fired.append(signum)
+        if _deferring[0]:
+            _pending.append(signum)
+            return
         raise Terminated(signum)
 
     previous = {}

@@ -36,6 +36,7 @@ class WorldConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
+    start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
 
 
 @dataclass
@@ -102,6 +103,8 @@ class World:
         else:
             rng = np.random.default_rng([self.seed, 0xE60])
             lane = int(rng.integers(0, self.track.lanes))
+            if self.config.start_lane is not None:
+                lane = int(self.config.start_lane)
             self.ego = VehicleState(s=0.0, d=float(self.track.lane_centres[lane]), speed=self.config.start_speed)
             self._traffic = self._make_traffic()
         return self.observe()

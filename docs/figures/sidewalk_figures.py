@@ -27,7 +27,6 @@ sys.path.insert(0, str(ROOT))
 from controller.sidewalk import PoorDriver, SidewalkExpert  # noqa: E402
 from shm_bridge.worlds.sidewalk import SIDEWALK  # noqa: E402
 from sim.sidewalk.car import CarState  # noqa: E402
-from sim.sidewalk.layout import make_obstacle  # noqa: E402
 from sim.sidewalk.stereo import PITCH_DEG, StereoConfig  # noqa: E402
 from sim.sidewalk.topdown import TopDown  # noqa: E402
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # noqa: E402
@@ -74,50 +73,56 @@ def cameras() -> None:
 
 
 def modes() -> None:
-    fig, (top, speed) = plt.subplots(1, 2, figsize=(13, 5.2), gridspec_kw={"width_ratios": [1.25, 1]})
+    """The three experts over the same 45 m of the park path, from the same start: lateral offset along the path
+    (the path unrolled: borders and obstacles where they stand), and speed over time."""
+    fig, (top, speed) = plt.subplots(2, 1, figsize=(12, 7.2), gridspec_kw={"height_ratios": [1, 1]})
     colours = {"direct": "tab:blue", "follow": "tab:orange", "furtive": "tab:green"}
+    span = 45.0
     layout = None
     for mode in ("direct", "follow", "furtive"):
         w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode=mode, render=False))
         layout = w.layout
-        _, rec = drive(w, 40.0)
-        top.plot(rec[:, I["x"]], rec[:, I["y"]], color=colours[mode], lw=1.6, label=mode)
+        _, rec = drive(w, 50.0)
+        along = (rec[:, I["s"]] - layout.start_s) % layout.path.length
+        keep = along < span
+        top.plot(along[keep], rec[keep, I["d"]], color=colours[mode], lw=1.8, label=mode)
         t = np.arange(len(rec)) * w.dt
         speed.plot(t, rec[:, I["speed"]], color=colours[mode], lw=1.4, label=mode)
         if mode == "follow":
-            speed.plot(t, rec[:, I["lead_speed"]], color=colours[mode], lw=0.8, ls=":", label="lead car")
+            speed.plot(t, rec[:, I["lead_speed"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
+            top.plot(along[keep], rec[keep, I["lead_d"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
         if mode == "furtive":
             bordered = np.minimum(rec[:, I["border_left"]], rec[:, I["border_right"]]) < 5
-            speed.fill_between(t, 0, 4.2, where=~bordered, color="tab:green", alpha=0.08, lw=0,
-                               label="furtive: no border beside")
-    track = layout.path.track
-    s = np.arange(0, track.length, 0.25)
-    for d in (-layout.path.half_width, layout.path.half_width):
-        x, y, _ = track.pose(s, np.full_like(s, d))
-        top.plot(x, y, color="0.55", lw=0.8)
+            speed.fill_between(t, 0, 4.0, where=~bordered, color="tab:green", alpha=0.1, lw=0,
+                               label="furtive: no border beside it")
+    hw = layout.path.half_width
+    s0, length = layout.start_s, layout.path.length
+    for d in (-hw, hw):
+        top.axhline(d, color="0.5", lw=0.8)
     for b in layout.borders:
         for k in range(len(b.starts)):
-            ss = np.arange(b.starts[k], b.ends[k], 0.25)
-            x, y, _ = track.pose(ss, np.full_like(ss, b.face[k] + b.side * b.depths[k] / 2))
-            top.plot(x, y, color="darkgreen", lw=3.5, alpha=0.45, solid_capstyle="butt")
+            a, e = (b.starts[k] - s0) % length, (b.ends[k] - s0) % length
+            if e < a:       # a stretch the start lies in
+                a = 0.0
+            if a < span:
+                top.fill_between([a, min(e, span)], b.face[k], b.face[k] + b.side * 0.5, color="darkgreen",
+                                 alpha=0.5, lw=0)
     for o in layout.obstacles:
-        c = np.array([[1, 1], [1, -1], [-1, -1], [-1, 1], [1, 1]]) * (o.length / 2, o.width / 2)
-        cy, sy = math.cos(o.world_yaw), math.sin(o.world_yaw)
-        top.fill(o.x + cy * c[:, 0] - sy * c[:, 1], o.y + sy * c[:, 0] + cy * c[:, 1], color="firebrick")
-    start = layout.start_s
-    x0, y0, _ = track.pose(start)
-    top.set_xlim(x0 - 34, x0 + 6)
-    top.set_ylim(y0 - 10, y0 + 26)
-    top.set_aspect("equal")
-    top.set_title("40 s from the same start, seen from above (borders green, obstacles red)")
-    top.legend(loc="lower left")
-    top.set_xlabel("x [m]")
-    top.set_ylabel("y [m]")
+        a = (o.s - s0) % length
+        if a < span:
+            top.add_patch(plt.Rectangle((a - o.along / 2, o.d - o.across / 2), o.along, o.across, color="firebrick"))
+            top.text(a, o.d + o.across / 2 + 0.08, o.kind, ha="center", fontsize=8, color="firebrick")
+    top.set_xlim(0, span)
+    top.set_ylim(-hw - 0.6, hw + 0.6)
+    top.set_xlabel("along the path from the start [m]")
+    top.set_ylabel("d [m], + left")
+    top.set_title("the same 45 m three ways: path edges grey, hedges and bushes green, obstacles red")
+    top.legend(loc="lower right", fontsize=8, ncol=4)
     speed.set_xlabel("t [s]")
     speed.set_ylabel("speed [m/s]")
-    speed.set_ylim(0, 4.2)
-    speed.set_title("speed: direct cruises, follow keeps 1.2 m behind the lead car, furtive creeps")
-    speed.legend(loc="upper right", fontsize=8)
+    speed.set_ylim(0, 4.0)
+    speed.set_title("speed: direct cruises, follow keeps 1.2 m behind the lead car, furtive creeps beside borders")
+    speed.legend(loc="upper right", fontsize=8, ncol=2)
     fig.tight_layout()
     fig.savefig(OUT / "sidewalk-modes.png", dpi=90)
     plt.close(fig)
@@ -129,10 +134,10 @@ def stereo() -> None:
     row = int(st.camera("left").horizon_row())
     distances = np.array([1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0])
     measured, crops = [], []
+    from tests.sidewalk.helpers import world   # the stereo test's stadium set-up
     for dist in distances:
         frames = []
         for items in ([("post", 10.0 + 0.1 + dist, 0.0, 0.0)], []):
-            from tests.sidewalk.helpers import world   # the test's stadium set-up
             w = world(obstacles=items, borders=((), ()), start_s=10.0, render=True)
             w.car = CarState(s=10.0)
             frames.append(w.observe().frames)
@@ -245,4 +250,3 @@ if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     for job in (cameras, modes, stereo, correction, moment, video):
         job()
-    _ = make_obstacle

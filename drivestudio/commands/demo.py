@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..numbers import count
+
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the whole pipeline at small scale on built-in defaults",
@@ -14,8 +16,8 @@ def register(sub) -> None:
                                    "Table 3; draw overlays of the worst frames; drive closed loop with the AlexNet. "
                                    "Results land in --out; the commands it ran are listed in commands.txt.")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
-    p.add_argument("--frames", type=int, default=2000, help="frames in the demo dataset (default 2000)")
-    p.add_argument("--iterations", type=int, default=150, help="AlexNet training iterations (default 150)")
+    p.add_argument("--frames", type=count(200, 10**6), default=2000, help="frames in the demo dataset (default 2000)")
+    p.add_argument("--iterations", type=count(1, 10**6), default=150, help="AlexNet training iterations (default 150)")
     p.set_defaults(func=run)
 
 
@@ -23,8 +25,8 @@ def run(args) -> int:
     from ..cli import main
     from ..outputs import write_text
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    from perception.files import make_dir
+    out = make_dir(Path(args.out))
     data, ckpt = out / "data", out / "models"
     log: list[str] = []
     t_start = time.perf_counter()

@@ -42,7 +42,7 @@ def run(args) -> int:
     from .. import drive_session
 
     check_device(args.device)
-    if args.shm:
+    if args.shm is not None:
         given = [f for f in ("--record", "--in-process", "--free-running") if getattr(args, f[2:].replace("-", "_"))]
         if given:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")

@@ -213,7 +213,7 @@ def mode_list(text: str | None) -> list[str]:
 # --- the plugin ----------------------------------------------------------------------------------------------------
 class Plugin(Plugin):
     declaration = SIDEWALK
-    expert_names = ("expert", "poor")
+    expert_names = ("expert", "poor", "oracle")   # oracle: the expert, under the name `drive --shm` defaults to
 
     def __init__(self):
         self._flags = {}
@@ -292,7 +292,7 @@ class Plugin(Plugin):
             return {"left": obs.frames[0], "right": obs.frames[1]}, truth
 
     def driver(self, model: str, args, declaration=None):
-        if model == "expert":
+        if model in ("expert", "oracle"):
             return ExpertDriver()
         if model == "poor":
             return PoorDriver(getattr(args, "seed", None) or 0)
@@ -302,7 +302,7 @@ class Plugin(Plugin):
         return DirectDriver(predictor, declaration or self.declaration, smooth=True)
 
     def operation(self, args) -> str:
-        return getattr(args, "operation", None) or ("expert" if getattr(args, "model", None) == "expert"
+        return getattr(args, "operation", None) or ("expert" if getattr(args, "model", None) in ("expert", "oracle")
                                                     else "correctional")
 
     def supervisor(self, world, args):

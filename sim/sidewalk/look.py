@@ -84,7 +84,7 @@ def make_look(seed: int, style: str) -> SidewalkLook:
         "leaves": _c(np.array([0.55, 0.38, 0.16]) * rng.uniform(0.7, 1.1), tint),
         "kerb": _c(np.full(3, rng.uniform(0.72, 0.85)), tint), "kerb_face": _c(np.full(3, 0.5), tint),
         "path": _c(path, tint), "path_dark": _c(path, tint, 0.84), "path_light": _c(path, tint, 1.12),
-        "joint": _c(path, tint, 0.62),
+        "joint": _c(path, tint, 0.72),
         "hedge": _c(np.array([0.1, 0.3, 0.1]) * rng.uniform(0.8, 1.2), tint),
         "bush_a": _c(bush, tint), "bush_b": _c(bush * np.array([1.5, 1.2, 0.9]), tint),
         "trunk": _c((0.33, 0.24, 0.16), tint), "foliage_a": _c((0.12, 0.34, 0.12), tint),
@@ -104,7 +104,8 @@ def make_look(seed: int, style: str) -> SidewalkLook:
     k = ambient / flat
     colours["shadow_grass"] = _c(grass, tint, 0.9 * k)
     colours["shadow_path"] = _c(path, tint, k)
-    skyline = np.array([0.16, 0.26, 0.17]) if style != "sidewalk" else np.array([0.55, 0.52, 0.5]) * rng.uniform(0.6, 1.1)
+    skyline = np.array([0.16, 0.26, 0.17]) if style != "sidewalk" else \
+        np.array([0.55, 0.52, 0.5]) * rng.uniform(0.6, 1.1)
     skyline = 0.6 * skyline * tint + 0.4 * np.array(sky_hor)   # aerial perspective: far things take the sky's tint
     shadow = 0.0 if time == "overcast" else min(4.0, 1.0 / math.tan(el))
     return SidewalkLook(colours, tuple(sky_top), tuple(sky_hor), tuple(grass * tint), light, ambient, diffuse,

@@ -59,7 +59,8 @@ def band(track: Track, s: np.ndarray, d_lo, d_hi, z: float = 0.0) -> list[np.nda
             ss = s[i:j + 1]
             xl, yl, _ = track.pose(ss, d_hi[i:j + 1])
             xr, yr, _ = track.pose(ss, d_lo[i:j + 1])
-            out.append(np.column_stack((np.concatenate((xr, xl[::-1])), np.concatenate((yr, yl[::-1])), np.full(2 * len(ss), z))))
+            out.append(np.column_stack((np.concatenate((xr, xl[::-1])), np.concatenate((yr, yl[::-1])),
+                                        np.full(2 * len(ss), z))))
         i = j + 1
     return out
 
@@ -127,7 +128,7 @@ def _ground(layout: Layout, look: SidewalkLook, s0: float, s1: float, rng) -> di
         for a in np.arange(first, s1, layout_slab(layout)):   # slab joints across the path
             g.setdefault("joint", []).extend(band(track, np.array([a, a + JOINT_WIDTH]), -hw, hw))
         if path.width >= 2.4:   # a joint along the middle of wide sidewalks
-            g.setdefault("joint", []).extend(band(track, s, -JOINT_WIDTH / 2, JOINT_WIDTH / 2))
+            g.setdefault("joint", []).extend(band(track, s, -JOINT_WIDTH / 4, JOINT_WIDTH / 4))
     length = s1 - s0
     # patches of darker and lighter grass (soil and fallen leaves in forests) beside the path
     for _ in range(rng.poisson(1.2 * length / 4)):

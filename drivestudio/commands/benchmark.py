@@ -1,0 +1,95 @@
+"""drivestudio benchmark: drive a suite of fixed routes with every model and rank them (docs/benchmark.md).
+
+    benchmark --model oracle                                     the default held-out suite, the oracle alone
+    benchmark --model runs/gist.pt --model runs/alexnet.pt       two checkpoints (the oracle row is always added)
+    benchmark --model runs/alexnet.pt@smoothing=0.5              the controller smooths the estimates (0-0.95)
+    benchmark --suite my-suite.json --workers 2 --shm --out DIR
+
+Every route is driven with every model through drive's loop, in process (default) or with each route's driver
+in its own process over shared memory (--shm); same track, traffic, seed and start for every model, so two rows
+differ only by the model. Per route and overall: route completion, collisions and off-road events per km,
+overtakes per km, mean speed relative to the oracle, lateral offset from the lane centre (RMS), time on markings
+outside lane changes, and the driving score
+
+    DS = route completion x 0.60^collisions x 0.65^off-road events   (per route; the suite's: the mean)
+
+as CARLA's Driving Score. Every collision and off-road event gets a clip (CLIP_DIR/MODEL/ROUTE-N-EVENT-tT.mp4):
+the 5 s before it and 1 s after, the box overlay of truth and estimate, the controller's state and command,
+and the indicator whose error was largest in those 5 s.
+
+Writes to --out: leaderboard.md, leaderboard.csv (one row per model), routes.csv (per model and route),
+leaderboard.json (everything, clips included) and clips/. The suite, the models and the output folder are
+checked before anything is driven (one line and exit status 2 on bad input).
+
+A suite file: {"name": ..., "description": ..., "routes": [{"name": "r1", "track": "procedural:11", "lanes": 3,
+"cars": 30, "seed": 11, "start_lane": 1, "seconds": 240}, ...]}; "track" is a preset, procedural:SEED or a
+track file (relative to the suite file); "lanes" (default: the track's) and "start_lane" (0 = leftmost; default
+drawn from the seed) are optional.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from ..numbers import count
+from .common import add_device_option, check_device, run_dir
+
+
+def register(sub) -> None:
+    p = sub.add_parser("benchmark", help="drive fixed routes with every model and rank them by driving score",
+                       description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", action="append", metavar="M",
+                   help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A; repeat for more rows "
+                        "(default: the oracle alone; the oracle row is always added as the upper bound)")
+    p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
+    p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
+    p.add_argument("--workers", type=count(1, 256), default=None,
+                   help=f"routes driven at once, one process each (default: cores, {os.cpu_count() or 1})")
+    p.add_argument("--shm", action="store_true",
+                   help="each route's driver in its own process over shared memory, as `drive` (default: in process)")
+    p.add_argument("--clips", type=count(0, 1000), default=10,
+                   help="crash clips kept per route and model (default 10; 0: none)")
+    p.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
+    add_device_option(p)
+    p.add_argument("--out", help="output folder (default runs/benchmark-TIME)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from perception.files import check_output_dir
+
+    from ..benchmark import RunOptions, check_models, load_suite, run_benchmark
+    from ..benchmark.score import csv_text, markdown, routes_csv_text
+    from ..errors import UsageError
+    from ..outputs import write_json, write_text
+
+    if args.out is not None:
+        check_output_dir(args.out)          # before any work
+    check_device(args.device)
+    suite = load_suite(args.suite)
+    if args.routes is not None:
+        names = [n.strip() for n in args.routes.split(",") if n.strip()]
+        if not names:
+            raise UsageError("--routes names no route")
+        suite = suite.select(names)
+    models = check_models(args.model)
+    out = run_dir(args.out, "benchmark")
+    opts = RunOptions(transport="shm" if args.shm else "in-process", device=args.device, renderer=args.renderer,
+                      clips=args.clips)
+    workers = args.workers or os.cpu_count() or 1
+    print(f"benchmark: suite '{suite.name}' ({len(suite.routes)} routes, {suite.seconds / 60:.1f} simulated "
+          f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {min(workers, len(suite.routes) * len(models))} "
+          f"workers, {'over shared memory' if args.shm else 'in process'}", file=sys.stderr)
+    board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet)
+    write_json(out / "leaderboard.json", board)
+    write_text(out / "leaderboard.csv", csv_text(board))
+    write_text(out / "routes.csv", routes_csv_text(board))
+    text = markdown(board)
+    write_text(out / "leaderboard.md", text)
+    print(text.split("\n## Per route")[0].rstrip())
+    clips = sum(e["overall"]["clips"] for e in board["models"])
+    print(f"\n{board['run']['wall_time_s']:.0f} s with {board['run']['workers']} workers; {clips} clips; "
+          f"leaderboard saved in {out}/leaderboard.md (.csv, .json)")
+    return 0
