@@ -23,19 +23,39 @@ class ShmExchange:
     supervisor(obs, action, driver_mode) -> (applied action, operation mode), or None: the driver's action is
     applied as it is. `operation` holds the operation mode of the last step."""
 
-    def __init__(self, endpoint: WorldEndpoint, supervisor=None):
+    def __init__(self, endpoint: WorldEndpoint, supervisor=None, world=None):
         self.endpoint = endpoint
         self.supervisor = supervisor
+        self.world = world
         self.round_trip = 0.0
         self.operation = "network"
         decl = endpoint.declaration
         self._last = decl.neutral_action()
         self._no_estimate = np.full(len(decl.estimate_names), np.nan)
+        self._mode = None
+        self._mode_index = decl.index(decl.mode_field) if decl.modes else None
+
+    def _follow_mode(self, obs) -> None:
+        """The behavioural mode is a shared flag: the world's own mode is announced before the first frame; when
+        a driver changes the flag, the world switches at this step."""
+        ep = self.endpoint
+        if self._mode is None:
+            self._mode = ep.declaration.modes[int(obs.record[self._mode_index])]
+            ep.behaviour = self._mode
+            return
+        flag = ep.behaviour
+        if flag != self._mode and flag in ep.declaration.modes:
+            self._mode = flag
+            if self.world is not None and hasattr(self.world, "set_mode"):
+                self.world.set_mode(flag)
+                obs.record[self._mode_index] = ep.declaration.modes.index(flag)
 
     def __call__(self, obs) -> tuple[np.ndarray, np.ndarray]:
         ep = self.endpoint
         while ep.paused:
             time.sleep(PAUSE_POLL)
+        if self._mode_index is not None:
+            self._follow_mode(obs)
         t0 = time.perf_counter()
         seq = ep.publish(obs.frames, obs.record, obs.t)
         msg = ep.wait_action(seq) if ep.lockstep else ep.latest_action()
@@ -57,3 +77,16 @@ def serve_driver(endpoint: DriverEndpoint, driver) -> int:
         endpoint.send_action(msg.seq, action, estimate)
         n += 1
     return n
+
+
+def supervised(exchange, supervisor):
+    """An in-process transport with the world side's supervisor (manual mode, correction) applied, as ShmExchange
+    applies it over the bridge."""
+    if supervisor is None:
+        return exchange
+
+    def run(obs):
+        action, estimate = exchange(obs)
+        applied, _ = supervisor(obs, action, "network")
+        return applied, estimate
+    return run

@@ -14,7 +14,7 @@ from shm_bridge import worlds as declared
 from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
 from shm_bridge.signals import Terminated, exit_on_sigterm
 
-from .bridge_loop import ShmExchange, serve_driver
+from .bridge_loop import ShmExchange, serve_driver, supervised
 from .errors import UsageError
 from .loop import in_process, run_loop
 from .outputs import write_json, write_text
@@ -63,7 +63,7 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                   f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
                   file=sys.stderr, flush=True)
             _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
-            exchange = ShmExchange(ep, plugin.supervisor(world, args))
+            exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
             recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
             ok = False
             try:
@@ -110,7 +110,7 @@ def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
             declared.register(decl)   # a world this installation does not know: drive it from its header
             plugin = worlds.Plugin.__new__(worlds.Plugin)
             plugin.declaration = decl
-        driver = plugin.driver(model, args, decl)
+        driver = plugin.driver(model or plugin.expert_names[0], args, decl)
         ep.require(world=decl.name, action=decl.action_names)
         n = serve_driver(ep, driver)
         print(f"drove {n} frames; the world ended the run: {ep.end_reason}", file=sys.stderr)
@@ -143,8 +143,9 @@ def run_in_process(args, plugin, out: Path) -> int:
         recorder = plugin.recorder(world, args.record, _label(args))
         ok = False
         try:
-            last = run_loop(world, in_process(driver), args.seconds, render=plugin.needs_frames(args),
-                            metrics=metrics, realtime=args.realtime, on_step=recorder)
+            last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
+                            render=plugin.needs_frames(args), metrics=metrics, realtime=args.realtime,
+                            on_step=recorder)
             ok = True
         finally:
             recorder.close(ok)

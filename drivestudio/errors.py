@@ -19,7 +19,8 @@ _INPUT = (("sim.track.trackfile", "TrackError"), ("sim.scenario", "ScenarioError
           ("sim.errors", "TrafficError"), ("perception.shards", "DatasetError"),
           ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"),
           ("perception.files", "OutputError"), ("shm_bridge.declaration", "DeclarationError"),
-          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"))
+          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"),
+          ("sim.sidewalk.errors", "PathError"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 

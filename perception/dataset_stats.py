@@ -91,9 +91,18 @@ def summarize_any(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
         spread[name] = {k: round(float(f(x)), 4) if n else 0.0 for k, f in
                         (("min", np.min), ("p5", lambda a: np.percentile(a, 5)), ("median", np.median),
                          ("p95", lambda a: np.percentile(a, 95)), ("max", np.max), ("std", np.std))}
+    order = np.lexsort((v["step"], v["episode"]))
+    same = v["episode"][order][1:] == v["episode"][order][:-1]
+
+    def events(flag: np.ndarray) -> int:
+        """How often a flag turns on within an episode (an obstacle met, a correction begun, a collision)."""
+        f = flag[order].astype(bool)
+        return int(f[:1].sum() + np.sum(f[1:] & ~f[:-1] & same) + np.sum(f[1:] & ~same))
+
     summary = {"world": ds.world, "frames": n, "episodes": int(len(np.unique(v["episode"]))),
                "splits": _splits(ds), "labels": spread,
-               "flags": {name: _share(v[name].astype(bool)) for name in flags}}
+               "flags": {name: _share(v[name].astype(bool)) for name in flags},
+               "flag_events": {name: events(v[name]) for name in flags}}
     if decl.mode_field:
         modes = v[decl.mode_field].astype(int)
         summary["modes"] = {m: _share(modes == i) for i, m in enumerate(decl.modes)}
@@ -140,7 +149,8 @@ def _table_any(summary: dict, rows: list[str]) -> str:
         for mode, means in summary["labels_by_mode"].items():
             rows.append(f"| mean labels, {mode} | " + ", ".join(f"{k} {v}" for k, v in means.items()) + " |")
     for name, share in summary["flags"].items():
-        rows.append(f"| share {name.replace('_', ' ')} | {share:.1%} |")
+        rows.append(f"| {name.replace('_', ' ')} | {share:.1%} of frames, {summary['flag_events'][name]} times "
+                    f"(turning on within an episode) |")
     return "\n".join(rows)
 
 

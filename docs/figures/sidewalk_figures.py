@@ -1,6 +1,6 @@
 """The pictures of docs/sidewalk.md, made from the world itself (`python docs/figures/sidewalk_figures.py`).
 
-    sidewalk-cameras.png      left and right frames: a park, a sidewalk and a forest path, three times of day
+    sidewalk-cameras.png      left and right frames: a park, a sidewalk, a forest path and a procedural loop
     sidewalk-modes.png        the same place driven three ways: trajectories from above, speed over time
     sidewalk-stereo.png       a post straight ahead: its disparity, measured against the geometry's prediction
     sidewalk-correction.png   correctional operation: the poor driver, and where the expert took over
@@ -42,8 +42,9 @@ def save(name: str, rgb: np.ndarray) -> None:
 
 def label(img: np.ndarray, text: str) -> np.ndarray:
     img = img.copy()
-    cv2.putText(img, text, (6, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(img, text, (6, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (255, 255, 255), 1, cv2.LINE_AA)
+    (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.42, 1)
+    img[2:8 + h, 2:10 + w] = (img[2:8 + h, 2:10 + w] * 0.35).astype(np.uint8)
+    cv2.putText(img, text, (6, 4 + h), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (255, 255, 255), 1, cv2.LINE_AA)
     return img
 
 
@@ -60,8 +61,8 @@ def drive(world, seconds: float, driver=None):
 
 def cameras() -> None:
     rows = []
-    for path, seed, mode, secs in (("park", 21, "direct", 8.0), ("sidewalk", 4, "follow", 6.0),
-                                   ("forest", 12, "furtive", 10.0)):
+    for path, seed, mode, secs in (("park", 24, "direct", 8.0), ("sidewalk", 30, "follow", 6.0),
+                                   ("forest", 12, "furtive", 10.0), ("procedural:7", 21, "direct", 12.0)):
         w = SidewalkWorld(SidewalkConfig(path=path, seed=seed, mode=mode, render=False))
         drive(w, secs)
         left, right = w.observe(True).frames

@@ -121,7 +121,8 @@ def describe_contact(entries: list[Entry], track) -> str:
     where = "ahead" if gap > 1.0 else "behind" if gap < -1.0 else "alongside"
     side = "left" if lat > 0 else "right"
     text = f"a car {abs(gap):.1f} m {where}, {abs(lat):.1f} m to the {side}"
-    text += " in the host's lane" if car_lane == host_lane else f" in lane {car_lane} (host in lane {host_lane})"
+    text += " in the host's lane" if car_lane == host_lane else \
+        f" in lane {car_lane + 1} (host in lane {host_lane + 1}; 1 = leftmost)"
     back = entries[max(0, len(entries) - 11)].obs.truth   # a second earlier
     back_cars = np.asarray(back.cars, dtype=np.float64).reshape(-1, 5)
     changed = []
@@ -249,8 +250,8 @@ class ClipRecorder:
                           f"{c['steer_trend']:+.2f}{follow}", (235, 235, 235)))
         a = entry.action
         cmd = "-" if not np.isfinite(a).all() else f"steer {a[0]:+.3f}  accel {a[1]:.2f}  brake {a[2]:.2f}"
-        lines.append((f"command: {cmd}   speed {truth.speed:4.1f} m/s   lane {truth.lanes_left} of {truth.lanes} "
-                      f"(from the left)   d {truth.ego[4]:+.2f} m", (235, 235, 235)))
+        lines.append((f"command: {cmd}   speed {truth.speed:4.1f} m/s   lane {truth.lanes_left + 1} of {truth.lanes} "
+                      f"(1 = leftmost)   d {truth.ego[4]:+.2f} m", (235, 235, 235)))
         blame = info["largest_error"]
         if blame is None:
             lines.append(("largest error in the 5 s before: none (exact indicators)", (160, 230, 160)))

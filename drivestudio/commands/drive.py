@@ -48,7 +48,7 @@ def run(args) -> int:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name
         validate_name(args.shm)
-        return drive_session.run_driver_side(args.shm, args.model or "oracle", args, args.stats_out)
+        return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
     plugin = plugin_for(args, "drive")
     args.model = args.model or plugin.expert_names[0]
     if args.record:

@@ -97,6 +97,7 @@ def run(args) -> int:
                                   if predictor.modes else None)
         for k, i in enumerate(batch):
             images, record = ds.record(i)
+            record["targets"] = dict(zip(ds.outputs, ds.raw_targets(i).tolist()))   # the sample's true outputs
             items.append((images, record, None if est is None else dict(zip(predictor.outputs, est[k]))))
         batch.clear()
 

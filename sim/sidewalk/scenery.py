@@ -127,8 +127,6 @@ def _ground(layout: Layout, look: SidewalkLook, s0: float, s1: float, rng) -> di
         first = math.ceil(s0 / layout_slab(layout)) * layout_slab(layout)
         for a in np.arange(first, s1, layout_slab(layout)):   # slab joints across the path
             g.setdefault("joint", []).extend(band(track, np.array([a, a + JOINT_WIDTH]), -hw, hw))
-        if path.width >= 2.4:   # a joint along the middle of wide sidewalks
-            g.setdefault("joint", []).extend(band(track, s, -JOINT_WIDTH / 4, JOINT_WIDTH / 4))
     length = s1 - s0
     # patches of darker and lighter grass (soil and fallen leaves in forests) beside the path
     for _ in range(rng.poisson(1.2 * length / 4)):

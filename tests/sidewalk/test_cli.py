@@ -30,16 +30,18 @@ def test_render_writes_both_cameras(tmp_path):
 
 
 def test_drive_over_the_bridge_with_a_video(tmp_path):
-    r = run("drive", "--world", "sidewalk", "--model", "expert", "--mode", "furtive", "--seconds", "4",
-            "--record", tmp_path / "run.mp4", "--out", tmp_path / "run")
-    assert r.returncode == 0, r.stderr
+    proc = subprocess.Popen(DS + ["drive", "--world", "sidewalk", "--model", "expert", "--mode", "furtive", "--seconds",
+                                  "4", "--record", str(tmp_path / "run.mp4"), "--out", str(tmp_path / "run")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
     m = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert m["transport"] == "shared memory" and m["world"] == "sidewalk" and m["mode"] == "furtive"
     assert m["simulated_time_s"] == pytest.approx(4.0) and m["collisions"] == 0 and m["autonomy_percent"] == 100.0
     cap = cv2.VideoCapture(str(tmp_path / "run.mp4"))
     ok, frame = cap.read()
     assert ok and frame.shape[1] >= 2 * 336 + 188 and int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 120
-    assert not [n for n in os.listdir("/dev/shm") if n.startswith("drivestudio-")]
+    assert not os.path.exists(f"/dev/shm/drivestudio-{proc.pid}")      # the run's segment is gone
 
 
 def test_the_poor_driver_is_corrected_over_the_bridge(tmp_path):

@@ -77,4 +77,8 @@ def test_stats_reports_the_balance(data, tmp_path):
     r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(data), "--out", str(tmp_path / "st")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert "direct 33.3%, follow 33.3%, furtive 33.3%" in r.stdout and "share correcting" in r.stdout
+    assert "direct 33.3%, follow 33.3%, furtive 33.3%" in r.stdout and "| correcting | 0.0% of frames" in r.stdout
+    summary = json.loads((tmp_path / "st" / "stats.json").read_text())
+    assert summary["modes"] == {"direct": 1 / 3, "follow": 1 / 3, "furtive": 1 / 3} or \
+        summary["modes"] == pytest.approx({"direct": 0.3333, "follow": 0.3333, "furtive": 0.3333}, abs=1e-3)
+    assert set(summary["flag_events"]) >= {"obstacle_near", "collision", "correcting"}
