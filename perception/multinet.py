@@ -14,6 +14,9 @@ Multi-Task Learning for Autonomous Driving, 2017), with the paper's measures.
   the lowest validation loss, as the paper chose its cars' networks.
 - MultiNet trains on every mode with the modal input; an MTL net (`mtl=MODE`) is the same network without the modal
   input, trained and validated on one mode's data.
+- Targets must be the expert's: where the world records an operation mode (the sidewalk's `operation`), a moment
+  whose future steps include an autonomous one (the network's own command, recorded during an autonomy run) is
+  left out; the expert's corrections stay in (the paper's DAgger variant).
 
 A run is resumable at epoch granularity: its state is saved beside the model (`<out>.state`) after every epoch and
 on Ctrl-C or SIGTERM; the same command continues it.
@@ -92,13 +95,19 @@ class Moments:
                 values = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
                                    for n in self.spec.targets], axis=1)
                 mode = table.column(decl.mode_field).to_numpy().astype(np.int64)
+                by_expert = np.ones(len(values), dtype=bool)
+                if "operation" in decl.truth_names:   # 1: autonomous, a network's command, never a label
+                    by_expert = reader.labels(["operation"]).column("operation").to_numpy() != 1
                 images = []
                 for group in reader.iter_row_groups(cams):
                     cols = [group.column(c).to_pylist() for c in cams]
                     for row in zip(*cols):
                         images.append([self._small(decode_image(b)) for b in row])
                 steps.append(np.asarray(images, dtype=np.uint8))       # (steps, cameras, h, w, 3)
+                horizon = self.spec.moment.horizon
                 for t in self.spec.starts(len(values)):
+                    if not by_expert[t + 1:t + 1 + horizon].all():
+                        continue
                     starts.append(base + t)
                     t_index.append(len(steps) - 1)
                     modes.append(mode[t])
@@ -342,6 +351,11 @@ def train_multinet(cfg, log=print) -> dict:
                 if model is None:
                     torch.manual_seed(cfg.seed + 1000 * trial)
                     model = Regressor(spec).to(device).train()
+                    if cfg.init:   # fine-tuning: the weights of an earlier network of the same kind
+                        start = load_checkpoint(cfg.init, model=cfg.model, world=decl.name)
+                        if start["spec"]["options"].get("modal", True) != spec["options"]["modal"]:
+                            raise CheckpointError(f"{cfg.init} is not a network of the same kind (MultiNet / MTL)")
+                        model.load_state_dict(start["state_dict"])
                     opt = _optimizer(optimizer, model, lr)
                 while state["epoch"] < epochs:
                     epoch = state["epoch"] + 1

@@ -71,6 +71,7 @@ class TrainConfig:
     modes: str | None = None          # Z2Color: behavioural modes to train on (comma-separated; None: all)
     mtl: str | None = None            # Z2Color: the MTL baseline on this one mode (no modal input)
     trials: int = 1                   # Z2Color: repeats with fresh seeds
+    init: str | None = None           # Z2Color: start from this checkpoint's weights (fine-tuning, DAgger rounds)
     seed: int = 0
 
     def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:

@@ -25,6 +25,7 @@ from .models import ModelSpec, slug
 from .route import RunOptions, run_route
 from .suite import Route, Suite
 
+STOP_WAIT = 5.0    # [s] a worker told to stop (SIGTERM) gets this long to unwind before it is killed
 THREADS_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
@@ -49,24 +50,28 @@ def run_job(job: dict, progress=None) -> dict:
 
 def worker_main() -> int:
     """A worker: jobs as JSON lines on stdin; {"progress": s}, {"done": result} or {"error": line} on stdout."""
+    from shm_bridge.signals import exit_on_sigterm
     _die_with_parent()
     if os.getppid() == 1:
         return 1
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole group: the parent stops us
     out_stream = os.fdopen(os.dup(1), "w", buffering=1)
     os.dup2(os.open(os.devnull, os.O_WRONLY), 1)   # library chatter must not corrupt the protocol
 
     def send(obj) -> None:
         out_stream.write(json.dumps(obj) + "\n")
 
-    for line in sys.stdin:
-        job = json.loads(line)
-        try:
-            if job["model"]["path"] is not None:
-                import torch
-                torch.set_num_threads(1)
-            send({"done": run_job(job, progress=lambda s: send({"progress": s}))})
-        except Exception as e:  # the parent stops the run with this line
-            send({"error": f"route {job['route']['name']}, model {job['model']['text']}: {type(e).__name__}: {e}"})
+    with exit_on_sigterm():   # SIGTERM from the parent unwinds: worlds, bridges and half-written clips are closed
+        for line in sys.stdin:
+            job = json.loads(line)
+            try:
+                if job["model"]["path"] is not None:
+                    import torch
+                    torch.set_num_threads(1)
+                send({"done": run_job(job, progress=lambda s: send({"progress": s}))})
+            except Exception as e:  # the parent stops the run with this line
+                send({"error": f"route {job['route']['name']}, model {job['model']['text']}: "
+                               f"{type(e).__name__}: {e}"})
     return 0
 
 
@@ -134,6 +139,11 @@ def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
     finally:
         for p in procs:
             if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=STOP_WAIT)
+            except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
         sel.close()
@@ -144,6 +154,8 @@ def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: 
     """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
     from tqdm import tqdm
 
+    from shm_bridge.signals import exit_on_sigterm
+
     from .score import leaderboard
     jobs = jobs_for(suite, models, opts, out)
     results: list[dict] = []
@@ -152,7 +164,8 @@ def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: 
                smoothing=0.05, desc=f"{len(suite.routes)} routes x {len(models)} models")
     t0 = time.perf_counter()
     try:
-        run_jobs(jobs, workers, lambda s: bar.update(s), results.append)
+        with exit_on_sigterm():
+            run_jobs(jobs, workers, lambda s: bar.update(s), results.append)
     finally:
         bar.close()
     board = leaderboard(suite, models, results)

@@ -39,6 +39,7 @@ ROUTE_COLUMNS = (
     ("collisions", "coll.", "{:d}"),
     ("off_road_events", "off-road", "{:d}"),
     ("overtakes", "overtakes", "{:d}"),
+    ("lane_changes", "lane changes", "{:d}"),
     ("mean_speed_mps", "speed [m/s]", "{:.1f}"),
     ("speed_vs_oracle", "vs oracle", "{:.1%}"),
     ("lateral_rms_m", "lat. RMS [m]", "{:.3f}"),
@@ -90,6 +91,7 @@ def overall(rows: list[dict]) -> dict:
             "collisions_per_km": round(col / km, 4) if km else 0.0,
             "off_road_per_km": round(off / km, 4) if km else 0.0,
             "overtakes_per_km": round(sum(r["overtakes"] for r in rows) / km, 3) if km else 0.0,
+            "lane_changes_per_km": round(sum(r["lane_changes"] for r in rows) / km, 3) if km else 0.0,
             "speed_vs_oracle": round(sum(r["speed_vs_oracle"] for r in rows) / n, 4),
             "lateral_rms_m": round(math.sqrt(sum(r["lateral_rms_m"] ** 2 * r["lateral_steps"] for r in rows)
                                              / steps), 4) if steps else 0.0,
@@ -124,7 +126,7 @@ def markdown(board: dict, clip_root: str = "clips") -> str:
     """The leaderboard, the per-route tables and the clips, as Markdown."""
     suite = board["suite"]
     out = [f"# Benchmark: suite '{suite['name']}' ({len(suite['routes'])} routes, "
-           f"{sum(r['seconds'] for r in suite['routes']) / 60:.0f} simulated minutes)", "",
+           f"{sum(r['seconds'] for r in suite['routes']) / 60:.3g} simulated minutes)", "",
            "Driving score = route completion x 0.60^collisions x 0.65^off-road events, per route, averaged over "
            "the routes (as CARLA's Driving Score); the oracle (exact indicators) is the upper bound.", "",
            "| model | " + " | ".join(h for _, h, _ in COLUMNS) + " |",
@@ -163,9 +165,10 @@ def csv_text(board: dict) -> str:
     buf = io.StringIO()
     keys = [k for k, _, _ in COLUMNS]
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["model", "spec"] + keys + ["clips"])
+    extra = ["lane_changes_per_km", "marking_time_s", "driven_s", "clips"]
+    w.writerow(["model", "spec"] + keys + extra)
     for e in board["models"]:
-        w.writerow([e["model"], e["spec"]] + [e["overall"].get(k) for k in keys] + [e["overall"]["clips"]])
+        w.writerow([e["model"], e["spec"]] + [e["overall"].get(k) for k in keys + extra])
     return buf.getvalue()
 
 
