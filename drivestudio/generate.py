@@ -37,6 +37,14 @@ from .errors import RunError, UsageError
 from .worlds import Episode
 
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
+MIN_EPISODES = 10    # the split rule takes every tenth episode: fewer would leave the validation or test split empty
+MIN_EPISODE_FRAMES = 20
+
+
+def episode_length(frames: int, episode_frames: int) -> int:
+    """The steps an episode records: --episode-frames, shortened (to no less than MIN_EPISODE_FRAMES) so that a
+    small dataset still has MIN_EPISODES episodes and every split holds frames (600 frames: 10 episodes of 60)."""
+    return max(min(episode_frames, MIN_EPISODE_FRAMES), min(episode_frames, -(-frames // MIN_EPISODES)))
 
 
 @dataclass(frozen=True)
@@ -67,7 +75,8 @@ def load_plugin(ref: str):
 
 
 def plan(cfg: GenerateConfig) -> list[Episode]:
-    return worlds.get(cfg.world).plan(cfg.options, cfg.frames, cfg.episode_frames, cfg.seed)
+    return worlds.get(cfg.world).plan(cfg.options, cfg.frames, episode_length(cfg.frames, cfg.episode_frames),
+                                      cfg.seed)
 
 
 def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=None) -> dict:
@@ -129,7 +138,8 @@ def _open_manifest(out: Path, cfg: GenerateConfig, plugin) -> dict:
         raise UsageError(f"{out} holds shards but no {MANIFEST}; it is not a dataset this command can continue")
     decl = plugin.declaration_for(cfg.options)
     return {"world": decl.to_json(), "config": config, "seed": cfg.seed, "renderer": cfg.renderer,
-            "split_rule": SPLIT_RULE, "software": _software(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "split_rule": SPLIT_RULE, "episode_frames": episode_length(cfg.frames, cfg.episode_frames),
+            "software": _software(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "shards": [], "frames": 0, "complete": False}
 
 

@@ -26,8 +26,10 @@ def _share(mask: np.ndarray) -> float:
 def _splits(ds: Dataset) -> dict:
     """How the split was made and what each split holds."""
     rule = ds.manifest.get("split_rule", "episode % 10: 0-7 train, 8 validation, 9 test")
-    return {"rule": rule, **{s: {"episodes": len(ds.select(s)), "frames": ds.frames(s)}
-                             for s in ("train", "val", "test")}}
+    lengths = sorted({s.frames for s in ds.shards})
+    how = f"{rule}, whole episodes of {lengths[-1] if len(lengths) == 1 else f'{lengths[0]}-{lengths[-1]}'} frames"
+    return {"rule": how, **{s: {"episodes": len(ds.select(s)), "frames": ds.frames(s)}
+                            for s in ("train", "val", "test")}}
 
 
 def summarize(ds: Dataset, split: str | None = None) -> tuple[dict, dict]:
