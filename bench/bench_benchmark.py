@@ -1,9 +1,11 @@
 """Time of a benchmark run (issue 13's target: the default suite with the oracle in <= 10 minutes, 2 workers).
 
     python bench/bench_benchmark.py [--model oracle] [--workers 2] [--suite FILE] [--shm]
+    python bench/bench_benchmark.py --plot runs/bench/leaderboard.json --out docs/img/benchmark-scores.png
 
 Runs `drivestudio benchmark` once and prints the wall time, the simulated time driven and, per model, the driving
-score, route completion, collisions and off-road events, from the run's leaderboard.json.
+score, route completion, collisions and off-road events, from the run's leaderboard.json. With --plot, draws the
+driving score of every model on every route of a finished run instead.
 """
 from __future__ import annotations
 
@@ -22,7 +24,12 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--suite", help="suite file (default: the shipped one)")
     ap.add_argument("--shm", action="store_true", help="drivers over shared memory")
+    ap.add_argument("--plot", help="a leaderboard.json to draw (nothing is run)")
+    ap.add_argument("--out", help="the PNG --plot writes")
     args = ap.parse_args()
+    if args.plot:
+        plot(json.loads(Path(args.plot).read_text()), args.out or "benchmark-scores.png")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "drivestudio", "benchmark", "--workers", str(args.workers), "--out", tmp,
                "--quiet"]
@@ -43,6 +50,32 @@ def main() -> None:
         o = e["overall"]
         print(f"| {e['model']} | {o['driving_score']:.1%} | {o['route_completion']:.1%} | {o['collisions']} | "
               f"{o['off_road_events']} | {o['distance_km']:.1f} |")
+
+
+def plot(board: dict, out: str) -> None:
+    """Grouped bars: the driving score of each model on each route, and overall."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    routes = [r["name"] for r in board["suite"]["routes"]] + ["suite"]
+    models = board["models"]
+    x = np.arange(len(routes))
+    width = 0.8 / len(models)
+    fig, ax = plt.subplots(figsize=(11, 3.8), dpi=100)
+    for i, e in enumerate(models):
+        scores = [r["driving_score"] * 100 for r in e["routes"]] + [e["overall"]["driving_score"] * 100]
+        ax.bar(x + (i - (len(models) - 1) / 2) * width, scores, width, label=e["model"])
+    ax.set_xticks(x, routes, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("driving score [%]")
+    ax.set_ylim(0, 105)
+    ax.set_title(f"suite '{board['suite']['name']}': driving score per route (RC x 0.60^collisions x "
+                 f"0.65^off-road)", fontsize=10)
+    ax.legend(fontsize=8, loc="lower left")
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out)
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

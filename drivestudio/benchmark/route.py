@@ -8,7 +8,7 @@ outside lane changes (RouteMetrics below).
 from __future__ import annotations
 
 import argparse
-import math
+import json
 import os
 import subprocess
 import sys
@@ -214,9 +214,8 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
         report = metrics.report()
     finally:
         world.close()
-    if progress is not None:   # the rest of the route, when it ended early
-        progress(route.seconds - steps[0] * world.dt if end != "finished" else
-                 (steps[0] % PROGRESS_EVERY) * world.dt)
+    if progress is not None:   # what was not reported yet: the last steps, and the rest of a route that ended early
+        progress(route.seconds - (steps[0] // PROGRESS_EVERY) * PROGRESS_EVERY * world.dt)
     return {"route": route.name, "model": model.key, "end": end, "seconds": route.seconds,
             "driven_s": round(report["simulated_time_s"], 3), "metrics": report, "clips": clips,
             "clips_skipped": recorder.skipped, "wall_s": round(time.perf_counter() - t0, 2),
@@ -259,7 +258,6 @@ def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, sec
             log.close()
     timings = {}
     try:
-        import json
         timings = json.loads(stats.read_text()).get("timings", {})
         stats.unlink()
     except (OSError, ValueError):
@@ -274,6 +272,3 @@ def completion(result: dict) -> float:
         return 1.0
     return min(1.0, result["driven_s"] / result["seconds"]) if result["seconds"] else 0.0
 
-
-def finite(x: float) -> float:
-    return x if math.isfinite(x) else 0.0
