@@ -271,22 +271,46 @@ def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int
         sel.close()
 
 
+def ray_record_episode(ref: str, episode: dict, config: dict, out: str) -> dict:
+    """A Ray task: record one episode on whichever node runs it (module level, so that the workers import it by
+    reference; the world's plugin is loaded there by its "module:Class" reference)."""
+    return record_episode(load_plugin(ref), Episode(**episode), GenerateConfig(**config), out)
+
+
 def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_done) -> None:
     try:
         import ray
     except ImportError:
         raise UsageError("--backend ray needs Ray: pip install 'drivestudio[cluster]' (and a folder every node "
                          "can write to as --out)") from None
-    ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True, log_to_driver=False)
-
-    def task(ref_, ep_, cfg_, out_):
-        return record_episode(load_plugin(ref_), ep_, cfg_, out_)
-
-    remote = ray.remote(task)
-    pending = [remote.remote(ref, ep, cfg, str(out)) for ep in todo]
-    while pending:
-        done, pending = ray.wait(pending, num_returns=1)
-        on_done(ray.get(done[0]))
+    env_vars = {k: os.environ[k] for k in ("DRIVESTUDIO_WORLDS",) if os.environ.get(k)}
+    started = not ray.is_initialized()
+    try:
+        ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True, log_to_driver=False,
+                 runtime_env={"env_vars": env_vars} if env_vars else None)
+    except (ConnectionError, RuntimeError, ValueError) as e:
+        raise RunError(f"--backend ray: cannot reach the Ray cluster at "
+                       f"{os.environ.get('RAY_ADDRESS') or '(a new local one)'}: {e}") from None
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=2)(ray_record_episode)
+        # plain data only, as the local workers get it (JSON); the folder must be the same path on every node
+        config = json.loads(json.dumps(asdict(cfg)))
+        pending = {remote.remote(ref, asdict(ep), config, str(out.resolve())): ep for ep in todo}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            ep = pending.pop(done[0])
+            try:
+                entry = ray.get(done[0])
+            except ray.exceptions.RayError as e:
+                for rest in pending:
+                    ray.cancel(rest, force=True)
+                cause = getattr(e, "cause", None) or e
+                raise RunError(f"episode {ep.index} failed on the Ray cluster: {type(cause).__name__}: "
+                               f"{str(cause).strip().splitlines()[-1] if str(cause).strip() else ''}") from None
+            on_done(entry)
+    finally:
+        if started:
+            ray.shutdown()
 
 
 def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "local",
