@@ -286,9 +286,14 @@ class ChenController:
         # last seen nearer its right marking, the car drifted across it: its lane lies left of this marking
         lane_on_left = -self._pre_ML > self._pre_MR
         # never aim at the far side of a road edge (toMarking_L/R read their inactive -7/7 there)
-        if v["toMarking_L"] < -p.edge_marking:
+        left_gone, right_gone = v["toMarking_L"] < -p.edge_marking, v["toMarking_R"] > p.edge_marking
+        if left_gone and right_gone:
+            # wide lanes, far outside an edge: the neighbour marking reads beyond the threshold too. The marking
+            # the car is on says where the road is: right of the left edge (M > 0), left of the right edge (M < 0)
+            lane_on_left = v["toMarking_M"] < 0
+        elif left_gone:
             lane_on_left = False
-        elif v["toMarking_R"] > p.edge_marking:
+        elif right_gone:
             lane_on_left = True
         side = v["toMarking_L"] if lane_on_left else v["toMarking_R"]
         return (side + v["toMarking_M"]) / 2

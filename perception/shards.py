@@ -201,9 +201,9 @@ def clean_temporaries(root: Path) -> int:
 
 # --- the manifest --------------------------------------------------------------------------------------------
 def _v1_declaration(manifest: dict) -> WorldDeclaration:
-    from shm_bridge.worlds.highway import HIGHWAY
+    from shm_bridge.worlds.highway import FRAME, HIGHWAY
     cfg = manifest.get("config", {})
-    return HIGHWAY.with_camera("front", int(cfg.get("height", 210)), int(cfg.get("width", 280)))
+    return HIGHWAY.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
 
 
 def read_manifest(root: Path) -> dict:

@@ -6,11 +6,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shm_bridge.worlds.highway import FRAME
+
 
 @dataclass(frozen=True)
 class CameraConfig:
-    width: int = 280            # [px]
-    height: int = 210           # [px]
+    width: int = FRAME[1]       # [px] the highway declaration's camera
+    height: int = FRAME[0]      # [px]
     fov_deg: float = 60.0       # vertical field of view [deg]
     eye_height: float = 1.2     # [m] driver's eye above the road
     eye_forward: float = 0.3    # [m] ahead of the car's centre

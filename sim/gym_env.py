@@ -11,7 +11,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from shm_bridge.worlds.highway import Action
+from shm_bridge.worlds.highway import FRAME, Action
 
 from .camera import CameraConfig
 from .world import Observation, World, WorldConfig
@@ -24,7 +24,7 @@ class HighwayEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, track="oval", lanes: int | None = None, cars: int = 12, renderer: str = "tiny",
-                 width: int = 280, height: int = 210, max_steps: int = 3000, start_speed: float = 15.0,
+                 width: int = FRAME[1], height: int = FRAME[0], max_steps: int = 3000, start_speed: float = 15.0,
                  render_mode: str | None = "rgb_array"):
         camera = CameraConfig(width=width, height=height)
         self._config = WorldConfig(track=track, lanes=lanes, cars=cars, renderer=renderer, camera=camera,

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from shm_bridge.worlds.highway import HIGHWAY, INDICATORS, MAX_LANES
+from shm_bridge.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
 
 from ..errors import UsageError
 from ..numbers import count, finite, non_negative
@@ -169,8 +169,8 @@ class Plugin(Plugin):
                       help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
                            "none; docs/controller.md)")
         if verb in ("render", "generate"):
-            self._add(g, verb, "--width", type=count(16, 4096), help="frame width [px] (default 280)")
-            self._add(g, verb, "--height", type=count(16, 4096), help="frame height [px] (default 210)")
+            self._add(g, verb, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
+            self._add(g, verb, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
             self._add(g, verb, "--fov", type=finite(10.0, 150.0),
                       help="vertical field of view [deg] (default 60)")
         if verb == "render":
@@ -189,7 +189,7 @@ class Plugin(Plugin):
     def config(self, args, render: bool, **extra):
         from sim.camera import CameraConfig
         from sim.world import WorldConfig
-        camera = CameraConfig(width=getattr(args, "width", None) or 280, height=getattr(args, "height", None) or 210,
+        camera = CameraConfig(width=getattr(args, "width", None) or FRAME[1], height=getattr(args, "height", None) or FRAME[0],
                               fov_deg=getattr(args, "fov", None) or 60.0)
         return WorldConfig(track=args.track or "oval", lanes=args.lanes, seed=args.seed,
                            cars=DEFAULT_CARS if args.cars is None else args.cars, renderer=args.renderer,
@@ -282,8 +282,8 @@ class Plugin(Plugin):
         if args.tracks is not None and not tracks:
             raise UsageError("--tracks names no track")
         options = {"tracks": tracks, "procedural": 3 if args.procedural is None else args.procedural,
-                   "lanes": list(lanes), "cars": list(cars), "width": args.width or 280,
-                   "height": args.height or 210, "fov": 60.0 if args.fov is None else args.fov}
+                   "lanes": list(lanes), "cars": list(cars), "width": args.width or FRAME[1],
+                   "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)

@@ -25,8 +25,6 @@ INDICATORS: tuple[str, ...] = (
 )
 PAPER_INDICATORS: tuple[str, ...] = INDICATORS[:13]
 INDEX: dict[str, int] = {name: i for i, name in enumerate(INDICATORS)}
-IN_LANE: tuple[str, ...] = INDICATORS[1:8]       # the in-lane system (indicators 2-8)
-ON_MARKING: tuple[str, ...] = INDICATORS[8:13]   # the on-marking system (indicators 9-13)
 GAPS: tuple[str, ...] = ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")
 
 GAP_MAX = 60.0       # [m] gap of an active, existing lane with no car ahead within it

@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from assets import TRACKS_DIR
+from shm_bridge.worlds.highway import MAX_LANES  # the highway declaration owns the lane limits
 
 from .segments import Arc, Segment, Straight
 from .track import VERGE_WIDTH, Track
 
-MAX_LANES = 4
 LANE_WIDTH_RANGE = (3.0, 5.0)        # [m] the on-marking bands (h = 1.2 m) must not touch each other
 CLOSURE_TOLERANCE = (0.5, 0.01)      # [m], [rad]
 MIN_INNER_EDGE_RADIUS = 12.0         # [m] radius of an arc's inner road edge

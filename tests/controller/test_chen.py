@@ -216,6 +216,19 @@ def test_on_marking_estimate_never_aims_past_a_road_edge():
     assert steer_of(ctrl, ind(toMarking_L=-7.0, toMarking_M=1.0, toMarking_R=5.0)) == -1.0
 
 
+@pytest.mark.parametrize("outside", [1.6, 2.0, 2.4])
+def test_far_outside_an_edge_of_wide_lanes_it_steers_back_onto_the_road(outside):
+    """5 m lanes: beyond the right edge by more than 1.5 m, toMarking_L (d - m_{N-1}) is below -6.5 as well as the
+    inactive toMarking_R = 7; the road lies to the left, so the controller steers left (and mirrored)."""
+    w = 5.0
+    ctrl = ChenController(3)
+    right_edge = ind(toMarking_L=-w - outside, toMarking_M=-outside, toMarking_R=7.0)
+    assert steer_of(ctrl, right_edge) > 0.5
+    ctrl = ChenController(3)
+    left_edge = ind(toMarking_L=-7.0, toMarking_M=outside, toMarking_R=w + outside)
+    assert steer_of(ctrl, left_edge) < -0.5
+
+
 def test_coe_0_4_when_toMarking_M_below_1():
     near = steer_of(ChenController(3), in_lane(angle=0.05, toMarking_M=0.9, toMarking_L=-3.1, toMarking_R=4.9))
     assert near == pytest.approx(0.05 / LOCK / 0.4)  # no boost: coe 0.4 is not > 1
