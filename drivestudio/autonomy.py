@@ -95,9 +95,10 @@ def drive_round(model: str, mode: str, seconds: float, out: Path, k: int, path: 
         "seed": seed, "renderer": "tiny", "split_rule": SPLIT_RULE, "software": _software(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [entry], "frames": written["frames"],
         "complete": True})
-    elapsed = report["simulated_time_s"]
-    correction = report.get("correction_time_s", 0.0)
-    result = RoundResult(k, str(model), round(percentage_autonomy(correction, elapsed), 2), correction, elapsed,
+    elapsed = metrics.steps * world.dt                 # exact: the report's seconds are rounded for reading
+    correction = metrics.correction_steps * world.dt
+    result = RoundResult(k, str(model), round(percentage_autonomy(correction, elapsed), 2), round(correction, 3),
+                         round(elapsed, 3),
                          int(report.get("corrections", 0)), int(report["collisions"]),
                          float(report["off_path_time_s"]), float(report["distance_m"]), str(data_dir),
                          str(video_path) if video_path else None)

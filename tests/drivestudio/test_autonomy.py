@@ -1,0 +1,89 @@
+"""Percentage autonomy (the MultiNet paper's equation 3) and the DAgger loop: the run's steps are recorded with their
+operation mode, the autonomy agrees with them, and `--rounds` merges the corrections and retrains."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from drivestudio.autonomy import percentage_autonomy
+from perception.checkpoint import save_checkpoint
+from perception.models import Regressor, make_spec
+from perception.shards import Dataset
+from shm_bridge import worlds
+
+REPO = Path(__file__).resolve().parents[2]
+SIDEWALK = worlds.get("sidewalk")
+
+
+def test_autonomy_is_one_minus_the_share_of_correction_time():
+    assert percentage_autonomy(0.0, 120.0) == 100.0
+    assert percentage_autonomy(30.0, 120.0) == pytest.approx(75.0)
+    assert percentage_autonomy(120.0, 120.0) == 0.0
+    assert percentage_autonomy(8.78, 120.0) == pytest.approx(92.68, abs=0.01)   # the paper's MultiNet, direct
+    with pytest.raises(ValueError):
+        percentage_autonomy(1.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    """An untrained MultiNet (it drives badly, so the expert has to correct it)."""
+    torch.manual_seed(0)
+    model = Regressor(make_spec("z2color", SIDEWALK, modal=True))
+    path = tmp_path_factory.mktemp("autonomy") / "multinet.pt"
+    save_checkpoint(path, {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    return path
+
+
+def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint), "--mode",
+                        "direct", "--seconds", "3", "--out", str(tmp_path)], cwd=REPO, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    result = json.loads((tmp_path / "autonomy.json").read_text())["rounds"][0]
+    ds = Dataset(tmp_path / "corrections-0")
+    labels = ds.labels(columns=("correcting", "operation", "behaviour"))
+    steps = len(labels["correcting"])
+    assert steps == 90 and result["elapsed_s"] == pytest.approx(steps * SIDEWALK.dt, abs=1e-6)
+    correction = float(np.sum(labels["correcting"])) * SIDEWALK.dt
+    assert result["correction_s"] == pytest.approx(correction, abs=1e-3)
+    assert result["autonomy_percent"] == pytest.approx((1 - correction / (steps * SIDEWALK.dt)) * 100, abs=0.01)
+    # the record of a step holds the command chosen on the step before (docs/sidewalk.md): from the second step on,
+    # every command is the network's (autonomous) or the expert's correction
+    assert set(np.unique(labels["operation"][1:])) <= {1, 2}
+    assert np.array_equal(labels["operation"] == 2, labels["correcting"])
+    assert (labels["behaviour"] == 0).all()                              # driven in direct mode
+    assert (tmp_path / "autonomy-0.mp4").stat().st_size > 10_000 and "| 0 | multinet.pt |" in r.stdout
+
+
+def test_a_highway_model_is_refused_in_one_line(tmp_path):
+    from shm_bridge.worlds.highway import HIGHWAY
+    model = Regressor(make_spec("gist", HIGHWAY))
+    save_checkpoint(tmp_path / "gist.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "gist.pt"),
+                        "--out", str(tmp_path / "a")], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert "a model of the highway world, not of the sidewalk world" in r.stderr
+    assert not (tmp_path / "a").exists()
+
+
+@pytest.mark.slow
+def test_rounds_merge_the_corrections_and_retrain(tmp_path):
+    data = tmp_path / "data"
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
+                    "--frames", "300", "--episode-frames", "50", "--quiet"], cwd=REPO, check=True, timeout=300)
+    subprocess.run([sys.executable, "-m", "drivestudio", "train", "--data", str(data), "--model", "z2color", "--out",
+                    str(tmp_path / "m.pt"), "--epochs", "1", "--batch-size", "30", "--device", "cpu"], cwd=REPO,
+                   check=True, timeout=600, capture_output=True)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "m.pt"),
+                        "--seconds", "3", "--rounds", "2", "--epochs", "1", "--no-video", "--out", str(tmp_path / "a")],
+                       cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rounds = json.loads((tmp_path / "a" / "autonomy.json").read_text())["rounds"]
+    assert [x["round"] for x in rounds] == [0, 1] and rounds[1]["model"].endswith("model-round1.pt")
+    from perception.checkpoint import load_checkpoint
+    retrained = load_checkpoint(tmp_path / "a" / "model-round1.pt")
+    assert len(retrained["data"]["roots"]) == 2   # the original data and the first round's corrections
