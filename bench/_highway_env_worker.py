@@ -29,6 +29,7 @@ def main() -> int:
     ap.add_argument("--vehicles", type=int, default=12)
     ap.add_argument("--width", type=int, default=280)
     ap.add_argument("--height", type=int, default=210)
+    ap.add_argument("--policy-frequency", type=int, help="decisions per simulated second (highway-v0's default: 1)")
     args = ap.parse_args()
 
     out = os.fdopen(os.dup(1), "w", buffering=1)
@@ -41,6 +42,8 @@ def main() -> int:
 
     config = {"lanes_count": args.lanes, "vehicles_count": args.vehicles, "screen_width": args.width,
               "screen_height": args.height, "offscreen_rendering": True}
+    if args.policy_frequency:
+        config["policy_frequency"] = args.policy_frequency
     env = gym.make("highway-v0", render_mode="rgb_array", config=config)
     idle = env.unwrapped.action_type.actions_indexes["IDLE"]
     seed = args.seed

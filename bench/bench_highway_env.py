@@ -7,6 +7,12 @@ render after every step (its 2-D top-down view), the IDLE action. The two run in
 `--rounds` rounds, so that both see the same machine load; each side's steps/s is the median over the rounds,
 with resets (a new episode) timed apart and left out. The ratio is ours over theirs.
 
+A step is not the same thing on both sides: ours is 0.1 simulated s with one frame; highway-v0's is 1 / policy_
+frequency = 1 s of 15 simulation frames, and once render() has been called highway-env draws every one of them
+(its "automatic rendering"), then returns the last. So the bench also reports each side's simulated seconds per
+wall second (x real time), which is the fairer figure of simulation speed; steps/s is the figure of an agent's
+decisions per second, each with a fresh 280x210 frame, which is what the issue compares.
+
 highway-env is not a dependency of drivestudio: it is installed on first use into its own virtual environment
 (`.venv-highway-env/` in the repository, `pip install highway-env==1.12.1`) and runs in a subprocess
 (bench/_highway_env_worker.py) that reports its timings as JSON. Without it (offline, no pip) the bench says so
@@ -65,10 +71,11 @@ def ensure_highway_env(venv: Path, log=print) -> Path:
 class Theirs:
     """highway-env's highway-v0 in its own interpreter, stepped on request."""
 
-    def __init__(self, python: Path, seed: int = 0):
+    def __init__(self, python: Path, seed: int = 0, policy_frequency: int | None = None):
         env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", PYTHONUNBUFFERED="1")
         env.pop("PYTHONPATH", None)
-        self.proc = subprocess.Popen([str(python), str(WORKER), "--seed", str(seed)], stdin=subprocess.PIPE,
+        extra = ["--policy-frequency", str(policy_frequency)] if policy_frequency else []
+        self.proc = subprocess.Popen([str(python), str(WORKER), "--seed", str(seed), *extra], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                                      cwd=str(REPO))
         self.hello = self._read()
@@ -139,8 +146,9 @@ class Ours:
         self.env.close()
 
 
-def compare(steps: int, rounds: int, python: Path, warmup: int = 20, log=print) -> dict:
-    theirs = Theirs(python)
+def compare(steps: int, rounds: int, python: Path, warmup: int = 20, log=print,
+            policy_frequency: int | None = None) -> dict:
+    theirs = Theirs(python, policy_frequency=policy_frequency)
     try:
         ours = Ours()
         try:
@@ -182,6 +190,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=300, help="steps of each side per round (default 300)")
     ap.add_argument("--rounds", type=int, default=5, help="alternations (default 5)")
+    ap.add_argument("--policy-frequency", type=int, default=None,
+                    help="highway-v0's decisions per simulated second (default: its own, 1; 10 matches our step "
+                         "of 0.1 s in decisions, 15 gives one simulation frame a step)")
     ap.add_argument("--venv", type=Path, default=DEFAULT_VENV,
                     help="highway-env's own virtual environment (created when missing)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
@@ -191,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"drivestudio/Highway-v0 (oval, 3 lanes, 12 cars, Chen on the truth, 280x210 3-D frame) vs "
               f"highway-env highway-v0 (3 lanes, 12 vehicles, IDLE, 280x210 rgb_array): {args.rounds} rounds "
               f"of {args.steps} steps each, alternating", flush=True)
-        result = compare(args.steps, args.rounds, python)
+        result = compare(args.steps, args.rounds, python, policy_frequency=args.policy_frequency)
     except NotAvailable as e:
         print(f"highway-env comparison not measured: {e}")
         result = {"measured": False, "reason": str(e)}
@@ -200,10 +211,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ours {result['ours_steps_per_s']:.0f} steps/s, highway-env {v['highway-env']} "
               f"{result['theirs_steps_per_s']:.0f} steps/s (medians over {args.rounds} rounds): ratio ours/theirs "
               f"{result['ratio']:.2f} (rounds {result['ratio_range'][0]:.2f}-{result['ratio_range'][1]:.2f})")
+        n = result["theirs"]["frames_per_step"]
         print(f"a step is {result['ours']['seconds_per_step']:g} simulated s for ours, "
-              f"{result['theirs']['seconds_per_step']:g} s for highway-v0 (policy_frequency "
-              f"{result['theirs']['config']['policy_frequency']}, {result['theirs']['frames_per_step']} simulation "
-              f"frames, each drawn once render() has been called): x real time, ours "
+              f"{result['theirs']['seconds_per_step']:.3g} s for highway-v0 (policy_frequency "
+              f"{result['theirs']['config']['policy_frequency']}: {n} simulation frame" +
+              ("s, each drawn once render() has been called" if n > 1 else "") + "): x real time, ours "
               f"{result['ours_realtime_factor']:.1f}, highway-env {result['theirs_realtime_factor']:.1f}")
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")

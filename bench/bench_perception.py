@@ -7,17 +7,21 @@ solve on top). Inference is batched (32) and single-frame (latency, the closed l
 the cost does not depend on the content.
 
     python bench/bench_perception.py [--device cpu|cuda] [--steps 5] [--models alexnet,vgg16,vgg16-unfrozen,gist]
+                                     [--json F]
 """
 from __future__ import annotations
 
 import argparse
+import json
 import platform
 import time
+from pathlib import Path
 
 import torch
 
-from perception.models import build
-from perception.train import PAPER, euclidean_loss
+from perception.models import build, family
+from perception.train import euclidean_loss
+from shm_bridge import worlds
 from shm_bridge.worlds.highway import label_set
 
 H, W = 210, 280
@@ -49,7 +53,9 @@ def main() -> None:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--steps", type=int, default=5, help="timed repetitions per figure (median reported)")
     ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
+    rows = []
     device = torch.device(args.device)
     labels = label_set()
     what = torch.cuda.get_device_name() if device.type == "cuda" else \
@@ -59,8 +65,8 @@ def main() -> None:
     g = torch.Generator().manual_seed(0)
     for key in args.models.split(","):
         name, options = MODELS[key]
-        model = build(name, labels, **options).to(device)
-        batch = PAPER[name]["batch_size"] if name != "gist" else 32
+        model = build(name, worlds.get("highway"), labels, **options).to(device)
+        batch = family(name).defaults["batch_size"] if name != "gist" else 32
         x = torch.randint(0, 256, (batch, 3, H, W), dtype=torch.uint8, generator=g).to(device)
         y = torch.rand(batch, len(labels), generator=g).to(device)
         if name == "gist":
@@ -85,7 +91,12 @@ def main() -> None:
             infer_rate = 32 / timed(lambda: model(xb), max(2, args.steps // 2), device)
             latency = timed(lambda: model(xb[:1]), args.steps * 4, device, warmup=3)
         print(f"{key:16s} {train_rate:16.1f} {batch:6d} {infer_rate:20.1f} {latency * 1e3:15.1f}", flush=True)
+        rows.append({"model": key, "train_samples_per_s": train_rate, "batch": batch,
+                     "infer_frames_per_s": infer_rate, "latency_ms": latency * 1e3})
         model = step = opt = None  # free this model before the next is built
+    if args.json:
+        args.json.write_text(json.dumps({"device": str(device), "on": what, "steps": args.steps, "models": rows},
+                                        indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -3,12 +3,14 @@
 The host car drives along the track at 15 m/s while 12 scripted cars keep pace in the three lanes 8-80 m
 ahead, so every frame has 12 cars in view and the scenery streams past as in a real run.
 
-    python bench/bench_render.py [--track oval] [--frames 2000] [--renderer tiny|egl]
+    python bench/bench_render.py [--track oval] [--frames 2000] [--renderer tiny|egl] [--json F]
 """
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +24,7 @@ def main() -> None:
     ap.add_argument("--track", default="oval")
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--renderer", default="tiny", choices=("tiny", "egl"))
+    ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     speed = 15.0
     cars = [{"s": 8.0 + 6.0 * i, "d": (4.0, 0.0, -4.0)[i % 3], "speed": speed} for i in range(12)]
@@ -46,6 +49,13 @@ def main() -> None:
     print(f"render + ground truth: {args.frames / dt:.1f} frames/s ({dt / args.frames * 1e3:.2f} ms/frame; "
           f"render {t['render'] / (args.frames + 21) * 1e3:.2f} ms, truth {t['truth'] / (args.frames + 21) * 1e3:.2f} ms,"
           f" physics {t['physics'] / (args.frames + 20) * 1e3:.2f} ms)")
+    if args.json:
+        args.json.write_text(json.dumps({
+            "track": args.track, "renderer": args.renderer, "frames": args.frames,
+            "size": [int(obs.frame.shape[1]), int(obs.frame.shape[0])], "cars_ahead": float(np.mean(in_view)),
+            "frames_per_s": args.frames / dt, "ms_per_frame": dt / args.frames * 1e3,
+            "render_ms": t["render"] / (args.frames + 21) * 1e3, "truth_ms": t["truth"] / (args.frames + 21) * 1e3,
+            "physics_ms": t["physics"] / (args.frames + 20) * 1e3}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

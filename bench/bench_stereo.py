@@ -3,6 +3,7 @@ workers, closed loop over the bridge >= 60 Hz, each expert mode 10 simulated min
 off the path).
 
     python bench/bench_stereo.py [--frames 6000] [--seconds 60] [--minutes 10] [--out /tmp/drivestudio-stereo]
+                                 [--json F]
 
 1. Generation: `drivestudio generate --world sidewalk` (the default paths and modes, 336x188 PNG per camera, two
    images a step), timed end to end (process start-up and every episode's scene set-up included), with 2 and 1
@@ -100,13 +101,18 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds of each closed-loop run")
     ap.add_argument("--minutes", type=float, default=10.0, help="simulated minutes of each safety run")
     ap.add_argument("--out", default="/tmp/drivestudio-stereo")
+    ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
+    figures = {"frames": args.frames, "seconds": args.seconds, "minutes": args.minutes, "closed_loop": {},
+               "safety": {}}
     out = Path(args.out)
     two = generate(out / "w2", args.frames, 2)
     one = generate(out / "w1", args.frames // 2, 1)
     print(f"stereo generation, 336x188 x 2 cameras, PNG: {two:.0f} steps/s with 2 workers, {one:.0f} steps/s with "
           f"1 worker (end to end)", flush=True)
+    figures.update(generation_2_workers_steps_per_s=two, generation_1_worker_steps_per_s=one)
     b = breakdown()
+    figures["breakdown_ms_per_step"] = b
     print("one process, CPU ms per step: " + ", ".join(f"{k} {v:.2f}" for k, v in b.items())
           + f"; total {sum(b.values()):.2f}", flush=True)
     print("\n| mode | loop Hz | render ms | transfer ms | control ms | physics + truth ms |")
@@ -114,6 +120,7 @@ def main() -> None:
     for mode in MODES:
         m = closed_loop(mode, args.seconds)
         st = m["stage_ms_per_step"]
+        figures["closed_loop"][mode] = {"loop_hz": m["loop_rate_hz"], "stage_ms_per_step": st}
         print(f"| {mode} | {m['loop_rate_hz']:.0f} | {st['render']:.2f} | {st['transfer']:.2f} | "
               f"{st['control']:.3f} | {st['physics'] + st['truth']:.2f} |", flush=True)
     print(f"\n| mode, {args.minutes:g} min on procedural:11 | distance m | mean speed m/s | collisions | "
@@ -121,10 +128,13 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for mode in MODES:
         r = safety(mode, args.minutes)
+        figures["safety"][mode] = r
         lead = f"{r['mean_lead_gap_m']} ({r['lead_gap_std_m']})" if r["mean_lead_gap_m"] is not None else "-"
         print(f"| {mode} | {r['distance_m']:.0f} | {r['mean_speed_mps']:.2f} | {r['collisions']} | "
               f"{r['off_path_time_s']} | {r['obstacles_met']} | {lead} | {r['mean_border_distance_m'] or '-'} |",
               flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=2, default=str) + "\n")
 
 
 if __name__ == "__main__":

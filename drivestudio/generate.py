@@ -271,6 +271,22 @@ def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int
         sel.close()
 
 
+def _check_reachable(address: str | None, timeout: float = 10.0) -> None:
+    """RAY_ADDRESS=host:port (or ray://host:port) must answer: ray.init would otherwise retry for minutes."""
+    import socket
+
+    if not address or address == "auto":
+        return
+    host, _, port = address.split("://")[-1].rpartition(":")
+    if not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise RunError(f"--backend ray: no Ray cluster answers at RAY_ADDRESS={address} ({e.strerror or e}); start "
+                       "one with `ray start --head` (docs/scaling.md)") from None
+
+
 def ray_record_episode(ref: str, episode: dict, config: dict, out: str) -> dict:
     """A Ray task: record one episode on whichever node runs it (module level, so that the workers import it by
     reference; the world's plugin is loaded there by its "module:Class" reference)."""
@@ -283,14 +299,16 @@ def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_d
     except ImportError:
         raise UsageError("--backend ray needs Ray: pip install 'drivestudio[cluster]' (and a folder every node "
                          "can write to as --out)") from None
+    address = os.environ.get("RAY_ADDRESS")
+    _check_reachable(address)
     env_vars = {k: os.environ[k] for k in ("DRIVESTUDIO_WORLDS",) if os.environ.get(k)}
     started = not ray.is_initialized()
     try:
-        ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True, log_to_driver=False,
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False,
                  runtime_env={"env_vars": env_vars} if env_vars else None)
     except (ConnectionError, RuntimeError, ValueError) as e:
-        raise RunError(f"--backend ray: cannot reach the Ray cluster at "
-                       f"{os.environ.get('RAY_ADDRESS') or '(a new local one)'}: {e}") from None
+        raise RunError(f"--backend ray: cannot reach the Ray cluster at {address or '(a new local one)'}: "
+                       f"{str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__}") from None
     try:
         remote = ray.remote(num_cpus=1, max_retries=2)(ray_record_episode)
         # plain data only, as the local workers get it (JSON); the folder must be the same path on every node

@@ -8,7 +8,7 @@ it needs starts one sample; nothing is stored twice.
 
 FrameDataset: map-style, random access (`dataset[i]`), for evaluation, balanced sampling and small sets.
 FrameStream: iterable, reads whole episodes in a shuffled order through a shuffle buffer, split across DataLoader
-workers: the way to train on hundreds of thousands of samples.
+workers (and across the ranks of a distributed run): the way to train on hundreds of thousands of samples.
 
 Both yield (images, mode, target): images a uint8 tensor (C, H, W) with C = instants x cameras x 3 (oldest instant
 first, cameras in declaration order, RGB), mode an int64 scalar tensor (the behavioural mode index, -1 for a world
@@ -187,14 +187,20 @@ class FrameStream(torch.utils.data.IterableDataset):
     """Samples of a split, episode by episode, shuffled through a buffer (shuffle=False: in order).
 
     context: columns whose raw value at the sample's step is yielded as a fourth element (float64 tensor), for
-    reports that split errors by regime."""
+    reports that split errors by regime.
+    rank, world_size: in a distributed run (torchrun), each rank reads a disjoint part of the episodes: the episode
+    order of an epoch is the same on every rank (seed and epoch), rank r takes every world_size-th episode from
+    the r-th, and its DataLoader workers divide those among themselves."""
 
     def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
                  shuffle: bool = True, seed: int = 0, buffer: int = 2048, moment: Moment | None = None,
-                 context: tuple[str, ...] = ()):
+                 context: tuple[str, ...] = (), rank: int = 0, world_size: int = 1):
         self.data = Dataset(Path(root))
         self.spec = SampleSpec(self.data.declaration, targets, moment, normalised)
         self.shuffle, self.seed, self.buffer = shuffle, seed, buffer
+        if not 0 <= rank < world_size:
+            raise ValueError(f"rank {rank} is not in a world of {world_size}")
+        self.rank, self.world_size = rank, world_size
         self.context = tuple(context)
         missing = self.data.has_columns(self.context)
         if missing:
@@ -215,15 +221,27 @@ class FrameStream(torch.utils.data.IterableDataset):
         """A new shuffle order per epoch (call before iterating, as with DistributedSampler)."""
         self.epoch = epoch
 
-    def _my_shards(self):
+    def _order(self, rng) -> list[int]:
+        """This rank's episodes (shard indices) of the current epoch, in reading order."""
         order = list(range(len(self.shards)))
-        rng = np.random.default_rng([self.seed, self.epoch])
         if self.shuffle:
             rng.shuffle(order)
+        return order[self.rank::self.world_size]
+
+    def _my_shards(self):
+        rng = np.random.default_rng([self.seed, self.epoch])
+        order = self._order(rng)
         info = torch.utils.data.get_worker_info()
         if info is not None:
             order = order[info.id::info.num_workers]
         return order, rng
+
+    def batches(self, batch_size: int, workers: int = 0) -> int:
+        """Whole batches this rank's DataLoader (`workers` processes, drop_last) yields in the current epoch:
+        each worker batches its own episodes' samples and drops its last partial batch."""
+        order = self._order(np.random.default_rng([self.seed, self.epoch]))
+        parts = [order[w::workers] for w in range(workers)] if workers else [order]
+        return sum(sum(len(self.spec.starts(self.shards[k].frames)) for k in part) // batch_size for part in parts)
 
     def _episode(self, k: int):
         """The samples of shard k as (encoded images, mode, raw targets, context), in step order."""

@@ -10,12 +10,21 @@ L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to about [0.1, 0.9]; no dro
 The checkpoint at `out` is written atomically at every validation, every `checkpoint_every` seconds, at the end
 and on Ctrl-C or SIGTERM; running the same training again continues from it (same data order, same optimiser
 state). Loss curves go beside it as `<out>.loss.csv` and `<out>.loss.png`.
+
+Several processes (`torchrun --nproc_per_node N -m drivestudio train ...`): the SGD loop sees torchrun's RANK,
+WORLD_SIZE and LOCAL_RANK, joins the process group (gloo on the CPU, nccl on CUDA, one GPU per process: cuda:
+LOCAL_RANK) and trains a DistributedDataParallel copy of the model on each rank. Each rank reads a disjoint part of
+the training episodes every epoch (the same shuffled order everywhere, FrameStream's rank split) with batches of
+`batch_size`: the effective batch is world_size x batch_size. The ranks run the same number of iterations; the
+logged loss is the mean over ranks; rank 0 alone validates and writes the checkpoint and curves (in the same format
+as a single process) while the others wait. docs/scaling.md.
 """
 from __future__ import annotations
 
 import csv
 import io
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass, fields
@@ -110,6 +119,86 @@ def resolve_device(name: str) -> torch.device:
     if device.type == "cuda" and not torch.cuda.is_available():
         raise TrainingError(f"--device {name}: no CUDA device is available here")
     return device
+
+
+# --- several processes (torchrun) ---------------------------------------------------------------------------
+@dataclass
+class Distributed:
+    """This process's place in a torchrun run; rank 0 of a world of 1 when there is none."""
+
+    rank: int = 0
+    world_size: int = 1
+    local_rank: int = 0
+    initialised_here: bool = False
+    device: torch.device = torch.device("cpu")   # where collectives' tensors live (nccl: this rank's GPU)
+
+    @property
+    def active(self) -> bool:
+        return self.world_size > 1
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+    def barrier(self) -> None:
+        if self.active:
+            torch.distributed.barrier()
+
+    def mean(self, values: list[float]) -> list[float]:
+        """The mean over ranks of each value (every rank calls it at the same point)."""
+        if not self.active:
+            return list(values)
+        t = torch.tensor(values, dtype=torch.float64, device=self.device)
+        torch.distributed.all_reduce(t)
+        return (t / self.world_size).cpu().tolist()
+
+    def minimum(self, value: int) -> int:
+        if not self.active:
+            return value
+        t = torch.tensor([value], dtype=torch.int64, device=self.device)
+        torch.distributed.all_reduce(t, op=torch.distributed.ReduceOp.MIN)
+        return int(t.item())
+
+    def share(self, obj):
+        """Rank 0's `obj` on every rank."""
+        if not self.active:
+            return obj
+        box = [obj]
+        torch.distributed.broadcast_object_list(box, src=0)
+        return box[0]
+
+    def close(self) -> None:
+        if self.initialised_here and torch.distributed.is_initialized():
+            torch.distributed.destroy_process_group()
+
+
+def distributed_env() -> tuple[int, int, int] | None:
+    """(rank, world size, local rank) from torchrun's environment, or None for a single process."""
+    try:
+        world = int(os.environ.get("WORLD_SIZE", "1"))
+        if world <= 1 or "RANK" not in os.environ:
+            return None
+        return int(os.environ["RANK"]), world, int(os.environ.get("LOCAL_RANK", "0"))
+    except ValueError:
+        raise TrainingError("RANK, WORLD_SIZE and LOCAL_RANK must be integers (as torchrun sets them)") from None
+
+
+def join_distributed(device: torch.device) -> tuple[Distributed, torch.device]:
+    """Join torchrun's process group when launched by it (gloo on the CPU, nccl on CUDA; each process on the GPU
+    of its LOCAL_RANK unless a device index was given)."""
+    env = distributed_env()
+    if env is None:
+        return Distributed(), device
+    rank, world, local = env
+    if device.type == "cuda" and device.index is None:
+        device = torch.device("cuda", local)
+    if device.type == "cuda":
+        torch.cuda.set_device(device)
+    here = not torch.distributed.is_initialized()
+    if here:
+        torch.distributed.init_process_group("nccl" if device.type == "cuda" else "gloo", rank=rank,
+                                             world_size=world)
+    return Distributed(rank, world, local, here, device if device.type == "cuda" else torch.device("cpu")), device
 
 
 def data_summary(data: Dataset) -> dict:
@@ -219,23 +308,38 @@ def open_data(cfg: TrainConfig) -> tuple[Dataset, WorldDeclaration, tuple[str, .
 def train(cfg: TrainConfig, log=print) -> dict:
     """Train (or continue training) `cfg.model` on `cfg.data`; returns the final checkpoint's `train` record."""
     trainer = family(cfg.model).trainer
+    if trainer != "sgd" and distributed_env() is not None:
+        raise TrainingError(f"--model {cfg.model} trains in one process ({trainer}); torchrun runs the SGD families "
+                            "(alexnet, vgg16, ...) on several")
     if trainer == "closed-form":
         return fit_gist(cfg, log)
     if trainer == "multinet":
         from .multinet import train_multinet
         return train_multinet(cfg, log)
     data, decl, labels = open_data(cfg)
+    dist, device = join_distributed(resolve_device(cfg.device))
+    try:
+        return _train_sgd(cfg, data, decl, labels, device, dist, log if dist.main else (lambda *a, **k: None))
+    finally:
+        dist.close()
+
+
+def _train_sgd(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, device: torch.device,
+               dist: Distributed, log) -> dict:
     paper = family(cfg.model).defaults
-    device = resolve_device(cfg.device)
     torch.manual_seed(cfg.seed)
     stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
-                         buffer=min(cfg.shuffle_buffer, data.frames("train")))
+                         buffer=min(cfg.shuffle_buffer, data.frames("train")), rank=dist.rank,
+                         world_size=dist.world_size)
     batch_size = cfg.batch_size or paper["batch_size"]
-    if len(stream) < batch_size:
+    if len(stream) < batch_size * dist.world_size:
         raise DatasetError(f"the training split of {cfg.data} has {len(stream)} frames, fewer than one batch "
-                           f"of {batch_size}")
+                           f"of {batch_size}" + (f" for each of {dist.world_size} processes" if dist.active else ""))
+    if dist.active and len(stream.shards) < dist.world_size:
+        raise DatasetError(f"the training split of {cfg.data} has {len(stream.shards)} episodes, fewer than the "
+                           f"{dist.world_size} processes that share them")
     if cfg.epochs is not None:
-        iterations = max(1, math.ceil(cfg.epochs * len(stream) / batch_size))
+        iterations = max(1, math.ceil(cfg.epochs * len(stream) / (batch_size * dist.world_size)))
     else:
         iterations = cfg.iterations if cfg.iterations is not None else paper["iterations"]
     lr = cfg.lr if cfg.lr is not None else paper["lr"]
@@ -270,7 +374,7 @@ def train(cfg: TrainConfig, log=print) -> dict:
             mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
         else:
             log("computing the per-channel input mean and deviation of the training frames ...")
-            mean, std = input_statistics(cfg.data, labels)
+            mean, std = dist.share(input_statistics(cfg.data, labels) if dist.main else None)
             weights = None
         options = {"weights": weights}
         if cfg.model == "vgg16":
@@ -289,6 +393,10 @@ def train(cfg: TrainConfig, log=print) -> dict:
             + ("; they stay frozen, so only the head learns" if not cfg.unfreeze else ""))
     model.to(device)
     model.train()
+    net = model   # what the training steps call: the model itself, or its DistributedDataParallel wrapper
+    if dist.active:
+        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda"
+                                                        else None)
 
     params = [p for p in model.parameters() if p.requires_grad]
     if optimizer == "sgd":
@@ -314,6 +422,9 @@ def train(cfg: TrainConfig, log=print) -> dict:
         if "rng" in ckpt:
             torch.set_rng_state(ckpt["rng"])
         state.update({k: ckpt["train"][k] for k in state})
+        if ckpt["train"].get("world_size", 1) != dist.world_size:
+            log(f"note: {out} was trained by {ckpt['train'].get('world_size', 1)} process(es), this run has "
+                f"{dist.world_size}: the data order from here on differs from an uninterrupted run")
         if ckpt["data"]["frames"] != data_summary(data)["frames"]:
             log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
                 f"continuing on {cfg.data} with {data_summary(data)['frames']}")
@@ -323,19 +434,25 @@ def train(cfg: TrainConfig, log=print) -> dict:
             return ckpt["train"]
         log(f"continuing {out} from iteration {state['iteration']} of {iterations}")
 
-    if data.frames("val"):
+    if data.frames("val") and dist.main:
         val_images, val_modes, val_targets = load_frames(cfg.data, "val", labels, cfg.val_frames)
+    elif data.frames("val"):
+        val_images = val_modes = val_targets = None   # rank 0 validates
     else:
         val_images = val_modes = val_targets = None
         log(f"note: {cfg.data} has no validation split (episodes 8, 18, ...); training without validation")
 
     def save(final: bool = False) -> None:
+        if not dist.main:
+            return
         config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
         config.update(iterations=iterations, batch_size=batch_size, lr=lr, optimizer=optimizer)
         payload = {"spec": spec, "state_dict": model.state_dict(), "optimizer": opt.state_dict(),
                    "scheduler": sched.state_dict(), "rng": torch.get_rng_state(),
                    "train": {**state, "config": config, "device": str(device), "finished": final},
                    "data": data_summary(data)}
+        if dist.active:
+            payload["train"]["world_size"] = dist.world_size
         if scaler.is_enabled():
             payload["scaler"] = scaler.state_dict()
         save_checkpoint(out, payload)
@@ -354,14 +471,17 @@ def train(cfg: TrainConfig, log=print) -> dict:
 
     log(f"training {describe(spec)} ({sum(p.numel() for p in params):,} trainable parameters) on "
         f"{len(stream)} frames of {cfg.data} on {device}: {iterations} iterations of {batch_size}, "
-        f"{optimizer} lr {lr:g} x{cfg.lr_gamma} every {cfg.lr_step}" + (f", {amp_dtype}" if amp_dtype else ""))
+        f"{optimizer} lr {lr:g} x{cfg.lr_gamma} every {cfg.lr_step}" + (f", {amp_dtype}" if amp_dtype else "")
+        + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {batch_size} samples each per "
+           f"iteration, {batch_size * dist.world_size} in all" if dist.active else ""))
     loader_kw = dict(batch_size=batch_size, num_workers=cfg.workers, drop_last=True,
                      pin_memory=device.type == "cuda")
     if cfg.workers:
         loader_kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
     loader = torch.utils.data.DataLoader(stream, **loader_kw)
     bar = tqdm(total=iterations, initial=state["iteration"], unit="it", dynamic_ncols=True, file=sys.stderr,
-               mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=cfg.model)
+               mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=cfg.model, disable=not dist.main)
+    samples_per_it = batch_size * dist.world_size
     losses, t_row, t_start = [], time.perf_counter(), time.perf_counter() - state["seconds"]
     last_save = time.monotonic()
     try:
@@ -369,16 +489,30 @@ def train(cfg: TrainConfig, log=print) -> dict:
             while state["iteration"] < iterations:
                 stream.set_epoch(state["epoch"])
                 skip = state["step_in_epoch"]
+                # several processes step together: an epoch ends for all at the fewest batches any rank has
+                steps = dist.minimum(stream.batches(batch_size, cfg.workers)) if dist.active else None
+                if steps == 0:
+                    raise DatasetError(f"a process has no whole batch of {batch_size} in epoch {state['epoch']}: "
+                                       f"too few training episodes of {cfg.data} for {dist.world_size} processes "
+                                       f"and {max(cfg.workers, 1)} loader workers each")
                 for step, (x, m, y) in enumerate(loader):
+                    if steps is not None and step >= steps:
+                        break
                     if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
                         continue
                     x, m, y = (x.to(device, non_blocking=True), m.to(device, non_blocking=True),
                                y.to(device, non_blocking=True))
                     with torch.autocast(device.type, dtype=amp_dtype or torch.float32, enabled=amp_dtype is not None):
-                        pred = model(x, m)
+                        pred = net(x, m)
                     loss = euclidean_loss(pred, y)
-                    if not torch.isfinite(loss):
-                        raise TrainingError(f"the loss diverged ({loss.item()}) at iteration {state['iteration']}; "
+                    if dist.active:   # the mean loss over ranks, and whether any rank is due to save, before backward
+                        due = time.monotonic() - last_save > cfg.checkpoint_every
+                        mean_loss, due = dist.mean([loss.item(), float(due)])
+                        value, due = torch.tensor(mean_loss), due > 0
+                    else:
+                        value = loss
+                    if not torch.isfinite(value):
+                        raise TrainingError(f"the loss diverged ({value.item()}) at iteration {state['iteration']}; "
                                             f"lower --lr (now {lr:g}) or use --optimizer adam")
                     opt.zero_grad(set_to_none=True)
                     scaler.scale(loss).backward()
@@ -387,40 +521,48 @@ def train(cfg: TrainConfig, log=print) -> dict:
                     sched.step()
                     state["iteration"] += 1
                     state["step_in_epoch"] = step + 1
-                    losses.append(loss.item())
+                    losses.append(value.item())
                     it = state["iteration"]
                     bar.update(1)
                     if it % cfg.log_every == 0 or it == iterations or it % cfg.val_every == 0:
                         now = time.perf_counter()
                         state["seconds"] = now - t_start
-                        row = {"iteration": it, "epoch": round(it * batch_size / len(stream), 3),
+                        row = {"iteration": it, "epoch": round(it * samples_per_it / len(stream), 3),
                                "train_loss": float(np.mean(losses)), "lr": opt.param_groups[0]["lr"],
-                               "samples_per_s": round(len(losses) * batch_size / max(now - t_row, 1e-9), 2),
+                               "samples_per_s": round(len(losses) * samples_per_it / max(now - t_row, 1e-9), 2),
                                "elapsed_s": round(state["seconds"], 1)}
                         losses, t_row = [], now
                         bar.set_postfix(loss=f"{row['train_loss']:.4f}", lr=f"{row['lr']:.2g}",
                                         fps=f"{row['samples_per_s']:.0f}", refresh=False)
                         if it % cfg.val_every == 0 or it == iterations:
-                            run_validation(row)
+                            if dist.main:
+                                run_validation(row)
                             state["history"].append(row)
                             save(final=it == iterations)
+                            dist.barrier()   # the other ranks wait for rank 0's validation and checkpoint
                             last_save = time.monotonic()
                             t_row = time.perf_counter()  # validation and saving are not training time
                         else:
                             state["history"].append(row)
-                    if time.monotonic() - last_save > cfg.checkpoint_every and it < iterations:
+                    if (due if dist.active else time.monotonic() - last_save > cfg.checkpoint_every) \
+                            and it < iterations:
                         state["seconds"] = time.perf_counter() - t_start
                         save()   # a kill between validations loses at most checkpoint_every seconds
+                        dist.barrier()
                         last_save = time.monotonic()
                     if it >= iterations:
                         break
                 else:
                     state["epoch"] += 1
                     state["step_in_epoch"] = 0
+                    continue
+                if steps is not None and state["iteration"] < iterations:   # this rank's share of the epoch is done
+                    state["epoch"] += 1
+                    state["step_in_epoch"] = 0
     except (KeyboardInterrupt, Terminated):
         bar.close()
         state["seconds"] = time.perf_counter() - t_start
-        save()
+        save()   # rank 0 only: the replicas are equal after every step
         log(f"interrupted: saved {out} at iteration {state['iteration']}; run the same command to continue")
         raise
     bar.close()

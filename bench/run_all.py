@@ -1,0 +1,402 @@
+"""The benchmark suite: every benchmark of bench/ at sizes that finish in about 10-15 minutes on a 2-core machine,
+their figures in one table with the machine, the date and the versions.
+
+    python -m bench                         # everything; writes docs/benchmarks.md (between its markers) and
+                                            # bench/results.json
+    python -m bench --quick --no-write      # a few seconds per bench, printed only (a smoke test)
+    python -m bench --only render,bridge    # some benches; their rows replace those of the last full run
+
+Each bench runs as its own process (`python bench/bench_NAME.py ... --json FILE`), prints what it prints on its
+own, and its JSON figures become rows of the table. A bench that fails is recorded as failed (with its last line
+of error) and the others still run; the exit status is then 1. Figures measured on a machine shared with other
+work are lower than on a quiet one: the header gives the load average at the start.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+BENCH = Path(__file__).resolve().parent
+REPO = BENCH.parent
+DOC = REPO / "docs" / "benchmarks.md"
+RESULTS = BENCH / "results.json"
+BEGIN, END = "<!-- BEGIN GENERATED bench-suite -->", "<!-- END GENERATED bench-suite -->"
+SECTION = """## The suite
+`python -m bench` runs every benchmark of `bench/` at sizes that finish in about 10-15 minutes on this machine and
+writes the table below (and `bench/results.json`) with the machine, the date and the versions; `--only NAME,...`
+reruns some of them (their rows replace those of the last run), `--quick --no-write` is a smoke test (seconds per
+bench, MultiNet's about a minute). highway-env is installed on first use into its own environment
+(`.venv-highway-env/`), never into the project's. The load average is recorded because this machine is shared:
+while other work runs, the figures that depend on threads waiting for each other (the bridge's round trip, batch-1
+inference with 2 torch threads) fall far more than the others; compare them with the quiet figures above.
+
+"""
+
+
+def _f(x: float, digits: int = 0) -> str:
+    return f"{x:,.{digits}f}"
+
+
+# --- the figures of each bench as table rows: (figure, measured, target) ----------------------------------------
+def rows_render(j: dict) -> list[tuple]:
+    return [(f"render + ground truth, {j['track']}, 3 lanes, {j['cars_ahead']:.1f} cars ahead, {j['size'][0]}x{j['size'][1]}, "
+             f"1 process ({j['renderer']})",
+             f"**{_f(j['frames_per_s'])} frames/s** ({j['ms_per_frame']:.2f} ms: render {j['render_ms']:.2f}, "
+             f"truth {j['truth_ms']:.2f}, physics {j['physics_ms']:.2f})", ">= 100 frames/s")]
+
+
+def rows_traffic(j: dict) -> list[tuple]:
+    return [(f"world + SUMO + truth at 10 Hz, {r['cars']} cars, no rendering",
+             f"**{_f(r['steps_per_s'])} steps/s** ({_f(r['realtime_factor'])}x real time; "
+             f"{r['sim_ms_per_step']:.2f} ms world, {r['driver_ms_per_step']:.2f} ms driver)",
+             ">= 1,000 steps/s" if r["cars"] == 12 else "") for r in j["runs"]]
+
+
+def _rows_bridge(j: dict, target: str) -> list[tuple]:
+    lock, free = j["lockstep"], j.get("free_running")
+    images = " + ".join("x".join(str(v) for v in (s[1], s[0], s[2])) for s in lock["images"])
+    out = [(f"bridge round trip, {lock['world']} ({images} + truth one way, action back), lock-step",
+            f"**median {lock['median_us']:.1f} µs**, p90 {lock['p90_us']:.1f}, p99 {lock['p99_us']:.1f}, max "
+            f"{lock['max_us']:.0f}; {_f(lock['round_trips_per_s'])} round trips/s", target)]
+    if free:
+        out.append((f"bridge free-running, {lock['world']}",
+                    f"{_f(free['published_per_s'])} frames/s published, {_f(free['taken_per_s'])} taken", ""))
+    return out
+
+
+def rows_bridge(j: dict) -> list[tuple]:
+    return _rows_bridge(j, "median < 50 µs")
+
+
+def rows_bridge_sidewalk(j: dict) -> list[tuple]:
+    return _rows_bridge(j, "")
+
+
+def rows_closed_loop(j: dict) -> list[tuple]:
+    out = []
+    for r in j["runs"]:
+        st = r["stage_ms_per_step"]
+        sim = st["physics"] + st["traffic"] + st["truth"]
+        out.append((f"closed loop, {r['model']}, 2 processes over shared memory, lock-step, oval 3 lanes 12 cars",
+                    f"**{_f(r['loop_hz'])} Hz** (ms a step: render {st['render']:.2f}, transfer {st['transfer']:.2f}, "
+                    f"perception {st['perception']:.2f}, control {st['control']:.2f}, sim {sim:.2f})", ">= 60 Hz"))
+    return out
+
+
+def rows_dataset(j: dict) -> list[tuple]:
+    return [("dataset generation, 280x210 PNG, default mix, 2 workers (end to end)",
+             f"**{_f(j['generation_2_workers_frames_per_s'])} frames/s**", ">= 200 frames/s"),
+            ("same, 1 worker", f"{_f(j['generation_1_worker_frames_per_s'])} frames/s", ""),
+            ("training loader (FrameStream + DataLoader, decode to tensors), 2 loader workers",
+             f"**{_f(j['stream_2_workers_frames_per_s'])} frames/s** ({_f(j['stream_0_workers_frames_per_s'])} in "
+             f"the main process, {_f(j['stream_1_workers_frames_per_s'])} with 1 worker)", ">= 2,000 frames/s"),
+            ("random access (FrameDataset), 1 process", f"{_f(j['random_access_frames_per_s'])} frames/s", "")]
+
+
+def rows_perception(j: dict) -> list[tuple]:
+    return [(f"{r['model']} on {j['on']}", f"train {r['train_samples_per_s']:.1f} samples/s (batch {r['batch']}), "
+             f"inference {r['infer_frames_per_s']:.1f} frames/s (batch 32), latency {r['latency_ms']:.1f} ms (1)",
+             "reported") for r in j["models"]]
+
+
+def rows_stereo(j: dict) -> list[tuple]:
+    b = j["breakdown_ms_per_step"]
+    out = [("sidewalk generation, 336x188 x 2 cameras PNG, 2 workers (end to end)",
+            f"**{_f(j['generation_2_workers_steps_per_s'])} steps/s** ({_f(j['generation_1_worker_steps_per_s'])} "
+            f"with 1 worker; one process: " + ", ".join(f"{k} {v:.2f}" for k, v in b.items()) + " ms a step)",
+            ">= 150 steps/s")]
+    for mode, r in j["closed_loop"].items():
+        out.append((f"sidewalk closed loop, expert {mode}, 2 processes, lock-step", f"**{_f(r['loop_hz'])} Hz**",
+                    ">= 60 Hz"))
+    for mode, r in j["safety"].items():
+        out.append((f"sidewalk expert {mode}, {j['minutes']:g} simulated min on procedural:11",
+                    f"{r['collisions']} collisions, {r['off_path_time_s']} s off the path, {r['obstacles_met']} "
+                    f"obstacles met, {r['mean_speed_mps']:.2f} m/s", "0 collisions, 0 s off the path"))
+    return out
+
+
+def rows_benchmark(j: dict) -> list[tuple]:
+    suite = json.loads((REPO / "assets" / "suites" / "default.json").read_text())
+    full = sum(r["seconds"] for r in suite["routes"])
+    oracle = next((m for m in j["models"] if m["model"] == "oracle"), j["models"][0])
+    return [(f"`drivestudio benchmark`, routes {', '.join(j['routes'])} of the '{j['suite']}' suite, "
+             f"{j['workers']} workers ({j['transport']})",
+             f"{j['simulated_s'] / 60:.1f} simulated min in {j['wall_s']:.0f} s (**{j['realtime_factor']:.1f}x real "
+             f"time**; the whole suite, {full / 60:.0f} simulated min, would take about "
+             f"{full / j['realtime_factor'] / 60:.1f} min); oracle DS {oracle['driving_score']:.0%}",
+             "default suite <= 10 min")]
+
+
+def rows_multinet(j: dict) -> list[tuple]:
+    inf, tr, loop = j["inference"], j["training"], j["closed_loop"]
+    onnx = f"{inf['onnx_ms_batch1']:.2f} ms" if inf.get("onnx_ms_batch1") is not None else "not installed"
+    return [(f"Z2Color MultiNet inference, one data moment (4 x 336x188), batch 1, {inf['threads']} threads",
+             f"**PyTorch {inf['torch_ms_batch1']:.2f} ms**, ONNX Runtime {onnx}; batch 32: "
+             f"{inf['torch_ms_per_moment_batch32']:.2f} ms a moment", "<= 5 ms"),
+            (f"MultiNet training (Adadelta, batch {tr['batch']}, forward + backward + clipping)",
+             f"{_f(tr['moments_per_s'])} moments/s", "reported"),
+            ("MultiNet closed loop over shared memory, sidewalk, lock-step", f"**{_f(loop['loop_rate_hz'])} Hz**",
+             ">= 30 Hz")]
+
+
+def rows_highway_env(j: dict) -> list[tuple]:
+    if not j.get("measured"):
+        return [("drivestudio Highway-v0 vs highway-env highway-v0", "not measured: " + j.get("reason", "?"), "")]
+    t = j["theirs"]
+    pf = t["config"]["policy_frequency"]
+    n = t["frames_per_step"]
+    return [(f"Gymnasium steps/s, a 280x210 frame every step: drivestudio/Highway-v0 (3-D, oval, 3 lanes, 12 cars, "
+             f"Chen on the truth) vs highway-env {t['versions']['highway-env']} highway-v0 (3 lanes, 12 vehicles, "
+             f"IDLE, policy_frequency {pf}" + (" as shipped" if pf == 1 else "") + "), alternating, median of "
+             f"{len(j['rounds'])} rounds of {j['steps_per_round']}",
+             f"ours {_f(j['ours_steps_per_s'])}, highway-env {_f(j['theirs_steps_per_s'])}: **ratio "
+             f"{j['ratio']:.2f}** (rounds {j['ratio_range'][0]:.2f}-{j['ratio_range'][1]:.2f})", "reported"),
+            (f"same, simulated time: a step is {j['ours']['seconds_per_step']:g} s for ours, "
+             f"{t['seconds_per_step']:.3g} s ({n} simulation frame{'s' if n != 1 else ''}"
+             + (", all drawn" if n > 1 else "") + ") for highway-v0",
+             f"x real time: ours {j['ours_realtime_factor']:.1f}, highway-env {j['theirs_realtime_factor']:.1f}", "")]
+
+
+@dataclass
+class Bench:
+    name: str
+    script: str
+    full: list[str]
+    quick: list[str]
+    rows: Callable[[dict], list[tuple]]
+    group: str = ""
+    temp_out: bool = False      # give it an --out folder in a temporary directory
+    extra: list[str] = field(default_factory=list)
+
+
+BENCHES = [
+    Bench("render", "bench_render.py", ["--frames", "2000"], ["--frames", "60"], rows_render),
+    Bench("traffic", "bench_traffic.py", ["--cars", "12", "50", "100", "--seconds", "300"],
+          ["--cars", "12", "--seconds", "20"], rows_traffic),
+    Bench("bridge", "bench_bridge.py", ["--trips", "5000"],
+          ["--trips", "300", "--warmup", "50", "--free-seconds", "0.2"], rows_bridge, group="bridge"),
+    Bench("bridge-sidewalk", "bench_bridge.py", ["--world", "sidewalk", "--trips", "5000"],
+          ["--world", "sidewalk", "--trips", "300", "--warmup", "50", "--free-seconds", "0.2"], rows_bridge_sidewalk,
+          group="bridge"),
+    Bench("closed-loop", "bench_closed_loop.py", ["--seconds", "60"], ["--seconds", "3"], rows_closed_loop),
+    Bench("dataset", "bench_dataset.py", ["--frames", "4000"], ["--frames", "200"], rows_dataset, temp_out=True),
+    Bench("perception", "bench_perception.py", ["--steps", "3"], ["--steps", "1", "--models", "alexnet,gist"],
+          rows_perception),
+    Bench("stereo", "bench_stereo.py", ["--frames", "3000", "--seconds", "30", "--minutes", "3"],
+          ["--frames", "200", "--seconds", "3", "--minutes", "0.2"], rows_stereo, temp_out=True),
+    Bench("benchmark", "bench_benchmark.py", ["--routes", "p21-1l,p9-1l", "--workers", "2"],
+          ["--routes", "p21-1l", "--workers", "1"], rows_benchmark),
+    Bench("multinet", "bench_multinet.py", ["--repeats", "100", "--seconds", "20"], ["--repeats", "5", "--seconds", "2"],
+          rows_multinet),
+    Bench("highway-env", "bench_highway_env.py", ["--steps", "200", "--rounds", "5"], ["--steps", "20", "--rounds", "2"],
+          rows_highway_env, group="highway-env"),
+    Bench("highway-env-15hz", "bench_highway_env.py", ["--steps", "200", "--rounds", "5", "--policy-frequency", "15"],
+          ["--steps", "20", "--rounds", "2", "--policy-frequency", "15"], rows_highway_env, group="highway-env"),
+]
+
+
+# --- the machine and the software ------------------------------------------------------------------------------
+def machine() -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    memory = None
+    try:
+        kb = next(int(ln.split()[1]) for ln in Path("/proc/meminfo").read_text().splitlines()
+                  if ln.startswith("MemTotal"))
+        memory = round(kb / 2**20, 1)
+    except (OSError, StopIteration, ValueError):
+        pass
+    gpu = None
+    if shutil.which("nvidia-smi"):
+        r = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
+                           text=True)
+        gpu = ", ".join(ln.strip() for ln in r.stdout.splitlines() if ln.strip()) or None
+    return {"cpu": cpu, "arch": platform.machine(), "cores": os.cpu_count(), "memory_gib": memory, "gpu": gpu,
+            "os": f"{platform.system()} {platform.release()}",
+            "load_average": [round(x, 2) for x in os.getloadavg()]}
+
+
+def highway_env_version() -> str | None:
+    for info in (REPO / ".venv-highway-env").glob("lib/python*/site-packages/highway_env-*.dist-info"):
+        return info.name[:-len(".dist-info")].split("-")[1]
+    return None
+
+
+def uncovered() -> list[str]:
+    """Benchmark scripts of bench/ that the suite does not run."""
+    known = {b.script for b in BENCHES}
+    return sorted(p.name for p in BENCH.glob("bench_*.py") if p.name not in known)
+
+
+def versions() -> dict:
+    out = {"python": platform.python_version()}
+    for name, pkg in (("torch", "torch"), ("pybullet", "pybullet"), ("libsumo", "libsumo"), ("numpy", "numpy"),
+                      ("OpenCV", "opencv-python-headless"), ("pyarrow", "pyarrow"), ("gymnasium", "gymnasium")):
+        try:
+            out[name] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = None
+    out["highway-env"] = highway_env_version()
+    return out
+
+
+# --- running -----------------------------------------------------------------------------------------------------
+def run_bench(b: Bench, quick: bool, tmp: Path, timeout: float, echo: bool) -> dict:
+    out_json = tmp / f"{b.name}.json"
+    args = list(b.quick if quick else b.full)
+    if b.temp_out:
+        args += ["--out", str(tmp / f"{b.name}-data")]
+    cmd = [sys.executable, str(BENCH / b.script), *args, "--json", str(out_json)]
+    shown = " ".join(["bench/" + b.script, *(a for a in args if not a.startswith(str(tmp)))]).replace(" --out", "")
+    print(f"\n=== {b.name}: {shown}", flush=True)
+    load = round(os.getloadavg()[0], 1)
+    t0 = time.perf_counter()
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    try:
+        proc = subprocess.run(cmd, cwd=REPO, env=env, timeout=timeout, text=True,
+                              stdout=None if echo else subprocess.PIPE, stderr=subprocess.PIPE)
+        rc, err, out = proc.returncode, proc.stderr or "", proc.stdout or ""
+    except subprocess.TimeoutExpired:
+        rc, err, out = -1, f"timed out after {timeout:.0f} s", ""
+    seconds = time.perf_counter() - t0
+    if not echo and out:
+        print(out, end="", flush=True)
+    entry = {"name": b.name, "command": shown, "seconds": round(seconds, 1), "date": time.strftime("%Y-%m-%d"),
+             "quick": quick, "load_average": load}
+    if rc != 0 or not out_json.exists():
+        lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+        entry.update(status="failed", error=lines[-1] if lines else f"exit status {rc}")
+        print(f"{b.name} FAILED ({entry['error']})", file=sys.stderr, flush=True)
+        return entry
+    figures = json.loads(out_json.read_text())
+    entry.update(status="ok" if figures.get("measured", True) else "not measured", figures=figures)
+    try:
+        entry["rows"] = [list(r) for r in b.rows(figures)]
+    except (KeyError, TypeError, ValueError, StopIteration) as e:
+        entry.update(status="failed", error=f"its figures could not be read: {type(e).__name__}: {e}")
+    return entry
+
+
+def table(results: dict) -> str:
+    m, v = results["machine"], results["versions"]
+    gpu = m["gpu"] or "no GPU"
+    head = (f"Measured {results['date']} by `python -m bench`{' --quick' if results.get('quick') else ''} "
+            f"({results['seconds'] / 60:.1f} min): {m['cpu']} ({m['arch']}), {m['cores']} cores, "
+            f"{m['memory_gib']} GiB, {gpu}, {m['os']}; load average {m['load_average'][0]:.1f} at the start"
+            + (" (other work was running: the figures are lower than on a quiet machine)"
+               if m["load_average"][0] > 0.5 * (m["cores"] or 1) else "") + ".  \n"
+            + ", ".join(f"{k} {val or 'not installed'}" for k, val in v.items()) + ".\n")
+    lines = [head, "| bench | figure | measured | target | run (s, load average at its start) |",
+             "|---|---|---|---|---|"]
+    older = []
+    for name, e in results["benches"].items():
+        run = f"`{e['command']}` ({e['seconds']:.0f} s" + (f", load {e['load_average']:.1f})" if "load_average" in e
+                                                            else ")")
+        if e.get("date") != results["date"][:10]:
+            older.append(f"{name} ({e.get('date')})")
+        if e["status"] == "failed":
+            lines.append(f"| {name} | | **failed**: {e['error'].replace('|', '/')} | | {run} |")
+            continue
+        for figure, measured, target in e["rows"]:
+            lines.append(f"| {name} | {figure} | {measured} | {target} | {run} |")
+            run = ""
+    if older:
+        lines.append(f"\nRows kept from earlier runs: {', '.join(older)}.")
+    if results.get("uncovered"):
+        lines.append(f"\nNot in the suite (add them to bench/run_all.py): {', '.join(results['uncovered'])}.")
+    return "\n".join(lines) + "\n"
+
+
+def write_doc(text: str, doc: Path = DOC) -> None:
+    body = doc.read_text()
+    block = f"{BEGIN}\n{text}{END}"
+    if BEGIN in body and END in body:
+        start, stop = body.index(BEGIN), body.index(END) + len(END)
+        body = body[:start] + block + body[stop:]
+    else:   # first time: a section after the table of targets, before the first "## " heading
+        at = body.find("\n## ")
+        at = len(body) if at < 0 else at + 1
+        body = body[:at] + SECTION + block + "\n\n" + body[at:]
+    tmp = doc.with_name(doc.name + ".tmp")
+    tmp.write_text(body)
+    tmp.replace(doc)
+
+
+def select(only: str | None) -> list[Bench]:
+    if not only:
+        return list(BENCHES)
+    names = [n.strip() for n in only.split(",") if n.strip()]
+    known = {b.name for b in BENCHES} | {b.group for b in BENCHES if b.group}
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise SystemExit(f"python -m bench: no bench {', '.join(unknown)} (benches: "
+                         f"{', '.join(b.name for b in BENCHES)})")
+    return [b for b in BENCHES if b.name in names or (b.group and b.group in names)]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="a few seconds per bench (a smoke test; never written to "
+                                                         "docs/benchmarks.md)")
+    ap.add_argument("--only", metavar="NAME,...", help="run only these benches: " + ", ".join(
+        b.name for b in BENCHES) + " (bridge: both worlds; highway-env: both settings)")
+    ap.add_argument("--no-write", action="store_true", help="print the table only")
+    ap.add_argument("--json", type=Path, help="also write the results to this file")
+    ap.add_argument("--timeout", type=float, default=None, help="seconds a bench may take (default 1200; "
+                                                                 "quick 300)")
+    args = ap.parse_args(argv)
+    benches = select(args.only)
+    timeout = args.timeout or (300.0 if args.quick else 1200.0)
+    t0 = time.perf_counter()
+    results = {"date": time.strftime("%Y-%m-%d %H:%M %Z"), "quick": args.quick, "machine": machine(),
+               "benches": {}}
+    with tempfile.TemporaryDirectory(prefix="drivestudio-bench-") as tmp:
+        for b in benches:
+            results["benches"][b.name] = run_bench(b, args.quick, Path(tmp), timeout, echo=True)
+    results["versions"] = versions()   # after the run: highway-env may have been installed by it
+    results["uncovered"] = uncovered()
+    results["seconds"] = round(time.perf_counter() - t0, 1)
+    shown = results
+    write = not args.no_write and not args.quick
+    if write and args.only and RESULTS.exists():   # keep the other benches' rows of the last run
+        old = json.loads(RESULTS.read_text())
+        merged = {b.name: old["benches"][b.name] for b in BENCHES if b.name in old.get("benches", {})}
+        merged.update(results["benches"])
+        shown = {**results, "benches": {b.name: merged[b.name] for b in BENCHES if b.name in merged}}
+    text = table(shown)
+    print("\n" + text)
+    if args.json:
+        args.json.write_text(json.dumps(shown, indent=2, default=str) + "\n")
+    if write:
+        RESULTS.write_text(json.dumps(shown, indent=2, default=str) + "\n")
+        write_doc(text)
+        print(f"wrote {DOC.relative_to(REPO)} (between its bench-suite markers) and {RESULTS.relative_to(REPO)}")
+    elif args.quick and not args.no_write:
+        print("quick figures are a smoke test: nothing written (run without --quick to update docs/benchmarks.md)")
+    failed = [n for n, e in results["benches"].items() if e["status"] == "failed"]
+    if failed:
+        print(f"failed: {', '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
