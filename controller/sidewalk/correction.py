@@ -11,7 +11,10 @@ commands for that step):
    `lane_margin`) less than `time_to_contact` seconds ahead at the present speed (and at least `min_gap`
    metres); or the body is closer than `border_min` to a border; or closer than `lead_min` to the lead car;
 3. deviating from the expert: the driver's steering differs from the expert's by more than `steer_dev`, or its
-   motor by more than `motor_dev`, for `deviation_steps` steps in a row.
+   motor by more than `motor_dev`, for `deviation_steps` steps in a row;
+4. stalling: the car has crept slower than `stall_speed` for `stall_time` seconds while the expert would drive on
+   (its motor above 0.5 + `stall_motor`): a car that stops where it should go is not driving, and a person watching
+   it would take over (without this rule a network that learned to stand still would score 100 % autonomy).
 
 Hand back when the expert has driven at least `min_correction` seconds and, for the last `recovery` seconds,
 none of 1 and 2 held, the car's heading was within `heading_ok` of the path's and its body at least
@@ -38,6 +41,9 @@ class CorrectionParams:
     steer_dev: float = 0.3
     motor_dev: float = 0.25
     deviation_steps: int = 8        # 0.27 s
+    stall_speed: float = 0.3        # [m/s]
+    stall_time: float = 1.5         # [s]
+    stall_motor: float = 0.03       # the expert's motor above 0.53: it would drive at more than about 0.5 m/s
     min_correction: float = 1.0     # [s]
     recovery: float = 1.0           # [s]
     heading_ok: float = 0.25        # [rad]
@@ -50,6 +56,7 @@ class CorrectionRule:
         self.correcting = False
         self.reason = ""
         self._deviating = 0
+        self._stalled = 0
         self._calm = 0
         self._corrected = 0
 
@@ -80,9 +87,13 @@ class CorrectionRule:
         hazard = self.hazard(record)
         deviates = abs(driver[0] - expert[0]) > p.steer_dev or abs(driver[1] - expert[1]) > p.motor_dev
         self._deviating = self._deviating + 1 if deviates else 0
+        stalled = abs(field(record, "speed")) < p.stall_speed and expert[1] > 0.5 + p.stall_motor
+        self._stalled = self._stalled + 1 if stalled else 0
         if not self.correcting:
-            if hazard is not None or self._deviating >= p.deviation_steps:
-                self.correcting, self.reason = True, hazard or "deviating from the expert"
+            why = hazard or ("deviating from the expert" if self._deviating >= p.deviation_steps else None) or \
+                ("stalled" if self._stalled * self.dt >= p.stall_time else None)
+            if why is not None:
+                self.correcting, self.reason = True, why
                 self._calm, self._corrected = 0, 0
             return self.correcting
         self._corrected += 1
@@ -92,5 +103,5 @@ class CorrectionRule:
         self._calm = self._calm + 1 if settled else 0
         if self._corrected * self.dt >= p.min_correction and self._calm * self.dt >= p.recovery:
             self.correcting, self.reason = False, ""
-            self._deviating = 0
+            self._deviating = self._stalled = 0
         return self.correcting

@@ -47,6 +47,18 @@ def test_deviating_from_the_expert_takes_over_only_when_it_lasts():
     assert rule.update(record(speed=2.0), *wrong) and rule.reason == "deviating from the expert"
 
 
+def test_a_car_that_stalls_where_the_expert_would_drive_is_taken_over():
+    rule = CorrectionRule()
+    stopped, expert_drives = record(speed=0.05), ((0.5, 0.52), (0.5, 0.66))   # motor 0.52 vs 0.66: within motor_dev
+    steps = round(rule.p.stall_time / rule.dt)
+    for _ in range(steps - 1):
+        assert not rule.update(stopped, *expert_drives)
+    assert rule.update(stopped, *expert_drives) and rule.reason == "stalled"
+    patient = CorrectionRule()   # behind a stopped lead car the expert stops too: standing still is right
+    for _ in range(3 * steps):
+        assert not patient.update(stopped, (0.5, 0.5), (0.5, 0.5))
+
+
 def test_hand_back_after_a_recovery():
     rule = CorrectionRule()
     assert rule.update(record(d=0.95), *SAME)
