@@ -74,7 +74,7 @@ def plot(board: dict, out: str) -> None:
     models = board["models"]
     x = np.arange(len(routes))
     width = 0.8 / len(models)
-    fig, ax = plt.subplots(figsize=(11, 3.8), dpi=100)
+    fig, ax = plt.subplots(figsize=(12, 3.8), dpi=100)
     for i, e in enumerate(models):
         scores = [r["driving_score"] * 100 for r in e["routes"]] + [e["overall"]["driving_score"] * 100]
         ax.bar(x + (i - (len(models) - 1) / 2) * width, scores, width, label=e["model"])
@@ -83,7 +83,7 @@ def plot(board: dict, out: str) -> None:
     ax.set_ylim(0, 105)
     ax.set_title(f"suite '{board['suite']['name']}': driving score per route (RC x 0.60^collisions x "
                  f"0.65^off-road)", fontsize=10)
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(out)

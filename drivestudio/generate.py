@@ -39,12 +39,16 @@ from .worlds import Episode
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
 MIN_EPISODES = 10    # the split rule takes every tenth episode: fewer would leave the validation or test split empty
 MIN_EPISODE_FRAMES = 20
+DEFAULT_EPISODE_FRAMES = 500
 
 
-def episode_length(frames: int, episode_frames: int) -> int:
-    """The steps an episode records: --episode-frames, shortened (to no less than MIN_EPISODE_FRAMES) so that a
-    small dataset still has MIN_EPISODES episodes and every split holds frames (600 frames: 10 episodes of 60)."""
-    return max(min(episode_frames, MIN_EPISODE_FRAMES), min(episode_frames, -(-frames // MIN_EPISODES)))
+def episode_length(frames: int, episode_frames: int | None) -> int:
+    """The steps an episode records: --episode-frames when the user gave it; otherwise DEFAULT_EPISODE_FRAMES,
+    shortened (to no less than MIN_EPISODE_FRAMES) so that a small dataset still has MIN_EPISODES episodes and
+    every split holds frames (600 frames: 10 episodes of 60)."""
+    if episode_frames is not None:
+        return episode_frames
+    return max(MIN_EPISODE_FRAMES, min(DEFAULT_EPISODE_FRAMES, -(-frames // MIN_EPISODES)))
 
 
 @dataclass(frozen=True)
@@ -57,7 +61,7 @@ class GenerateConfig:
     renderer: str = "tiny"
     encoding: str = "png"
     quality: int = 95
-    episode_frames: int = 500
+    episode_frames: int | None = None   # None: DEFAULT_EPISODE_FRAMES, shortened for small datasets
     warmup: float = 5.0               # [s] driven before recording starts
     options: dict = field(default_factory=dict)   # the world's own (Plugin.generate_options)
 

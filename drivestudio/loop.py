@@ -19,6 +19,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from shm_bridge.signals import check as check_signals
+
 import numpy as np
 
 Exchange = Callable[[object], tuple[np.ndarray, np.ndarray]]
@@ -55,6 +57,7 @@ def run_loop(world, exchange: Exchange, seconds: float, render: bool = True, met
     n = 0
     try:
         while steps is None or n < steps:
+            check_signals()   # a SIGTERM whose exception a finaliser swallowed still ends the run
             action, estimate = exchange(obs)
             if on_step is not None:
                 on_step(StepRecord(obs, action, estimate))

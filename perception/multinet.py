@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from shm_bridge.signals import Terminated, exit_on_sigterm
+from shm_bridge.signals import Terminated, check as check_signals, exit_on_sigterm
 
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .datasets import SampleSpec
@@ -345,7 +345,7 @@ def train_multinet(cfg, log=print) -> dict:
 
     t_start = time.perf_counter() - state["seconds"]
     try:
-        with exit_on_sigterm():
+        with exit_on_sigterm(poll=True):
             while state["trial"] < cfg.trials:
                 trial = state["trial"]
                 if model is None:
@@ -362,6 +362,7 @@ def train_multinet(cfg, log=print) -> dict:
                     rng = np.random.default_rng([cfg.seed, trial, epoch])
                     losses, t0 = [], time.perf_counter()
                     for ids in balanced_batches(train_ids, batch, rng, steps):
+                        check_signals()
                         x, m, y = moments.batch(ids)
                         target = torch.from_numpy(decl.normalise(y.numpy(), model.outputs)).to(device)
                         loss = train_loss(model(x.to(device), m.to(device)), target)

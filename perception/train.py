@@ -35,7 +35,7 @@ import torch
 from tqdm import tqdm
 
 from shm_bridge.declaration import WorldDeclaration
-from shm_bridge.signals import Terminated, exit_on_sigterm
+from shm_bridge.signals import Terminated, check as check_signals, exit_on_sigterm
 
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .datasets import FrameDataset, FrameStream
@@ -485,7 +485,7 @@ def _train_sgd(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, 
     losses, t_row, t_start = [], time.perf_counter(), time.perf_counter() - state["seconds"]
     last_save = time.monotonic()
     try:
-        with exit_on_sigterm():
+        with exit_on_sigterm(poll=True):
             while state["iteration"] < iterations:
                 stream.set_epoch(state["epoch"])
                 skip = state["step_in_epoch"]
@@ -496,6 +496,7 @@ def _train_sgd(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, 
                                        f"too few training episodes of {cfg.data} for {dist.world_size} processes "
                                        f"and {max(cfg.workers, 1)} loader workers each")
                 for step, (x, m, y) in enumerate(loader):
+                    check_signals()
                     if steps is not None and step >= steps:
                         break
                     if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it

@@ -27,6 +27,15 @@ class Terminated(SystemExit):
 
 _deferring = [0]          # depth of deferred() blocks in progress
 _pending: list[int] = []  # a signal that arrived inside one, raised when the outermost ends
+_fired: list[int] = []    # the signal an exit_on_sigterm() block received, for check()
+
+
+def check() -> None:
+    """Raise Terminated if a signal arrived in this exit_on_sigterm() block. Call it once per step of a long loop:
+    a signal handler's exception is lost when the signal lands while Python runs a finaliser or a weakref
+    callback (garbage collection inside torch does this), and the loop would otherwise run on."""
+    if _fired and not _deferring[0]:
+        raise Terminated(_fired[0])
 
 
 @contextmanager
@@ -52,18 +61,23 @@ def deferred():
 
 
 @contextmanager
-def exit_on_sigterm(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP)):
+def exit_on_sigterm(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP), poll: bool = False):
     """Within the block, the listed signals raise Terminated once (no-op outside the main thread); inside a
-    deferred() block the signal is raised when that block ends."""
+    deferred() block the signal is raised when that block ends. With poll=True the handler only notes the signal
+    and the block's loop raises it by calling check(): for loops of short steps inside libraries that run
+    finalisers (training), where an exception raised by the handler could be lost or cut a library call in half."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    fired = []
+    fired = _fired
+    fired.clear()
 
     def handler(signum, frame):
         if fired:
             return
         fired.append(signum)
+        if poll:
+            return
         if _deferring[0]:
             _pending.append(signum)
             return
@@ -77,3 +91,4 @@ def exit_on_sigterm(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGHUP)):
     finally:
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
+        fired.clear()

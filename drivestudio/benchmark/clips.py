@@ -28,6 +28,8 @@ from .suite import Route
 
 PANEL_HEIGHT = 118
 LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
+GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller reacts to cars within 20 m (rule 1)
+                           # and 15 m (rule 2; its follow speed is 97 % of v_max at 30 m), so 60 read as 40 is no fault
 _I_LANES_LEFT_EST = HIGHWAY.estimate_names.index("lanes_left")
 _I_SPEED, _I_LANES = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
 
@@ -87,6 +89,9 @@ def largest_error(entries: list[Entry]) -> dict | None:
     names = list(PAPER_INDICATORS)
     truth = np.array([t.indicators[:len(names)] for t, _ in rows])
     est = np.array([e[:len(names)] for _, e in rows])
+    gaps = [i for i, n in enumerate(names) if n.startswith("dist_")]
+    truth[:, gaps] = np.minimum(truth[:, gaps], GAP_RELEVANT)
+    est[:, gaps] = np.minimum(est[:, gaps], GAP_RELEVANT)
     err = np.abs(est - truth)
     scales = np.array([ERROR_SCALE[n] for n in names])
     if all(np.isfinite(e[_I_LANES_LEFT_EST]) for _, e in rows):
@@ -256,8 +261,9 @@ class ClipRecorder:
         if blame is None:
             lines.append(("largest error in the 5 s before: none (exact indicators)", (160, 230, 160)))
         else:
+            then = ", ".join(f"{n} {v:.2f}" for n, v in blame["ranking"][1:3])
             lines.append((f"largest error in the 5 s before: {blame['indicator']} (mean |error| "
-                          f"{blame['mean_error']:g}, {blame['normalised']:.2f} of its error-bar scale)",
+                          f"{blame['mean_error']:g}, {blame['normalised']:.2f} of its scale; then {then})",
                           (255, 140, 140)))
         lines.append((f"contact: {info['contact']}", (235, 235, 235)))
         for i, (text, colour) in enumerate(lines):

@@ -13,9 +13,9 @@ outside lane changes, and the driving score
 
     DS = route completion x 0.60^collisions x 0.65^off-road events   (per route; the suite's: the mean)
 
-as CARLA's Driving Score. Every collision and off-road event gets a clip (CLIP_DIR/MODEL/ROUTE-N-EVENT-tT.mp4):
+as CARLA's Driving Score. Every collision and off-road event gets a clip (OUT/clips/MODEL/ROUTE-N-EVENT-tT.mp4):
 the 5 s before it and 1 s after, the box overlay of truth and estimate, the controller's state and command,
-and the indicator whose error was largest in those 5 s.
+and the indicator whose error was largest in those 5 s. docs/benchmark.md defines every measure.
 
 Writes to --out: leaderboard.md, leaderboard.csv (one row per model), routes.csv (per model and route),
 leaderboard.json (everything, clips included) and clips/. The suite, the models and the output folder are
@@ -78,10 +78,10 @@ def run(args) -> int:
     out = run_dir(args.out, "benchmark")
     opts = RunOptions(transport="shm" if args.shm else "in-process", device=args.device, renderer=args.renderer,
                       clips=args.clips)
-    workers = args.workers or os.cpu_count() or 1
+    workers = min(args.workers or os.cpu_count() or 1, len(suite.routes) * len(models))
     print(f"benchmark: suite '{suite.name}' ({len(suite.routes)} routes, {suite.seconds / 60:.1f} simulated "
-          f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {min(workers, len(suite.routes) * len(models))} "
-          f"workers, {'over shared memory' if args.shm else 'in process'}", file=sys.stderr)
+          f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {workers} workers, "
+          f"{'over shared memory' if args.shm else 'in process'}", file=sys.stderr)
     board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet)
     write_json(out / "leaderboard.json", board)
     write_text(out / "leaderboard.csv", csv_text(board))

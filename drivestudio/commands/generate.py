@@ -19,8 +19,9 @@ def register(sub) -> None:
                    help="steps in the dataset (default 20000)")
     p.add_argument("--encoding", choices=("png", "jpeg"), default="png", help="png (lossless, default) or jpeg")
     p.add_argument("--quality", type=count(1, 100), default=95, help="JPEG quality (default 95)")
-    p.add_argument("--episode-frames", type=count(10, 10**6), default=500,
-                   help="steps per episode and shard (default 500)")
+    p.add_argument("--episode-frames", type=count(10, 10**6), default=None,
+                   help="steps per episode and shard (default 500, shortened so that a small dataset still has "
+                        "10 episodes and every split holds frames)")
     p.add_argument("--warmup", type=non_negative(600.0), default=None,
                    help="simulated seconds driven before an episode's recording starts (default 5)")
     p.add_argument("--workers", type=count(1, 256), default=os.cpu_count() or 1,
@@ -35,13 +36,13 @@ def register(sub) -> None:
 def run(args) -> int:
     from perception.files import check_output_dir
 
-    from ..generate import GenerateConfig, generate
+    from ..generate import GenerateConfig, episode_length, generate
 
     plugin = plugin_for(args, "generate")
     check_output_dir(args.out, "dataset folder")
     options = plugin.generate_options(args)   # a bad track or mode fails here, in one line, before any work
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=args.renderer,
-                         encoding=args.encoding, quality=args.quality, episode_frames=args.episode_frames,
+                         encoding=args.encoding, quality=args.quality, episode_frames=episode_length(args.frames, args.episode_frames),
                          warmup=5.0 if args.warmup is None else args.warmup, options=options)
     t0 = time.perf_counter()
     try:

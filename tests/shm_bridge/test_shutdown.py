@@ -217,3 +217,38 @@ def test_driver_closing_after_an_unnoticed_world_death_removes_the_segment(name)
     finally:
         proc.kill()
         proc.communicate()
+
+
+def test_a_sigterm_whose_exception_a_finaliser_swallowed_still_ends_the_loop():
+    """A signal landing while Python runs a weakref callback loses the handler's exception ("Exception ignored
+    in ..."); check() raises it at the loop's next step (a training run once ran on for minutes after SIGTERM)."""
+    import weakref
+
+    from shm_bridge.signals import Terminated, check
+
+    class Thing:
+        pass
+
+    with pytest.raises(Terminated) as caught:
+        with exit_on_sigterm():
+            thing = Thing()
+            weakref.finalize(thing, lambda: os.kill(os.getpid(), signal.SIGTERM))
+            del thing              # the handler runs inside the finaliser: its exception is printed and dropped
+            steps = 0
+            for steps in range(1000):
+                check()
+            pytest.fail(f"ran {steps} steps after SIGTERM")
+    assert caught.value.code == 128 + signal.SIGTERM
+    check()                        # outside the block nothing is pending any more
+
+
+def test_in_poll_mode_a_sigterm_is_raised_at_the_next_check_only():
+    from shm_bridge.signals import Terminated, check
+
+    with pytest.raises(Terminated):
+        with exit_on_sigterm(poll=True):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.01)       # the handler has run: it only took note
+            reached = True
+            check()
+    assert reached
