@@ -103,7 +103,7 @@ def training(steps: int = 20, batch: int = 60) -> dict:
 def closed_loop(ckpt: Path, seconds: float, folder: Path) -> dict:
     out = folder / "drive"
     subprocess.run([sys.executable, "-m", "drivestudio", "drive", "--world", "sidewalk", "--model", str(ckpt),
-                    "--operation", "autonomous", "--seconds", str(seconds), "--out", str(out)], check=True,
+                    "--operation", "correctional", "--seconds", str(seconds), "--out", str(out)], check=True,
                    capture_output=True)
     m = json.loads((out / "metrics.json").read_text())
     return {"loop_rate_hz": m["loop_rate_hz"], "stage_ms_per_step": m["stage_ms_per_step"]}

