@@ -1,9 +1,11 @@
 """The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound) or a
-checkpoint of the highway world, optionally with the controller-side smoothing of its estimates.
+checkpoint of the highway world, optionally with the controller-side filters of its estimates.
 
     --model oracle
     --model runs/alexnet.pt
     --model runs/alexnet.pt@smoothing=0.5      e = 0.5 e_previous + 0.5 e_now before the Chen controller
+    --model runs/alexnet.pt@gap_hold=0.8       gaps: g = min(g_now, 0.8 g_held + 0.2 g_now)
+    --model runs/alexnet.pt@smoothing=0.3,gap_hold=0.8
 
 Every checkpoint is opened and checked before anything is driven: a missing file, a file that is no checkpoint,
 or a model of another world (a sidewalk Z2Color) is refused in one line (exit status 2).
@@ -18,7 +20,8 @@ from pathlib import Path
 from ..errors import UsageError
 
 ORACLE = "oracle"
-MAX_SMOOTHING = 0.95     # as drive --smoothing
+MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
+FILTERS = ("smoothing", "gap_hold")
 OPTION = re.compile(r"([a-z_]+)=(.*)")
 
 
@@ -27,14 +30,19 @@ class ModelSpec:
     text: str                  # as given on the command line
     path: str | None           # the checkpoint; None: the oracle
     smoothing: float = 0.0
+    gap_hold: float = 0.0
     label: str = ORACLE        # the row's name in the leaderboard
     family: str = ORACLE       # "oracle", "alexnet", "gist", "vgg16", ...
     outputs: tuple = ()
 
     @property
     def key(self) -> str:
-        """What identifies the row: the same checkpoint with another smoothing is another row."""
-        return ORACLE if self.path is None else f"{Path(self.path).resolve()}@{self.smoothing:g}"
+        """What identifies the row: the same checkpoint with other filters is another row."""
+        return ORACLE if self.path is None else f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
+
+    def filters(self) -> dict[str, float]:
+        """The controller-side filters in use, by name."""
+        return {f: getattr(self, f) for f in FILTERS if getattr(self, f)}
 
     @property
     def is_oracle(self) -> bool:
@@ -50,38 +58,41 @@ class ModelSpec:
         return cls(**{**d, "outputs": tuple(d.get("outputs", ()))})
 
 
-def _smoothing(value: str, text: str) -> float:
+def _factor(name: str, value: str, text: str) -> float:
     try:
         a = float(value)
     except ValueError:
         a = math.nan
     if not math.isfinite(a) or not 0.0 <= a <= MAX_SMOOTHING:
-        raise UsageError(f"--model {text}: smoothing must be a number from 0 to {MAX_SMOOTHING}, got {value!r}")
+        raise UsageError(f"--model {text}: {name} must be a number from 0 to {MAX_SMOOTHING}, got {value!r}")
     return a
 
 
-def parse_model(text: str) -> tuple[str, float]:
-    """(checkpoint or 'oracle', smoothing) of a --model value: PATH or PATH@smoothing=A."""
+def parse_model(text: str) -> tuple[str, dict[str, float]]:
+    """(checkpoint or 'oracle', {filter: factor}) of a --model value: PATH or PATH@smoothing=A,gap_hold=B."""
     if not text.strip():
         raise UsageError("--model: empty; give 'oracle' or a checkpoint file")
-    path, smoothing = text, 0.0
+    path, filters = text, {}
     head, at, tail = text.rpartition("@")
     if at and not Path(text).is_file():   # a file whose name holds '@' is still a file
         path = head
         for part in tail.split(","):
             m = OPTION.fullmatch(part.strip())
-            if m is None or m[1] != "smoothing":
-                raise UsageError(f"--model {text}: after '@' the options are smoothing=A (0 to {MAX_SMOOTHING}), "
-                                 f"got {part!r}")
-            smoothing = _smoothing(m[2], text)
-    if path == ORACLE and smoothing:
-        raise UsageError(f"--model {text}: the oracle reads the exact indicators; smoothing applies to checkpoints")
-    return path, smoothing
+            if m is None or m[1] not in FILTERS:
+                raise UsageError(f"--model {text}: after '@' the options are smoothing=A and gap_hold=B (0 to "
+                                 f"{MAX_SMOOTHING}), got {part!r}")
+            value = _factor(m[1], m[2], text)
+            if value:
+                filters[m[1]] = value
+    if path == ORACLE and filters:
+        raise UsageError(f"--model {text}: the oracle reads the exact indicators; {', '.join(filters)} applies to "
+                         "checkpoints")
+    return path, filters
 
 
 def check_model(text: str) -> ModelSpec:
     """The model of a --model value, its checkpoint opened and checked (a model of the highway world)."""
-    path, smoothing = parse_model(text)
+    path, filters = parse_model(text)
     if path == ORACLE:
         return ModelSpec(text, None)
     from perception.checkpoint import load_checkpoint
@@ -92,8 +103,9 @@ def check_model(text: str) -> ModelSpec:
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]
     check_spec(spec, path)
-    label = f"{describe(spec)} ({Path(path).name})" + (f", smoothing {smoothing:g}" if smoothing else "")
-    return ModelSpec(text, str(path), smoothing, label, spec["name"], tuple(spec["outputs"]))
+    label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
+                                                               for f, a in filters.items())
+    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]), **filters)
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:
@@ -115,8 +127,8 @@ def slug(model: ModelSpec, taken: set[str]) -> str:
         base = ORACLE
     else:
         base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(model.path).stem).strip("-.") or "model"
-        if model.smoothing:
-            base += f"-smoothing{model.smoothing:g}"
+        for f, a in model.filters().items():
+            base += f"-{f.replace('_', '')}{a:g}"
     name, i = base, 2
     while name in taken:
         name, i = f"{base}-{i}", i + 1

@@ -164,13 +164,15 @@ def driver_for(model: ModelSpec, device: str):
     if key not in _PREDICTORS:
         from ..commands.common import load_predictor_for
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
-    return ChenDriver(_PREDICTORS[key], smoothing=model.smoothing)
+    return ChenDriver(_PREDICTORS[key], **model.filters())
 
 
 def _driver_command(name: str, model: ModelSpec, device: str) -> list[str]:
     cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or "oracle",
            "--device", device]
-    return cmd + (["--smoothing", repr(model.smoothing)] if model.smoothing else [])
+    for f, a in model.filters().items():
+        cmd += [f"--{f.replace('_', '-')}", repr(a)]
+    return cmd
 
 
 # --- one route --------------------------------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """drivestudio demo: the whole mission for both worlds at small scale on built-in defaults, every step through the
-same verbs a user would run, everything in one folder, ending with REPORT.md (about 12 minutes on a 2-core machine;
+same verbs a user would run, everything in one folder, ending with REPORT.md (about 7 minutes on a 2-core machine;
 --quick: about 3)."""
 from __future__ import annotations
 

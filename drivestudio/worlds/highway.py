@@ -16,6 +16,7 @@ DEFAULT_CARS = 12
 START_SPEED = 15.0          # [m/s]
 ESTIMATE = tuple(HIGHWAY.estimate_names)
 _ESTIMATE_INDEX = {n: i for i, n in enumerate(ESTIMATE)}
+_GAPS = [i for i, n in enumerate(ESTIMATE) if n.startswith("dist_")]
 
 
 # --- drivers -----------------------------------------------------------------------------------------------------
@@ -24,15 +25,15 @@ class ChenDriver:
     every network is compared with) and the Chen controller. The controller is made on the first frame, when the
     lane count is known."""
 
-    def __init__(self, predictor=None, smoothing: float = 0.0):
+    def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0):
         self.predictor = predictor
-        self.smoothing = smoothing
+        self.smoothing, self.gap_hold = smoothing, gap_hold
         self.timings = {"perception": 0.0, "control": 0.0}
         self.controller = None
         self._i_speed, self._i_lanes = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
         self._slots = [] if predictor is None else [(i, _ESTIMATE_INDEX[n]) for i, n in
                                                     enumerate(predictor.outputs) if n in _ESTIMATE_INDEX]
-        self._smoothed = None
+        self._smoothed = self._held = None
 
     @property
     def name(self) -> str:
@@ -54,6 +55,10 @@ class ChenDriver:
                 est = np.where(np.isfinite(self._smoothed), self.smoothing * self._smoothed +
                                (1 - self.smoothing) * est, est)
             self._smoothed = est
+        if self.gap_hold > 0:   # the gaps: a car coming closer at once, one going away slowly (docs/controller.md)
+            if self._held is not None:
+                est[_GAPS] = np.fmin(est[_GAPS], self.gap_hold * self._held + (1 - self.gap_hold) * est[_GAPS])
+            self._held = est[_GAPS].copy()
         return est
 
     def act(self, percept) -> tuple[np.ndarray, np.ndarray]:
@@ -168,6 +173,9 @@ class Plugin(Plugin):
             self._add(g, verb, "--smoothing", type=finite(0.0, 0.95),
                       help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
                            "none; docs/controller.md)")
+            self._add(g, verb, "--gap-hold", type=finite(0.0, 0.95),
+                      help="hold a model's gap estimates (dist_*): a shorter gap at once, a longer one smoothed "
+                           "with this factor, 0-0.95 (default 0: none; docs/controller.md)")
         if verb in ("render", "generate"):
             self._add(g, verb, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             self._add(g, verb, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
@@ -222,7 +230,8 @@ class Plugin(Plugin):
             return ChenDriver(None)
         from ..commands.common import load_predictor_for
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
-        return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0)
+        return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
+                          gap_hold=getattr(args, "gap_hold", None) or 0.0)
 
     def supervisor(self, world, args):
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
@@ -264,7 +273,8 @@ class Plugin(Plugin):
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars}
 
     def driver_args(self, args) -> list[str]:
-        return ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
+        out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
+        return out + (["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else [])
 
     def recorder(self, world, path, label: str):
         return OverlayRecorder(path, world, label)

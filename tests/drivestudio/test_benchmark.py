@@ -172,9 +172,12 @@ def test_a_route_without_lanes_takes_the_tracks_and_without_start_lane_the_seeds
 
 # --- models ---------------------------------------------------------------------------------------------------
 def test_model_options_after_an_at_sign():
-    assert parse_model("oracle") == ("oracle", 0.0)
-    assert parse_model("runs/a.pt@smoothing=0.5") == ("runs/a.pt", 0.5)
+    assert parse_model("oracle") == ("oracle", {})
+    assert parse_model("runs/a.pt@smoothing=0.5") == ("runs/a.pt", {"smoothing": 0.5})
+    assert parse_model("runs/a.pt@smoothing=0.3,gap_hold=0.8") == ("runs/a.pt", {"smoothing": 0.3, "gap_hold": 0.8})
+    assert parse_model("runs/a.pt@smoothing=0") == ("runs/a.pt", {})
     for bad in ("runs/a.pt@smoothing=2", "runs/a.pt@smoothing=nan", "runs/a.pt@speed=1", "oracle@smoothing=0.5",
+                "runs/a.pt@gap_hold=1", "oracle@gap_hold=0.5",
                 " "):
         with pytest.raises(UsageError):
             parse_model(bad)

@@ -1,0 +1,58 @@
+"""The Chen driver's optional filters of a model's estimates (docs/controller.md): exponential smoothing of every
+indicator, and the gap hold (a shorter gap is taken at once, a longer one approached with the factor)."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from drivestudio.worlds.highway import ChenDriver, ESTIMATE
+from shm_bridge.worlds.highway import HIGHWAY, INDICATORS
+
+
+class Scripted:
+    """A predictor that returns the given indicator vectors in turn (the filters' arithmetic, not a model's)."""
+    name, outputs = "scripted", tuple(INDICATORS[:13])
+
+    def __init__(self, rows):
+        self.rows = iter(rows)
+
+    def __call__(self, frame):
+        return np.asarray(next(self.rows), dtype=np.float64)
+
+
+def _row(dist_mm, to_marking_m=0.5):
+    v = dict.fromkeys(INDICATORS[:13], 10.0)
+    v["dist_MM"], v["toMarking_M"] = dist_mm, to_marking_m
+    return [v[n] for n in INDICATORS[:13]]
+
+
+def _estimates(driver, n):
+    record = HIGHWAY.pack({k: 0.0 for k in HIGHWAY.truth_names})
+    record[HIGHWAY.index("speed")], record[HIGHWAY.index("lanes")] = 15.0, 2
+    percept = SimpleNamespace(frames=(None,), record=record, t=0.0)
+    return [driver.estimate(percept) for _ in range(n)]
+
+
+MM, M = ESTIMATE.index("dist_MM"), ESTIMATE.index("toMarking_M")
+
+
+def test_smoothing_mixes_every_indicator_with_the_previous_estimate():
+    rows = [_row(40.0, 1.0), _row(20.0, 3.0)]
+    e = _estimates(ChenDriver(Scripted(rows), smoothing=0.25), 2)
+    assert e[1][MM] == pytest.approx(0.25 * 40 + 0.75 * 20)
+    assert e[1][M] == pytest.approx(0.25 * 1 + 0.75 * 3)
+
+
+def test_the_gap_hold_takes_a_closer_car_at_once_and_a_farther_one_slowly():
+    rows = [_row(40.0, 1.0), _row(10.0, 3.0), _row(50.0, 2.0), _row(50.0, 2.0)]
+    e = _estimates(ChenDriver(Scripted(rows), gap_hold=0.5), 4)
+    assert e[1][MM] == pytest.approx(10.0)                  # closer: at once, not 0.5 * 40 + 0.5 * 10
+    assert e[2][MM] == pytest.approx(0.5 * 10 + 0.5 * 50)   # farther: halfway
+    assert e[3][MM] == pytest.approx(0.5 * 30 + 0.5 * 50)
+    assert e[1][M] == pytest.approx(3.0)                    # the lateral indicators are not touched
+
+
+def test_no_filter_passes_the_estimates_through():
+    rows = [_row(40.0), _row(10.0), _row(50.0)]
+    e = _estimates(ChenDriver(Scripted(rows)), 3)
+    assert [x[MM] for x in e] == [40.0, 10.0, 50.0]
