@@ -13,16 +13,12 @@ results as JSON lines on pipes: no POSIX semaphores or shared memory, so a kill 
 """
 from __future__ import annotations
 
-import ctypes
 import fcntl
 import importlib
 import importlib.metadata
 import json
 import os
 import platform
-import selectors
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -34,6 +30,7 @@ from perception.shards import (MANIFEST, SPLIT_RULE, DatasetError, ShardInfo, Sh
 
 from . import worlds
 from .errors import RunError, UsageError
+from .worker_pool import run_pool, serve
 from .worlds import Episode
 
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
@@ -185,94 +182,24 @@ def _adopt_orphans(out: Path, manifest: dict, episodes: list[Episode]) -> None:
 
 
 # --- local workers -------------------------------------------------------------------------------------------
-def _die_with_parent() -> None:
-    try:  # PR_SET_PDEATHSIG: a SIGKILLed parent takes its workers with it rather than leave them running
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass
+def _episode_name(job: dict) -> str:
+    return f"episode {job['episode']['index']}"
+
+
+def _record_job(job: dict, progress) -> dict:
+    return record_episode(load_plugin(job["ref"]), Episode(**job["episode"]), GenerateConfig(**job["config"]),
+                          job["out"], progress=progress)
 
 
 def worker_main() -> int:
-    """A local worker: JSON lines on stdin ({"ref", "episode", "config", "out"}), JSON lines on stdout
-    ({"progress": n}, {"done": entry} or {"error": message})."""
-    _die_with_parent()
-    if os.getppid() == 1:
-        return 1
-    out_stream = os.fdopen(os.dup(1), "w", buffering=1)
-    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)   # library chatter must not corrupt the protocol
-
-    def send(obj) -> None:
-        out_stream.write(json.dumps(obj) + "\n")
-
-    for line in sys.stdin:
-        job = json.loads(line)
-        try:
-            plugin = load_plugin(job["ref"])
-            cfg = GenerateConfig(**job["config"])
-            ep = Episode(**job["episode"])
-            entry = record_episode(plugin, ep, cfg, job["out"], progress=lambda n: send({"progress": n}))
-            send({"done": entry})
-        except Exception as e:  # the parent reports it in one line and stops the run
-            send({"error": f"episode {job['episode']['index']}: {type(e).__name__}: {e}"})
-    return 0
+    """A local worker (worker_pool): jobs {"ref", "episode", "config", "out"}, results: shard entries."""
+    return serve(_record_job, _episode_name)
 
 
 def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int, ref: str, on_done,
                on_frames) -> None:
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    procs = [subprocess.Popen([sys.executable, "-m", "drivestudio.generate", "worker"], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, env=env, cwd=os.getcwd()) for _ in range(min(workers, len(todo)))]
-    queue = list(todo)
-    busy: dict = {}
-    pending: dict = {p: b"" for p in procs}   # bytes read from a worker that do not yet end in a newline
-    sel = selectors.DefaultSelector()
-
-    def give(proc) -> None:
-        if queue:
-            ep = queue.pop(0)
-            job = {"ref": ref, "episode": asdict(ep), "config": asdict(cfg), "out": str(out)}
-            proc.stdin.write((json.dumps(job) + "\n").encode())
-            proc.stdin.flush()
-            busy[proc] = ep
-        else:
-            proc.stdin.close()
-
-    def handle(proc, line: bytes) -> None:
-        msg = json.loads(line)
-        if "progress" in msg:
-            on_frames(msg["progress"])
-        elif "done" in msg:
-            busy.pop(proc)
-            on_done(msg["done"])
-            give(proc)
-        else:
-            raise RunError(msg.get("error", "a worker failed"))
-
-    try:
-        for p in procs:
-            sel.register(p.stdout, selectors.EVENT_READ, p)
-            give(p)
-        while busy:
-            for key, _ in sel.select(timeout=1.0):
-                proc = key.data
-                chunk = os.read(proc.stdout.fileno(), 1 << 16)   # raw reads: no line may hide in a buffer
-                if not chunk:
-                    sel.unregister(proc.stdout)
-                    if proc in busy:
-                        raise RunError(f"a worker died while recording episode {busy[proc].index} "
-                                       f"(exit status {proc.wait()})")
-                    continue
-                *lines, pending[proc] = (pending[proc] + chunk).split(b"\n")
-                for line in lines:
-                    handle(proc, line)
-        for p in procs:
-            p.wait(timeout=30)
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
-        sel.close()
+    jobs = [{"ref": ref, "episode": asdict(ep), "config": asdict(cfg), "out": str(out)} for ep in todo]
+    run_pool("drivestudio.generate", jobs, workers, on_frames, on_done, _episode_name)
 
 
 def _check_reachable(address: str | None, timeout: float = 10.0) -> None:

@@ -1,4 +1,5 @@
-"""Seed 002's VGG-16 regressor: torchvision's VGG-16 trunk, fully connected layers replaced by 4096-256-N.
+"""Liu and Wang's VGG-16 regressor (Deeper Direct Perception in Autonomous Driving): torchvision's VGG-16 trunk,
+fully connected layers replaced by 4096-256-N.
 
 By default the thirteen convolutional layers are frozen and only the new head learns (Liu and Wang, section 6: "fixing the
 pre-trained weights for all convolutional layers"); `frozen=False` fine-tunes everything (the paper's first

@@ -30,10 +30,10 @@ class ModelSpec:
     text: str                  # as given on the command line
     path: str | None           # the checkpoint; None: the oracle
     smoothing: float = 0.0
-    gap_hold: float = 0.0
     label: str = ORACLE        # the row's name in the leaderboard
     family: str = ORACLE       # "oracle", "alexnet", "gist", "vgg16", ...
     outputs: tuple = ()
+    gap_hold: float = 0.0
 
     @property
     def key(self) -> str:

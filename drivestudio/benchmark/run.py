@@ -8,32 +8,20 @@ worker (parallelism comes from the routes), so the same model gives the same sco
 """
 from __future__ import annotations
 
-import ctypes
-import json
 import os
 import platform
-import selectors
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
 
-from ..errors import RunError
+from ..worker_pool import run_pool, serve
 from .models import ModelSpec, slug
 from .route import RunOptions, run_route
 from .suite import Route, Suite
 
 STOP_WAIT = 5.0    # [s] a worker told to stop (SIGTERM) gets this long to unwind before it is killed
 THREADS_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-
-
-def _die_with_parent() -> None:
-    try:  # PR_SET_PDEATHSIG: a SIGKILLed parent takes its workers with it
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass
 
 
 def run_job(job: dict, progress=None) -> dict:
@@ -48,31 +36,22 @@ def run_job(job: dict, progress=None) -> dict:
     return result
 
 
+def _job_name(job: dict) -> str:
+    return f"route {job['route']['name']}, model {job['model']['text']}"
+
+
+def _worker_job(job: dict, progress) -> dict:
+    if job["model"]["path"] is not None:
+        import torch
+        torch.set_num_threads(1)   # the parallelism is the routes'
+    return run_job(job, progress)
+
+
 def worker_main() -> int:
-    """A worker: jobs as JSON lines on stdin; {"progress": s}, {"done": result} or {"error": line} on stdout."""
+    """A worker (worker_pool): jobs of jobs_for(), results of run_job()."""
     from shm_bridge.signals import exit_on_sigterm
-    _die_with_parent()
-    if os.getppid() == 1:
-        return 1
-    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole group: the parent stops us
-    out_stream = os.fdopen(os.dup(1), "w", buffering=1)
-    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)   # library chatter must not corrupt the protocol
-
-    def send(obj) -> None:
-        out_stream.write(json.dumps(obj) + "\n")
-
     with exit_on_sigterm():   # SIGTERM from the parent unwinds: worlds, bridges and half-written clips are closed
-        for line in sys.stdin:
-            job = json.loads(line)
-            try:
-                if job["model"]["path"] is not None:
-                    import torch
-                    torch.set_num_threads(1)
-                send({"done": run_job(job, progress=lambda s: send({"progress": s}))})
-            except Exception as e:  # the parent stops the run with this line
-                send({"error": f"route {job['route']['name']}, model {job['model']['text']}: "
-                               f"{type(e).__name__}: {e}"})
-    return 0
+        return serve(_worker_job, _job_name)
 
 
 def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path) -> list[dict]:
@@ -87,66 +66,8 @@ def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path)
 
 def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
     """Run the jobs on `workers` worker processes; on_progress(simulated seconds), on_done(result)."""
-    env = dict(os.environ, PYTHONUNBUFFERED="1", **THREADS_ENV)
-    procs = [subprocess.Popen([sys.executable, "-m", "drivestudio.benchmark", "worker"], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, env=env, cwd=os.getcwd())
-             for _ in range(max(1, min(workers, len(jobs))))]
-    queue = list(jobs)
-    busy: dict = {}
-    pending: dict = {p: b"" for p in procs}
-    sel = selectors.DefaultSelector()
-
-    def give(proc) -> None:
-        if queue:
-            job = queue.pop(0)
-            proc.stdin.write((json.dumps(job) + "\n").encode())
-            proc.stdin.flush()
-            busy[proc] = job
-        else:
-            proc.stdin.close()
-
-    def handle(proc, line: bytes) -> None:
-        msg = json.loads(line)
-        if "progress" in msg:
-            on_progress(msg["progress"])
-        elif "done" in msg:
-            busy.pop(proc)
-            on_done(msg["done"])
-            give(proc)
-        else:
-            raise RunError(msg.get("error", "a worker failed"))
-
-    try:
-        for p in procs:
-            sel.register(p.stdout, selectors.EVENT_READ, p)
-            give(p)
-        while busy:
-            for key, _ in sel.select(timeout=1.0):
-                proc = key.data
-                chunk = os.read(proc.stdout.fileno(), 1 << 16)
-                if not chunk:
-                    sel.unregister(proc.stdout)
-                    if proc in busy:
-                        job = busy[proc]
-                        raise RunError(f"a worker died driving route {job['route']['name']} with "
-                                       f"{job['model']['text']} (exit status {proc.wait()})")
-                    continue
-                *lines, pending[proc] = (pending[proc] + chunk).split(b"\n")
-                for line in lines:
-                    handle(proc, line)
-        for p in procs:
-            p.wait(timeout=30)
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=STOP_WAIT)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-        sel.close()
+    run_pool("drivestudio.benchmark", jobs, workers, on_progress, on_done, _job_name, env=THREADS_ENV,
+             stop_wait=STOP_WAIT)
 
 
 def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,

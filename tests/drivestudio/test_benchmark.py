@@ -219,7 +219,7 @@ def test_help_explains_the_verb():
 def test_a_route_drives_the_same_twice(tmp_path, blind):
     route = load_suite(write_suite(tmp_path / "s.json", [ROUTE_A])).routes[0]
     oracle = ModelSpec("oracle", None)
-    model = ModelSpec(str(blind), str(blind), 0.0, "blind", "gist")
+    model = ModelSpec(str(blind), str(blind), label="blind", family="gist")
     for spec in (oracle, model):
         a = run_route(route, spec, RunOptions(clips=0))
         b = run_route(route, spec, RunOptions(clips=0))
