@@ -18,6 +18,21 @@ from .scenery import GROUND_MATERIALS, Chunk, Look
 SUBPIXEL_BITS = 4  # cv2 fixed-point precision
 
 
+
+def clip_near(poly: list, near: float) -> list:
+    """Sutherland-Hodgman against the near plane (forward >= near) of a polygon of camera-space points [right, up,
+    forward], on plain floats: a few polygons a frame, where numpy's per-call overhead would dominate."""
+    out = []
+    for i, a in enumerate(poly):
+        b = poly[i - len(poly) + 1]
+        a_in, b_in = a[2] >= near, b[2] >= near
+        if a_in:
+            out.append(a)
+        if a_in != b_in:
+            t = (near - a[2]) / (b[2] - a[2])
+            out.append([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), near])
+    return out
+
 class GroundPainter:
     def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig, materials=GROUND_MATERIALS):
         """materials: the ground materials in painting order (the highway's by default; another world's own)."""
@@ -47,20 +62,7 @@ class GroundPainter:
         return np.clip(np.stack([u, v], axis=1) * scale, -2e8, 2e8).astype(np.int32)
 
     def _clip_near(self, cam: np.ndarray) -> np.ndarray:
-        """Sutherland-Hodgman against the near plane (forward >= near), on plain floats: a few polygons a
-        frame, where numpy's per-call overhead would dominate."""
-        near = self.camera.near
-        pts = cam.tolist()
-        out = []
-        for i, a in enumerate(pts):
-            b = pts[i - len(pts) + 1]
-            a_in, b_in = a[2] >= near, b[2] >= near
-            if a_in:
-                out.append(a)
-            if a_in != b_in:
-                t = (near - a[2]) / (b[2] - a[2])
-                out.append([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), near])
-        return np.array(out).reshape(-1, 3)
+        return np.array(clip_near(cam.tolist(), self.camera.near)).reshape(-1, 3)
 
     def paint(self, frame: np.ndarray, visible: np.ndarray, x: float, y: float, yaw: float) -> None:
         """Paint the ground of the visible chunks into frame (h, w, 3 uint8 RGB) for a car at (x, y, yaw)."""

@@ -39,6 +39,23 @@ class VehicleState:
     wheel_angle: float = 0.0  # [rad] front wheel angle, positive left
 
 
+def bicycle_move(track: Track, s: float, d: float, psi: float, v: float, delta: float, h: float, wheelbase: float,
+                 rear_to_cg: float, max_lateral_accel: float, grip_above: float) -> tuple[float, float, float]:
+    """One substep of h [s] of the kinematic bicycle in the track's frame: (s, d, heading) after it, at speed v
+    [m/s] (negative: reversing) and front wheel angle delta. The path curvature at the CG is capped by the grip
+    available at this speed once |v| > grip_above; both the highway car and the sidewalk car move by it."""
+    beta = math.atan(rear_to_cg * math.tan(delta) / wheelbase)
+    kappa_car = math.cos(beta) * math.tan(delta) / wheelbase
+    if abs(v) > grip_above:   # grip: beyond it the car runs wide
+        cap = max_lateral_accel / (v * v)
+        kappa_car = max(-cap, min(cap, kappa_car))
+    kappa = track.curvature(s)
+    s_dot = v * math.cos(psi + beta) / (1.0 - kappa * d)
+    d += v * math.sin(psi + beta) * h
+    psi += (v * kappa_car - kappa * s_dot) * h
+    return s + s_dot * h, d, psi
+
+
 def step_vehicle(state: VehicleState, action: Action, dt: float, track: Track,
                  p: VehicleParams = VehicleParams()) -> VehicleState:
     """Advance the host car by dt [s] under a constant command."""
@@ -52,16 +69,7 @@ def step_vehicle(state: VehicleState, action: Action, dt: float, track: Track,
         accel = a.accel * p.max_accel * max(0.0, 1.0 - v / p.top_speed)
         decel = a.brake * p.max_brake + p.drag * v * v + (p.rolling if v > 0 else 0.0)
         v = max(0.0, v + (accel - decel) * h)
-        # path curvature of the kinematic bicycle at the CG, capped by the grip available at this speed
-        beta = math.atan(p.rear_to_cg * math.tan(delta) / p.wheelbase)
-        kappa_car = math.cos(beta) * math.tan(delta) / p.wheelbase
-        if v > 1.0:
-            cap = p.max_lateral_accel / (v * v)
-            kappa_car = max(-cap, min(cap, kappa_car))
-        kappa = track.curvature(s)
-        s_dot = v * math.cos(psi + beta) / (1.0 - kappa * d)
-        d += v * math.sin(psi + beta) * h
-        psi += (v * kappa_car - kappa * s_dot) * h
-        s += s_dot * h
+        s, d, psi = bicycle_move(track, s, d, psi, v, delta, h, p.wheelbase, p.rear_to_cg, p.max_lateral_accel,
+                                 grip_above=1.0)
     psi = (psi + math.pi) % (2 * math.pi) - math.pi
     return VehicleState(track.wrap_s(s), d, psi, v, delta)

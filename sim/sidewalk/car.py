@@ -15,6 +15,7 @@ from shm_bridge.worlds.sidewalk import (CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER
                                        WHEELBASE)
 
 from sim.track.track import Track
+from sim.vehicle import bicycle_move
 
 
 @dataclass(frozen=True)
@@ -80,15 +81,7 @@ def step_car(state: CarState, steer: float, motor: float, dt: float, track: Trac
         slowing = (v_cmd - v) * v < 0 or v_cmd == 0.0
         limit = p.max_brake if slowing else p.max_accel
         v += max(-limit, min(limit, accel)) * h
-        beta = math.atan(p.rear_to_cg * math.tan(delta) / p.wheelbase)
-        kappa_car = math.cos(beta) * math.tan(delta) / p.wheelbase
-        if abs(v) > 0.5:   # grip: beyond it the car runs wide
-            cap = p.max_lateral_accel / (v * v)
-            kappa_car = max(-cap, min(cap, kappa_car))
-        kappa = track.curvature(s)
-        s_dot = v * math.cos(psi + beta) / (1.0 - kappa * d)
-        d += v * math.sin(psi + beta) * h
-        psi += (v * kappa_car - kappa * s_dot) * h
-        s += s_dot * h
+        s, d, psi = bicycle_move(track, s, d, psi, v, delta, h, p.wheelbase, p.rear_to_cg, p.max_lateral_accel,
+                                 grip_above=0.5)
     psi = (psi + math.pi) % (2 * math.pi) - math.pi
     return CarState(track.wrap_s(s), d, psi, v, delta)

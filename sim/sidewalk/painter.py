@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from sim.camera import CameraConfig
+from sim.ground_painter import clip_near
 
 from .shapes import Piece
 
@@ -104,20 +105,6 @@ class StereoObjectPainter:
         v = (-cam[..., 1] / cam[..., 2] * self._fy + self._cy) * scale
         return np.clip(np.stack([u, v], axis=-1), -2e8, 2e8).astype(np.int32)
 
-    def _clip_near(self, poly: list) -> list:
-        """Sutherland-Hodgman against the near plane, on plain floats."""
-        near = self.camera.near
-        out = []
-        for i, a in enumerate(poly):
-            b = poly[i - len(poly) + 1]
-            a_in, b_in = a[2] >= near, b[2] >= near
-            if a_in:
-                out.append(a)
-            if a_in != b_in:
-                t = (near - a[2]) / (b[2] - a[2])
-                out.append([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), near])
-        return out
-
     def paint_pair(self, left: np.ndarray, right: np.ndarray, static: PieceSet, chunk_visible: np.ndarray, x: float,
                    y: float, yaw: float, dynamic: tuple | None = None) -> int:
         """Paint the visible static pieces and the `dynamic` ones ((faces, normals, colours, piece centres, piece
@@ -176,7 +163,7 @@ class StereoObjectPainter:
             polys = list(pix)
             clip = np.flatnonzero(~whole_all[idx]).tolist()
             if clip:   # the few faces that cross the near plane: clipped, then projected together
-                pieces_ = [self._clip_near(p) for p in c[clip].tolist()]
+                pieces_ = [clip_near(p, self.camera.near) for p in c[clip].tolist()]
                 flat = [q for p in pieces_ for q in p]
                 projected = self._pixels(np.array(flat).reshape(-1, 3)) if flat else np.zeros((0, 2), np.int32)
                 at = 0
