@@ -24,10 +24,9 @@ from pathlib import Path as FilePath
 import numpy as np
 
 from assets import ASSETS_DIR
-from sim.track.procedural import close_with_straights
-from sim.track.segments import Arc, Segment, Straight
+from sim.track.procedural import close_loop
 from sim.track.track import Track
-from sim.track.trackfile import read_json
+from sim.track.trackfile import chain_segments, read_json
 
 from .errors import PathError
 
@@ -153,21 +152,6 @@ def _check_segments(specs, width: float, where: str) -> None:
                         f"{_fmt(LENGTH_RANGE[1])} m long")
 
 
-def chain(specs: list[dict]) -> list[Segment]:
-    """Segments chained from the origin heading +x (specs already checked)."""
-    x, y, h = 0.0, 0.0, 0.0
-    out: list[Segment] = []
-    for spec in specs:
-        if spec["type"] == "straight":
-            seg: Segment = Straight(x, y, h, float(spec["length"]))
-        else:
-            sign = 1.0 if spec["turn"] == "left" else -1.0
-            seg = Arc(x, y, h, float(spec["radius"]), sign * math.radians(float(spec["angle_deg"])))
-        out.append(seg)
-        x, y, h = seg.end_pose()
-    return out
-
-
 def path_from_spec(spec, width: float | None = None, ref: str | None = None, style: str | None = None) -> SidewalkPath:
     """A validated path from its JSON object; `width` overrides the file's."""
     if not isinstance(spec, dict):
@@ -183,7 +167,7 @@ def path_from_spec(spec, width: float | None = None, ref: str | None = None, sty
         raise PathError(f"{where}: 'style' must be one of {', '.join(STYLES)}, got {_show(style)}")
     w = check_width(width, where) if width is not None else _number(spec, "width", where, *WIDTH_RANGE, "m")
     _check_segments(spec.get("segments"), w, where)
-    segments = chain(spec["segments"])
+    segments = chain_segments(spec["segments"])
     track = Track(name, segments, 1, w, spec={"name": name, "style": style, "width": w,
                                                "segments": spec["segments"]})
     dist, dh = track.closure_error()
@@ -217,7 +201,7 @@ def _check_no_overlap(track: Track, where: str) -> None:
 def procedural_spec(seed: int, width: float | None = None) -> dict:
     """A winding closed path drawn from `seed`: a chain of arcs (radii of a few metres, some turning right)
     whose turns sum to one full turn, with straights between, closed in position by two straights
-    (sim.track.procedural.close_with_straights). Candidates too short, too long or running into themselves are
+    (sim.track.procedural.close_loop). Candidates too short, too long or running into themselves are
     drawn again."""
     rng = np.random.default_rng([int(seed), 0x51DE])
     w = float(width) if width is not None else round(float(rng.uniform(*WIDTH_RANGE)), 2)
@@ -237,20 +221,7 @@ def procedural_spec(seed: int, width: float | None = None) -> dict:
             continue
         radii = rng.uniform(r_min, r_min + 14.0, n)
         gaps = np.where(rng.random(n) < 0.35, 0.0, rng.uniform(2.0, 20.0, n))
-        specs: list[dict] = [{"type": "straight", "length": None}]
-        straight_at = [0]
-        for a, r, g in zip(angles, radii, gaps):
-            specs.append({"type": "arc", "radius": round(float(r), 3), "angle_deg": round(abs(float(a)), 6),
-                          "turn": "left" if a > 0 else "right"})
-            if g > 0:
-                straight_at.append(len(specs))
-                specs.append({"type": "straight", "length": round(float(g), 3)})
-        if len(straight_at) < 2:
-            continue
-        trial = [dict(sp, length=1.0) if sp.get("length", 1) is None else sp for sp in specs]
-        segs = chain(trial)
-        other = max(straight_at[1:], key=lambda i: abs(math.sin(segs[i].heading0)))
-        closed = _close(specs, other)
+        closed = close_loop(angles, radii, gaps)
         if closed is None:
             continue
         lengths = [sp["length"] for sp in closed if sp["type"] == "straight"]
@@ -270,14 +241,6 @@ def procedural_spec(seed: int, width: float | None = None) -> dict:
             continue
         return spec
     raise PathError(f"could not draw a valid procedural path from seed {seed}")
-
-
-def _close(specs: list[dict], other: int) -> list[dict] | None:
-    """close_with_straights on path-scale specs (its segment check allows anything a path allows)."""
-    try:
-        return close_with_straights(specs, (0, other))
-    except ValueError:
-        return None
 
 
 # --- references -----------------------------------------------------------------------------------------------

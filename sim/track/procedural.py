@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .trackfile import MAX_LANES, TrackError, build_segments, track_from_spec
+from .trackfile import MAX_LANES, TrackError, build_segments, chain_segments, track_from_spec
 
 
 def close_with_straights(specs: list[dict], unknown: tuple[int, int]) -> list[dict] | None:
@@ -38,6 +38,30 @@ def close_with_straights(specs: list[dict], unknown: tuple[int, int]) -> list[di
     return trial
 
 
+def close_loop(angles, radii, gaps) -> list[dict] | None:
+    """Segment specs of a loop: a first straight, then arcs of the given angles [deg, positive left] and radii
+    [m], each followed by a straight of its gap [m] (0: none). The first straight and the one whose direction is
+    closest to perpendicular to it get the lengths that close the loop in position (the angles must add up to
+    360). None when it cannot close (no second straight, parallel straights, a negative length). Procedural tracks
+    and procedural sidewalk paths are drawn this way."""
+    specs: list[dict] = [{"type": "straight", "length": None}]
+    straight_at: list[int] = [0]
+    for a, r, g in zip(angles, radii, gaps):
+        specs.append({"type": "arc", "radius": round(float(r), 3), "angle_deg": round(abs(float(a)), 6),
+                      "turn": "left" if a > 0 else "right"})
+        if g > 0:
+            straight_at.append(len(specs))
+            specs.append({"type": "straight", "length": round(float(g), 3)})
+    if len(straight_at) < 2:
+        return None
+    segs = chain_segments([{**s, "length": 1.0} if s.get("length", 1) is None else s for s in specs])
+    other = max(straight_at[1:], key=lambda i: abs(math.sin(segs[i].heading0)))
+    try:
+        return close_with_straights(specs, (0, other))
+    except ValueError:   # the track's segment check refused a piece (path-scale pieces it does not know)
+        return None
+
+
 def procedural_spec(seed: int, lanes: int = 3) -> dict:
     """A closed track spec drawn from `seed`; valid for every lane count up to MAX_LANES."""
     rng = np.random.default_rng([int(seed), 0x7AC])
@@ -53,20 +77,7 @@ def procedural_spec(seed: int, lanes: int = 3) -> dict:
             continue
         radii = rng.uniform(45.0, 220.0, n_arcs)
         gaps = np.where(rng.random(n_arcs) < 0.3, 0.0, rng.uniform(20.0, 350.0, n_arcs))
-        specs: list[dict] = [{"type": "straight", "length": None}]
-        straight_at: list[int] = [0]
-        for a, r, g in zip(angles, radii, gaps):
-            specs.append({"type": "arc", "radius": round(float(r), 3), "angle_deg": round(abs(float(a)), 6),
-                          "turn": "left" if a > 0 else "right"})
-            if g > 0:
-                straight_at.append(len(specs))
-                specs.append({"type": "straight", "length": round(float(g), 3)})
-        if len(straight_at) < 2:
-            continue
-        # the second unknown: the straight whose direction is closest to perpendicular to +x
-        segs = build_segments([{**s, "length": 1.0} if s.get("length", 1) is None else s for s in specs])
-        other = max(straight_at[1:], key=lambda i: abs(math.sin(segs[i].heading0)))
-        closed = close_with_straights(specs, (0, other))
+        closed = close_loop(angles, radii, gaps)
         if closed is None:
             continue
         lengths = [s["length"] for s in closed if s["type"] == "straight"]

@@ -180,6 +180,12 @@ def check_segment_specs(seg_specs) -> float:
 def build_segments(seg_specs: list) -> list[Segment]:
     """Chain segment specs from the origin heading +x (after check_segment_specs: O(segments), no sampling)."""
     check_segment_specs(seg_specs)
+    return chain_segments(seg_specs)
+
+
+def chain_segments(seg_specs: list) -> list[Segment]:
+    """Chain segment specs already checked (by the caller's own rules: a track's or a sidewalk path's) from the
+    origin heading +x."""
     x, y, h = 0.0, 0.0, 0.0
     segments: list[Segment] = []
     for spec in seg_specs:
