@@ -37,8 +37,10 @@ def cluster():
     """A Ray head on this machine with two CPUs (two tasks at a time); stopped afterwards, also on failure."""
     temp = Path(tempfile.mkdtemp(prefix="ray-", dir="/tmp"))   # short: Ray's socket paths must stay < 108 bytes
     port = _free_port()
-    env = {**os.environ, **LOOPBACK}
+    # a home of the test's own: a token left in ~/.ray/auth_token by another cluster would be sent to ours, refused
+    env = {**os.environ, **LOOPBACK, "HOME": str(temp)}
     env.pop("RAY_ADDRESS", None)
+    env.pop("RAY_AUTH_TOKEN", None)
     cmd = [RAY, "start", "--head", "--node-ip-address", "127.0.0.1", "--port", str(port), "--num-cpus", "2",
            "--temp-dir", str(temp), "--include-dashboard=false", "--disable-usage-stats",
            "--object-store-memory", str(100 * 2**20)]
