@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from shm_bridge import worlds  # noqa: E402
+from core import worlds  # noqa: E402
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint  # noqa: E402
 
 

@@ -112,7 +112,7 @@ class Ours:
         import numpy as np
 
         import sim  # noqa: F401  registers drivestudio/Highway-v0
-        from controller import ChenController
+        from controller.highway import ChenController
 
         self.np, self.Chen = np, ChenController
         self.env = gym.make("drivestudio/Highway-v0", track="oval", lanes=3, cars=12, width=280, height=210)

@@ -30,7 +30,7 @@ def checkpoint(folder: Path) -> Path:
 
     from perception.checkpoint import save_checkpoint
     from perception.models import Regressor, make_spec
-    from shm_bridge import worlds
+    from core import worlds
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", worlds.get("sidewalk")))
     path = folder / "multinet.pt"
@@ -79,7 +79,7 @@ def training(steps: int = 20, batch: int = 60) -> dict:
 
     from perception.models import Regressor, make_spec
     from perception.multinet import CLIP, train_loss
-    from shm_bridge import worlds
+    from core import worlds
     model = Regressor(make_spec("z2color", worlds.get("sidewalk"))).train()
     opt = torch.optim.Adadelta(model.parameters(), lr=1.0)
     x = torch.randint(0, 256, (batch, 12, 94, 168), dtype=torch.uint8)

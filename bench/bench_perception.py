@@ -21,8 +21,8 @@ import torch
 
 from perception.models import build, family
 from perception.train import euclidean_loss
-from shm_bridge import worlds
-from shm_bridge.worlds.highway import label_set
+from core import worlds
+from core.worlds.highway import label_set
 
 H, W = 210, 280
 MODELS = {"alexnet": ("alexnet", {}), "vgg16": ("vgg16", {"frozen": True}),

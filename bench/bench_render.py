@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from shm_bridge.worlds.highway import Action
-from sim.scenario import scenario_from_dict
-from sim.world import World, WorldConfig
+from core.worlds.highway import Action
+from sim.highway.scenario import scenario_from_dict
+from sim.highway.world import World, WorldConfig
 
 
 def main() -> None:

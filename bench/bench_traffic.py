@@ -13,8 +13,8 @@ import json
 from pathlib import Path
 
 from drivestudio.loop import in_process, run_loop
-from drivestudio.worlds.highway import ChenDriver, HighwayMetrics
-from sim.world import World, WorldConfig
+from drivestudio.worlds.highway.plugin import ChenDriver, HighwayMetrics
+from sim.highway.world import World, WorldConfig
 
 
 def main() -> None:

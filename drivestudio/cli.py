@@ -6,7 +6,7 @@ import importlib
 import os
 import sys
 
-from .errors import input_errors, runtime_errors
+from drivestudio.errors import input_errors, runtime_errors
 
 VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "overlay", "serve", "drive", "benchmark", "autonomy", "export", "demo")
 
@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        from .worlds import load_external
+        from drivestudio.worlds import load_external
         load_external()
     except input_errors() as e:
         print(f"drivestudio: error: {e}", file=sys.stderr)

@@ -10,14 +10,14 @@ import sys
 import time
 from pathlib import Path
 
-from shm_bridge import worlds as declared
+from core import worlds as declared
 from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
-from shm_bridge.signals import Terminated, exit_on_sigterm
+from core.signals import Terminated, exit_on_sigterm
 
-from .bridge_loop import ShmExchange, serve_driver, supervised
-from .errors import UsageError
-from .loop import in_process, run_loop
-from .outputs import write_json, write_text
+from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
+from drivestudio.errors import UsageError
+from drivestudio.loop import in_process, run_loop
+from drivestudio.outputs import write_json, write_text
 
 ATTACH_SLICE = 0.25       # [s] while waiting for a driver we started, check it is still alive this often
 DRIVER_ATTACH = 30.0      # [s] `drive --shm` waits this long for the world's segment
@@ -101,7 +101,7 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
 
 def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
     """The driver over the bridge: the world's declaration comes from the header; the model must fit it."""
-    from . import worlds
+    from drivestudio import worlds
     with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=DRIVER_ATTACH) as ep:
         decl = ep.declaration
         try:

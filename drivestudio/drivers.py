@@ -5,9 +5,9 @@ import time
 
 import numpy as np
 
-from shm_bridge.declaration import WorldDeclaration, base_name
+from core.declaration import WorldDeclaration, base_name
 
-from .errors import UsageError
+from drivestudio.errors import UsageError
 
 
 class DirectDriver:

@@ -28,10 +28,10 @@ from perception.shards import (MANIFEST, SPLIT_RULE, DatasetError, ShardInfo, Sh
                                clean_temporaries, file_digest, manifest_declaration, read_manifest, shard_name,
                                split_of, verify_shard, write_manifest)
 
-from . import worlds
-from .errors import RunError, UsageError
-from .worker_pool import run_pool, serve
-from .worlds import Episode
+from drivestudio import worlds
+from drivestudio.errors import RunError, UsageError
+from drivestudio.worker_pool import run_pool, serve
+from drivestudio.worlds import Episode
 
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
 MIN_EPISODES = 10    # the split rule takes every tenth episode: fewer would leave the validation or test split empty
@@ -82,7 +82,7 @@ def plan(cfg: GenerateConfig) -> list[Episode]:
 
 def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=None) -> dict:
     """Drive one episode with the world's expert and write its shard; returns the manifest entry."""
-    from .loop import in_process, run_loop
+    from drivestudio.loop import in_process, run_loop
 
     world, expert, columns = plugin.episode(ep, cfg.options, cfg.renderer)
     try:
@@ -267,7 +267,7 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
     """Make (or continue) the dataset in `out`; returns its manifest."""
     from tqdm import tqdm
 
-    from perception.files import make_dir
+    from core.files import make_dir
 
     plugin = worlds.get(cfg.world)
     ref = plugin_ref(plugin)

@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from shm_bridge.signals import check as check_signals
+from core.signals import check as check_signals
 
 import numpy as np
 

@@ -1,5 +1,5 @@
 """Writing results so that a crash or Ctrl-C never leaves a half-written file behind, and nothing that is not a
-regular file is ever replaced (perception/files.py owns the rules)."""
+regular file is ever replaced (core/files.py owns the rules)."""
 from __future__ import annotations
 
 import json
@@ -9,9 +9,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from perception.files import atomic_write, check_output, reclaim_temporaries
+from core.files import atomic_write, check_output, reclaim_temporaries
 
-from .errors import UsageError
+from drivestudio.errors import UsageError
 
 
 def write_png(path, rgb: np.ndarray) -> None:

@@ -20,7 +20,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 
-from .errors import RunError
+from drivestudio.errors import RunError
 
 
 def _die_with_parent() -> None:

@@ -10,7 +10,7 @@ import torch
 from torch import nn
 from torchvision.models import alexnet as tv_alexnet
 
-from .models import Family, ModelInput, one_camera_now, register
+from perception.models import Family, ModelInput, one_camera_now, register
 
 
 class AlexNetRegressor(nn.Module):

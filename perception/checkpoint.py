@@ -17,7 +17,7 @@ from pathlib import Path
 
 import torch
 
-from .files import atomic_write
+from core.files import atomic_write
 
 FORMAT = "drivestudio-perception"
 VERSION = 2
@@ -30,7 +30,7 @@ class CheckpointError(ValueError):
 
 def save_checkpoint(path, payload: dict) -> None:
     """Write atomically; a SIGTERM or Ctrl-C during the write takes effect once it is complete."""
-    from shm_bridge.signals import deferred
+    from core.signals import deferred
     with deferred():
         atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
 
@@ -62,7 +62,7 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
             not {"name", "labels", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
-    from .models import upgrade_spec
+    from perception.models import upgrade_spec
     spec = ckpt["spec"] = upgrade_spec(spec)
     if world is not None and spec["world"] != world:
         raise CheckpointError(f"{path} is a model of the {spec['world']} world, not of the {world} world")
@@ -78,7 +78,7 @@ def describe_labels(labels) -> str:
     """"13 indicators (the paper's)", "14 indicators (the paper's 13 + fast)", ..."""
     labels = tuple(labels)
     extra = [n for n in labels[13:]]
-    from shm_bridge.worlds.highway import PAPER_INDICATORS
+    from core.worlds.highway import PAPER_INDICATORS
     if labels[:13] == PAPER_INDICATORS:
         return f"{len(labels)} indicators (the paper's 13{''.join(' + ' + n for n in extra)})"
     return f"{len(labels)} labels ({', '.join(labels)})"
@@ -86,7 +86,7 @@ def describe_labels(labels) -> str:
 
 def load_model(path, model: str | None = None, labels=None, device="cpu", world: str | None = None):
     """The model of a checkpoint, in eval mode on `device`: (Regressor, checkpoint dict)."""
-    from .models import Regressor, check_spec
+    from perception.models import Regressor, check_spec
 
     ckpt = load_checkpoint(path, model=model, labels=labels, world=world)
     check_spec(ckpt["spec"], str(path))

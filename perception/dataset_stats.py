@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from shm_bridge.worlds.highway import GAP_MAX, GAPS, INACTIVE, INDICATORS
+from core.worlds.highway import GAP_MAX, GAPS, INACTIVE, INDICATORS
 
-from .shards import Dataset
+from perception.shards import Dataset
 
 NEAR = 20.0  # [m] a car closer than this ahead counts as near
 COLUMNS = INDICATORS + ("lanes_left", "lanes", "speed", "in_lane", "on_marking", "episode", "step", "track",

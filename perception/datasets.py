@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from shm_bridge.declaration import Moment, WorldDeclaration, base_name, expand
+from core.declaration import Moment, WorldDeclaration, base_name, expand
 
-from .shards import Dataset, DatasetError, ShardReader, decode_image, image_column
+from perception.shards import Dataset, DatasetError, ShardReader, decode_image, image_column
 
 
 class SampleSpec:

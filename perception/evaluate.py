@@ -20,13 +20,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from shm_bridge.worlds.highway import PAPER_INDICATORS
+from core.worlds.highway import PAPER_INDICATORS
 
-from .checkpoint import CheckpointError, load_model
-from .datasets import FrameStream
-from .models import describe
-from .predictor import Predictor
-from .shards import Dataset, DatasetError
+from perception.checkpoint import CheckpointError, load_model
+from perception.datasets import FrameStream
+from perception.models import describe
+from perception.predictor import Predictor
+from perception.shards import Dataset, DatasetError
 
 SHORT = {"angle": "angle", "toMarking_LL": "to_LL", "toMarking_ML": "to_ML", "toMarking_MR": "to_MR",
          "toMarking_RR": "to_RR", "dist_LL": "dist_LL", "dist_MM": "dist_MM", "dist_RR": "dist_RR",

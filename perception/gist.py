@@ -14,7 +14,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .models import Family, ModelInput, one_camera_now, register
+from perception.models import Family, ModelInput, one_camera_now, register
 
 ORIENTATIONS = (8, 8, 8, 8)  # orientations per scale, finest scale first
 GRID = 4                     # energies are averaged over GRID x GRID cells

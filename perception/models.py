@@ -29,10 +29,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from shm_bridge import worlds
-from shm_bridge.declaration import DeclarationError, WorldDeclaration
+from core import worlds
+from core.declaration import DeclarationError, WorldDeclaration
 
-from .checkpoint import CheckpointError
+from perception.checkpoint import CheckpointError
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -143,7 +143,7 @@ def upgrade_spec(spec: dict) -> dict:
     """A spec of a version-1 checkpoint (highway only, 3-channel frames) in the current form."""
     if "world" in spec:
         return spec
-    from shm_bridge.worlds.highway import HIGHWAY
+    from core.worlds.highway import HIGHWAY
     spec = dict(spec)
     inp = dict(spec["input"])
     inp.update(channels=3, instants=[0], cameras=["front"], modes=[], scaling="standardise")

@@ -34,13 +34,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from shm_bridge.signals import Terminated, check as check_signals, exit_on_sigterm
+from core.signals import Terminated, check as check_signals, exit_on_sigterm
 
-from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from .datasets import SampleSpec
-from .files import atomic_write
-from .models import Regressor, family, make_spec
-from .shards import Dataset, DatasetError, decode_image, image_column
+from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from perception.datasets import SampleSpec
+from core.files import atomic_write
+from perception.models import Regressor, family, make_spec
+from perception.shards import Dataset, DatasetError, decode_image, image_column
 
 VALIDATION_SHARE = 0.10
 CLIP = 1.0                 # gradient norm (the authors' code)
@@ -268,7 +268,7 @@ def write_curves(out, history: list[dict], modes: list[str], title: str) -> None
 
 def train_multinet(cfg, log=print) -> dict:
     """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
-    from .train import open_data, resolve_device
+    from perception.train import open_data, resolve_device
 
     roots = [r for r in str(cfg.data).split(",") if r]
     cfg_data = roots[0]

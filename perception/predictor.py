@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .checkpoint import load_model
-from .models import describe
+from perception.checkpoint import load_model
+from perception.models import describe
 
 
 class Predictor:

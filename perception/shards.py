@@ -9,7 +9,7 @@ A dataset is a folder:
 A shard is written to a hidden temporary file and renamed into place when complete, so a shard is either whole or
 absent. The split of a step is the split of its episode (SPLIT_RULE), never of single steps.
 
-The columns come from the world's declaration (shm_bridge/declaration.py): one image column per camera
+The columns come from the world's declaration (core/declaration.py): one image column per camera
 (`image_<camera>`, PNG or JPEG), one column per truth field (typed by its kind), the declared extra columns, then
 the generic `episode`, `step`, `t`, `seed` and `action`. Each step is stored once; a data moment (several
 images, labels of later steps) is assembled by the readers (perception/datasets.py).
@@ -29,9 +29,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from shm_bridge.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
+from core.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
 
-from .files import atomic_write, reclaim_temporaries
+from core.files import atomic_write, reclaim_temporaries
 
 FORMAT = "drivestudio-dataset"
 VERSION = 2
@@ -201,7 +201,7 @@ def clean_temporaries(root: Path) -> int:
 
 # --- the manifest --------------------------------------------------------------------------------------------
 def _v1_declaration(manifest: dict) -> WorldDeclaration:
-    from shm_bridge.worlds.highway import FRAME, HIGHWAY
+    from core.worlds.highway import FRAME, HIGHWAY
     cfg = manifest.get("config", {})
     return HIGHWAY.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
 

@@ -34,14 +34,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from shm_bridge.declaration import WorldDeclaration
-from shm_bridge.signals import Terminated, check as check_signals, exit_on_sigterm
+from core.declaration import WorldDeclaration
+from core.signals import Terminated, check as check_signals, exit_on_sigterm
 
-from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from .datasets import FrameDataset, FrameStream
-from .files import atomic_write
-from .models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_spec, describe, family, load_trunk, make_spec
-from .shards import Dataset, DatasetError
+from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from perception.datasets import FrameDataset, FrameStream
+from core.files import atomic_write
+from perception.models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_spec, describe, family, load_trunk, make_spec
+from perception.shards import Dataset, DatasetError
 
 
 class TrainingError(ValueError):
@@ -299,7 +299,7 @@ def open_data(cfg: TrainConfig) -> tuple[Dataset, WorldDeclaration, tuple[str, .
     fam = family(cfg.model)
     why = fam.fits(decl)
     if why is not None:
-        from .models import fitting
+        from perception.models import fitting
         raise TrainingError(f"--model {cfg.model} does not fit the {decl.name} world of {cfg.data}: {why} "
                             f"(models for it: {', '.join(fitting(decl)) or 'none'})")
     return data, decl, cfg.labels_for(decl)
@@ -314,7 +314,7 @@ def train(cfg: TrainConfig, log=print) -> dict:
     if trainer == "closed-form":
         return fit_gist(cfg, log)
     if trainer == "multinet":
-        from .multinet import train_multinet
+        from perception.multinet import train_multinet
         return train_multinet(cfg, log)
     data, decl, labels = open_data(cfg)
     dist, device = join_distributed(resolve_device(cfg.device))

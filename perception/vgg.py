@@ -11,7 +11,7 @@ import torch
 from torch import nn
 from torchvision.models.vgg import cfgs, make_layers
 
-from .models import Family, ModelInput, one_camera_now, register
+from perception.models import Family, ModelInput, one_camera_now, register
 
 
 class VGGRegressor(nn.Module):

@@ -18,9 +18,9 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from shm_bridge.declaration import WorldDeclaration
+from core.declaration import WorldDeclaration
 
-from .models import Family, ModelInput, register
+from perception.models import Family, ModelInput, register
 
 INPUT_SIZE = (94, 168)     # (rows, columns) the network reads
 ASPECT_TOLERANCE = 0.05

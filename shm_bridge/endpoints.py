@@ -35,14 +35,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from shm_bridge import futex, layout
-from shm_bridge.declaration import DeclarationError, WorldDeclaration
+from core.declaration import DeclarationError, WorldDeclaration
 from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
 from shm_bridge.layout import (ACTION_OFFSET, ACTION_VALUES, DRIVER_ATTACHED, DRIVER_DETACHED, DRIVER_MODES,
                                DRIVER_NONE, DRIVER_STATUSES, END_REASONS, FIXED_SIZE, MAGIC, OFFSET, SLOT_COUNT,
                                SLOT_OFFSET, SLOT_TRUTH, STATUS_FAILED, STATUS_FINISHED, VERSION, WORLD_CLOSED,
                                WORLD_RUNNING, Layout)
-from shm_bridge.segment import SHM_DIR, Segment, pid_alive, shm_path, unlink_if_same, validate_name
-from shm_bridge.signals import Terminated, exit_on_sigterm
+from core.processes import pid_alive
+from shm_bridge.segment import SHM_DIR, Segment, shm_path, unlink_if_same, validate_name
+from core.signals import Terminated, exit_on_sigterm
 
 __all__ = ["WorldEndpoint", "DriverEndpoint", "FrameMsg", "ActionMsg", "BridgeError", "PeerGone",
            "ProtocolMismatch", "BridgeTimeout", "Terminated", "exit_on_sigterm"]

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shm_bridge.declaration import DeclarationError, WorldDeclaration
+from core.declaration import DeclarationError, WorldDeclaration
 
 # --- constants of protocol version 2 -------------------------------------------------------------------------------
 MAGIC = b"DSBRIDGE"            # 8 bytes at offset 0, written last by the world when the segment is ready
@@ -549,7 +549,7 @@ def _markdown_world(decl: WorldDeclaration) -> str:
 
 def doc_blocks() -> dict[str, str]:
     """The parts of docs/shm-protocol.md that are generated from this module, by marker name."""
-    from shm_bridge import worlds
+    from core import worlds
     blocks = {"control-table": _markdown_fields(CONTROL_FIELDS), "camera-table": _markdown_fields(CAMERA_FIELDS),
               "name-table": _markdown_fields(NAME_FIELDS), "slot-table": _markdown_fields(SLOT_FIELDS),
               "action-table": _markdown_fields(ACTION_FIELDS), "c-header": "```c\n" + c_header() + "```"}

@@ -147,24 +147,3 @@ def _unlink_quiet(path: str) -> bool:
         return True
     except FileNotFoundError:
         return False
-
-
-def pid_alive(pid: int) -> bool:
-    """Whether process `pid` exists and is not a zombie (a dead child that was not reaped yet)."""
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            data = f.read()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-    except OSError:
-        return True
-    state = data[data.rfind(b")") + 2:data.rfind(b")") + 3]
-    return state not in (b"Z", b"X", b"x")

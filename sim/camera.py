@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shm_bridge.worlds.highway import FRAME
+from core.worlds.highway import FRAME
 
 
 @dataclass(frozen=True)

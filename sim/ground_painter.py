@@ -12,8 +12,8 @@ import math
 import cv2
 import numpy as np
 
-from .camera import CameraConfig
-from .scenery import GROUND_MATERIALS, Chunk, Look
+from sim.camera import CameraConfig
+from sim.scene import Chunk, Look
 
 SUBPIXEL_BITS = 4  # cv2 fixed-point precision
 
@@ -34,8 +34,8 @@ def clip_near(poly: list, near: float) -> list:
     return out
 
 class GroundPainter:
-    def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig, materials=GROUND_MATERIALS):
-        """materials: the ground materials in painting order (the highway's by default; another world's own)."""
+    def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig, materials: tuple[str, ...]):
+        """materials: the ground materials in painting order (each world's own)."""
         self.camera = camera
         self._colours = [tuple(int(c) for c in look.lit(look.colours[m][:3])) for m in materials]
         # per chunk: all polygon vertices in one array; per polygon its material rank and vertex range

@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from shm_bridge.worlds.sidewalk import CAR_WIDTH, STEP
+from core.worlds.sidewalk import CAR_WIDTH, STEP
 
-from .experts import GAP_CAP, field
+from controller.sidewalk.experts import GAP_CAP, field
 
 
 @dataclass(frozen=True)

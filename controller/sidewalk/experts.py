@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import (CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD,
+from core.worlds.sidewalk import (CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD,
                                        TOP_SPEED, WHEELBASE)
 
 BORDER_CAP = 5.0     # [m] the record's border distance where there is no border

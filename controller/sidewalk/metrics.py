@@ -11,9 +11,9 @@ from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import MODES, SIDEWALK
+from core.worlds.sidewalk import MODES, SIDEWALK
 
-from .experts import BORDER_CAP, GAP_CAP
+from controller.sidewalk.experts import BORDER_CAP, GAP_CAP
 
 STAGES = ("render", "transfer", "perception", "control", "physics", "truth")
 _I = {n: i for i, n in enumerate(SIDEWALK.truth_names)}

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import STEP, TOP_SPEED
+from core.worlds.sidewalk import STEP, TOP_SPEED
 
-from .experts import SidewalkExpert, motor_command
+from controller.sidewalk.experts import SidewalkExpert, motor_command
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Re-run from the repository root with `.venv/bin/python docs/figures/affordance_figures.py`; it needs no network
 and no display (matplotlib's Agg backend) and rewrites docs/img/affordances-*.png and docs/img/controller-*.png.
-Every number in the pictures is computed here, not typed: the indicators by `sim.truth.affordances` on a track
+Every number in the pictures is computed here, not typed: the indicators by `sim.highway.truth.affordances` on a track
 built with `sim.track.track_from_spec`, the markings and lane centres by the track, the follow curve by
 `ChenController.follow_speed`, the steering curve and the overtakes by running `ChenController` on the exact
 indicators (the overtakes also drive the host car's kinematic model). Edit a scene in SCENES below and re-run.
@@ -25,11 +25,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 # --- the project's code: every import of it, in one place -------------------------------------------------------
-from shm_bridge.worlds.highway import INACTIVE, INDICATORS  # noqa: E402  (the highway's declaration)
-from controller.chen import ChenController, ChenParams  # noqa: E402
+from core.worlds.highway import INACTIVE, INDICATORS  # noqa: E402  (the highway's declaration)
+from controller.highway.chen import ChenController, ChenParams  # noqa: E402
 from sim.track import VERGE_WIDTH, track_from_spec  # noqa: E402
-from sim.truth import affordances  # noqa: E402
-from sim.vehicle import VehicleState, step_vehicle  # noqa: E402
+from sim.highway.truth import affordances  # noqa: E402
+from sim.highway.vehicle import VehicleState, step_vehicle  # noqa: E402
 
 OUT = ROOT / "docs" / "img"
 DPI = 100

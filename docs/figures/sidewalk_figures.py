@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from controller.sidewalk import PoorDriver, SidewalkExpert  # noqa: E402
-from shm_bridge.worlds.sidewalk import SIDEWALK  # noqa: E402
+from core.worlds.sidewalk import SIDEWALK  # noqa: E402
 from sim.sidewalk.car import CarState  # noqa: E402
 from sim.sidewalk.stereo import PITCH_DEG, StereoConfig  # noqa: E402
 from sim.sidewalk.topdown import TopDown  # noqa: E402
@@ -172,7 +172,7 @@ def stereo() -> None:
 
 
 def correction() -> None:
-    from drivestudio.worlds.sidewalk import Supervisor
+    from drivestudio.worlds.sidewalk.plugin import Supervisor
     w = SidewalkWorld(SidewalkConfig(path="park", seed=2, render=False))
     poor, sup = PoorDriver(seed=4), Supervisor(w, "correctional")
     obs = w.observe(False)
@@ -236,7 +236,7 @@ def moment() -> None:
 
 
 def video() -> None:
-    from drivestudio.worlds.sidewalk import compose
+    from drivestudio.worlds.sidewalk.plugin import compose
     w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode="follow", render=False))
     obs, _ = drive(w, 12.0)
     obs = w.observe(True)

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..numbers import count, finite, positive, seed
-from .common import add_device_option, check_device, run_dir
+from drivestudio.numbers import count, finite, positive, seed
+from drivestudio.commands.common import add_device_option, check_device, run_dir
 
 
 def register(sub) -> None:
-    from ..autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
+    from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
     p = sub.add_parser("autonomy", help="percentage autonomy of a sidewalk network under the expert's correction",
                        description="A trained sidewalk network (Z2Color: MultiNet or MTL) drives a held-out loop with "
                                    "obstacles in one behavioural mode while the expert watches under the correction "
@@ -35,10 +35,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.files import check_output_dir
+    from core.files import check_output_dir
 
-    from .. import autonomy
-    from .common import check_checkpoint_path, load_predictor_for
+    from drivestudio.worlds.sidewalk import autonomy
+    from drivestudio.commands.common import check_checkpoint_path, load_predictor_for
 
     check_device(args.device)
     check_checkpoint_path(args.model)
@@ -46,7 +46,7 @@ def run(args) -> int:
     if args.data:
         for root in args.data.split(","):
             if not Path(root).is_dir():
-                from ..errors import UsageError
+                from drivestudio.errors import UsageError
                 raise UsageError(f"--data: no dataset folder at {root}")
     check_output_dir(args.out or "runs")
     out = run_dir(args.out, "autonomy")

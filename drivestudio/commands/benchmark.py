@@ -33,8 +33,8 @@ import argparse
 import os
 import sys
 
-from ..numbers import count
-from .common import add_device_option, check_device, run_dir
+from drivestudio.numbers import count
+from drivestudio.commands.common import add_device_option, check_device, run_dir
 
 
 def register(sub) -> None:
@@ -59,12 +59,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.files import check_output_dir
+    from core.files import check_output_dir
 
-    from ..benchmark import RunOptions, check_models, load_suite, run_benchmark
-    from ..benchmark.score import csv_text, markdown, routes_csv_text
-    from ..errors import UsageError
-    from ..outputs import write_json, write_text
+    from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
+    from drivestudio.worlds.highway.benchmark.score import csv_text, markdown, routes_csv_text
+    from drivestudio.errors import UsageError
+    from drivestudio.outputs import write_json, write_text
 
     if args.out is not None:
         check_output_dir(args.out)          # before any work

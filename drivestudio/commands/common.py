@@ -5,9 +5,9 @@ import re
 import time
 from pathlib import Path
 
-from .. import worlds
-from ..errors import UsageError
-from ..numbers import seed as seed_type
+from drivestudio import worlds
+from drivestudio.errors import UsageError
+from drivestudio.numbers import seed as seed_type
 
 DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 
@@ -64,7 +64,7 @@ def check_device(name: str) -> str:
 
 def run_dir(out: str | None, prefix: str) -> Path:
     """The output folder (checked before any work, then created): --out, or runs/PREFIX-TIME."""
-    from perception.files import make_dir
+    from core.files import make_dir
     return make_dir(Path(out) if out is not None else Path("runs") / f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}")
 
 

@@ -8,7 +8,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..numbers import count
+from drivestudio.numbers import count
 
 
 @dataclass(frozen=True)
@@ -57,10 +57,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from dataclasses import replace
 
-    from perception.files import make_dir
+    from core.files import make_dir
 
-    from ..cli import main
-    from ..outputs import write_text
+    from drivestudio.cli import main
+    from drivestudio.outputs import write_text
 
     size = QUICK if args.quick else FULL
     if args.frames:
@@ -169,7 +169,7 @@ def _table_autonomy(sw: Path) -> str:
 
 def write_report(out: Path, seconds: float, quick: bool) -> Path:
     """REPORT.md: the two headline tables, then links to every plot, overlay and video."""
-    from ..outputs import write_text
+    from drivestudio.outputs import write_text
     hw, sw = out / "highway", out / "sidewalk"
 
     def links(folder: Path, pattern: str) -> str:

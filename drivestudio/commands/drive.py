@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import argparse
 
-from ..errors import UsageError
-from ..numbers import positive
-from .common import add_device_option, add_world_options, check_device, plugin_for, run_dir
+from drivestudio.errors import UsageError
+from drivestudio.numbers import positive
+from drivestudio.commands.common import add_device_option, add_world_options, check_device, plugin_for, run_dir
 
 
 def register(sub) -> None:
@@ -37,9 +37,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.files import check_output
+    from core.files import check_output
 
-    from .. import drive_session
+    from drivestudio import drive_session
 
     check_device(args.device)
     if args.shm is not None:
@@ -55,7 +55,7 @@ def run(args) -> int:
         check_output(args.record, (".mp4",), "video")
     out = run_dir(args.out, "drive")
     if args.model not in plugin.expert_names:
-        from .common import check_checkpoint_path
+        from drivestudio.commands.common import check_checkpoint_path
         check_checkpoint_path(args.model)
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)

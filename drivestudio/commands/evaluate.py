@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..numbers import count
-from .common import add_device_option, check_device
+from drivestudio.numbers import count
+from drivestudio.commands.common import add_device_option, check_device
 
 
 def register(sub) -> None:
@@ -34,15 +34,15 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from perception.evaluate import evaluate
-    from perception.files import check_output_dir
+    from core.files import check_output_dir
 
     check_device(args.device)
     check_output_dir(args.out)
     for path in args.model:
-        from .common import check_checkpoint_path
+        from drivestudio.commands.common import check_checkpoint_path
         check_checkpoint_path(path)
 
-    from ..outputs import write_json, write_png, write_text
+    from drivestudio.outputs import write_json, write_png, write_text
 
     ev = evaluate(args.data, args.model, split=args.split, device=args.device, batch_size=args.batch_size,
                   workers=args.workers, latency_frames=args.latency_frames)

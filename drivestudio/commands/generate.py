@@ -5,8 +5,8 @@ import os
 import sys
 import time
 
-from ..numbers import count, non_negative
-from .common import add_world_options, plugin_for
+from drivestudio.numbers import count, non_negative
+from drivestudio.commands.common import add_world_options, plugin_for
 
 
 def register(sub) -> None:
@@ -34,9 +34,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.files import check_output_dir
+    from core.files import check_output_dir
 
-    from ..generate import GenerateConfig, episode_length, generate
+    from drivestudio.generate import GenerateConfig, episode_length, generate
 
     plugin = plugin_for(args, "generate")
     check_output_dir(args.out, "dataset folder")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..errors import UsageError
-from ..numbers import count, seed
-from .common import add_device_option, check_device
+from drivestudio.errors import UsageError
+from drivestudio.numbers import count, seed
+from drivestudio.commands.common import add_device_option, check_device
 
 
 def register(sub) -> None:
@@ -39,11 +39,11 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from perception.datasets import FrameDataset
-    from perception.files import check_output, check_output_dir
+    from core.files import check_output, check_output_dir
     from perception.shards import DatasetError
 
-    from .. import worlds
-    from ..outputs import VideoWriter, write_png
+    from drivestudio import worlds
+    from drivestudio.outputs import VideoWriter, write_png
 
     check_device(args.device)
     if args.video:
@@ -57,7 +57,7 @@ def run(args) -> int:
     split = None if args.split == "all" else args.split
     predictor = None
     if args.model != "oracle":
-        from .common import load_predictor_for
+        from drivestudio.commands.common import load_predictor_for
         from perception.shards import Dataset
         predictor = load_predictor_for(args.model, Dataset(Path(args.data)).world, args.device)
     try:

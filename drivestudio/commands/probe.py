@@ -16,9 +16,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from shm_bridge.worlds.highway import indicators_to_dict
-    from sim.scenario import load_scenario
-    from sim.world import World, WorldConfig
+    from core.worlds.highway import indicators_to_dict
+    from sim.highway.scenario import load_scenario
+    from sim.highway.world import World, WorldConfig
 
     scenario = load_scenario(args.scenario, lanes=args.lanes)
     with World(WorldConfig(render=False, cars=0), scenario=scenario) as world:

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import UsageError
-from .common import add_world_options, plugin_for
+from drivestudio.errors import UsageError
+from drivestudio.commands.common import add_world_options, plugin_for
 
 
 def register(sub) -> None:
@@ -27,9 +27,9 @@ def camera_paths(out: Path, cameras) -> dict:
 
 
 def run(args) -> int:
-    from perception.files import check_output
+    from core.files import check_output
 
-    from ..outputs import write_json, write_png
+    from drivestudio.outputs import write_json, write_png
 
     plugin = plugin_for(args, "render")
     out = check_output(args.out, (".png",), "frame")

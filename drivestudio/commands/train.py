@@ -1,9 +1,9 @@
 """drivestudio train --data DIR --model NAME --out CKPT: fit a perception model of the dataset's world."""
 from __future__ import annotations
 
-from ..errors import UsageError
-from ..numbers import count, finite, positive, seed
-from .common import add_device_option, check_device
+from drivestudio.errors import UsageError
+from drivestudio.numbers import count, finite, positive, seed
+from drivestudio.commands.common import add_device_option, check_device
 
 
 FAMILIES = "alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), z2color (Z2Color: MultiNet and its MTL baseline)"
@@ -67,7 +67,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.files import check_output
+    from core.files import check_output
     from perception.models import family
 
     check_device(args.device)

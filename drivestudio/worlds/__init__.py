@@ -3,7 +3,7 @@ of its models, its metrics, the episodes `generate` records. One module per worl
 Plugin), found by name; a world made at run time (a test's) is added with `register(plugin)`.
 
 Everything generic (the loop, the bridge, datasets, models, training, the CLI verbs) talks to a world only through
-its WorldDeclaration (shm_bridge/worlds/) and its Plugin here. docs/architecture.md walks through adding a world.
+its WorldDeclaration (core/worlds/) and its Plugin here. docs/architecture.md walks through adding a world.
 """
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import os
 import pkgutil
 from dataclasses import dataclass, field
 
-from shm_bridge.declaration import WorldDeclaration
+from core.declaration import WorldDeclaration
 
-from ..errors import UsageError
+from drivestudio.errors import UsageError
 
 _REGISTERED: dict[str, "Plugin"] = {}
 
@@ -127,15 +127,15 @@ class _NoRecorder:
 
 def direct_driver(model: str, args, declaration: WorldDeclaration):
     """A checkpoint of world `declaration` whose outputs are its action values, as a driver."""
-    from ..commands.common import load_predictor_for
-    from ..drivers import DirectDriver
+    from drivestudio.commands.common import load_predictor_for
+    from drivestudio.drivers import DirectDriver
     predictor = load_predictor_for(model, declaration.name, getattr(args, "device", "cpu"))
     return DirectDriver(predictor, declaration)
 
 
 def register(plugin: Plugin) -> Plugin:
     _REGISTERED[plugin.name] = plugin
-    from shm_bridge import worlds
+    from core import worlds
     worlds.register(plugin.declaration)
     return plugin
 

@@ -1,5 +1,5 @@
 """The 1/10-scale car: MultiNet's steering and motor commands, a kinematic bicycle integrated in path (Frenet)
-coordinates, as the highway's host car is (sim/vehicle.py), so the truth needs no projection each step.
+coordinates, as the highway's host car is (sim/highway/vehicle.py), so the truth needs no projection each step.
 
 Commands, as on MultiNet's cars (Chowdhuri, Pankaj and Zipser, MultiNet, 2017): steer in [0, 1], 0.5 straight,
 1 full right, 0 full left; motor in [0, 1], 0.5 stop, 1 full speed forward (about 9 m/s), 0 full reverse. The
@@ -11,11 +11,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from shm_bridge.worlds.sidewalk import (CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, TOP_SPEED,
+from core.worlds.sidewalk import (CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, TOP_SPEED,
                                        WHEELBASE)
 
 from sim.track.track import Track
-from sim.vehicle import bicycle_move
+from sim.bicycle import bicycle_move
 
 
 @dataclass(frozen=True)

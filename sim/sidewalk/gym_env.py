@@ -2,7 +2,7 @@
 
 Observation: the stereo pair, uint8 (2, height, width, 3): left then right. Action: [steer, motor] in [0, 1]^2
 (steer 0.5 straight, 1 full right; motor 0.5 stop, 1 full speed forward). info: the truth record by name
-(SIDEWALK's fields, shm_bridge/worlds/sidewalk.py), `record` (the same as an array) and t. Reward: metres driven
+(SIDEWALK's fields, core/worlds/sidewalk.py), `record` (the same as an array) and t. Reward: metres driven
 along the path in the step, minus 10 on the step a collision begins and 1 per step off the path. An episode ends
 (terminated) when the car is lost off the path; it is truncated after `max_steps` (9000: 5 minutes).
 reset(options={"mode": "follow"}) switches the behavioural mode.
@@ -12,10 +12,10 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import SIDEWALK
+from core.worlds.sidewalk import SIDEWALK
 
-from .stereo import StereoConfig
-from .world import Observation, SidewalkConfig, SidewalkWorld, check_mode
+from sim.sidewalk.stereo import StereoConfig
+from sim.sidewalk.world import Observation, SidewalkConfig, SidewalkWorld, check_mode
 
 COLLISION_PENALTY = 10.0
 OFF_PATH_PENALTY = 1.0

@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.track.trackfile import read_json
+from core.inputs import read_json
 
-from .car import CAR
-from .errors import PathError
-from .paths import SidewalkPath
+from sim.sidewalk.car import CAR
+from sim.sidewalk.errors import PathError
+from sim.sidewalk.paths import SidewalkPath
 
 # kind: (length along its own axis, width, height) [m]; a bench and a parked bike stand along the path, a
 # pedestrian faces across it

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .car import CAR
-from .layout import Layout
+from sim.sidewalk.car import CAR
+from sim.sidewalk.layout import Layout
 
 SPEED_RANGE = (0.8, 3.2)       # [m/s] targets drawn for the lead car
 STOP_ODDS = 0.12               # share of targets that are a stop

@@ -3,7 +3,7 @@ sky, the time of day and the sun (direction and brightness). MultiNet's data cov
 at different times of day and in different weather; the seed draws one such condition.
 
 The colours are stored already tinted by the light's colour; shading (ambient + diffuse * cos) is applied by the
-painters (sim/scenery.py's Look.lit for the ground, sim/sidewalk/painter.py for objects).
+painters (sim/highway/scenery.py's Look.lit for the ground, sim/sidewalk/painter.py for objects).
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.scenery import Look
+from sim.scene import Look
 
 TIMES = ("morning", "noon", "afternoon", "evening", "overcast")
 # elevation range [deg], light tint, sky top, sky at the horizon, ambient range, diffuse range

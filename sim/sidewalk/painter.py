@@ -23,7 +23,7 @@ import numpy as np
 from sim.camera import CameraConfig
 from sim.ground_painter import clip_near
 
-from .shapes import Piece
+from sim.sidewalk.shapes import Piece
 
 SUBPIXEL_BITS = 4
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from functools import partial
 from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 
@@ -26,9 +27,11 @@ import numpy as np
 from assets import ASSETS_DIR
 from sim.track.procedural import close_loop
 from sim.track.track import Track
-from sim.track.trackfile import chain_segments, read_json
+from core import inputs
+from core.inputs import fmt_number, number, read_json, show
+from sim.track.trackfile import chain_segments
 
-from .errors import PathError
+from sim.sidewalk.errors import PathError
 
 PATHS_DIR = ASSETS_DIR / "paths"
 STYLES = ("sidewalk", "park", "forest")
@@ -83,35 +86,12 @@ class SidewalkPath:
         return self.track.half_width
 
 
-# --- one-line messages ----------------------------------------------------------------------------------------
-def _show(value, limit: int = 40) -> str:
-    text = repr(value)
-    if not text.isprintable():
-        text = ascii(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _fmt(x: float) -> str:
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e16 else f"{x:g}"
+check_keys = partial(inputs.check_keys, error=PathError)
 
 
 def _number(obj: dict, key: str, where: str, lo: float, hi: float, unit: str, lo_open: bool = False) -> float:
-    """obj[key] as a finite float in [lo, hi] ((lo, hi] with lo_open); booleans, strings, NaN refused."""
-    rng = f"{'more than' if lo_open else 'from'} {_fmt(lo)} {'and at most' if lo_open else 'to'} {_fmt(hi)} {unit}"
-    if key not in obj:
-        raise PathError(f"{where}: missing '{key}' (a number {rng})")
-    v = obj[key]
-    if not isinstance(v, numbers.Real) or isinstance(v, bool) or not math.isfinite(v):
-        raise PathError(f"{where}: '{key}' must be a number {rng}, got {_show(v)}")
-    if v < lo or v > hi or (lo_open and v == lo):
-        raise PathError(f"{where}: '{key}' must be {rng}, got {_fmt(v)}")
-    return float(v)
-
-
-def _check_keys(obj: dict, allowed, where: str) -> None:
-    for key in obj:
-        if key not in allowed:
-            raise PathError(f"{where}: unknown field {_show(key)}; the fields are {', '.join(allowed)}")
+    """obj[key] as a finite float in [lo, hi] ((lo, hi] with lo_open): core.inputs' check, as a PathError."""
+    return number(obj, key, where, lo=lo, hi=hi, unit=unit, lo_open=lo_open, error=PathError)
 
 
 def check_width(width, where: str = "path") -> float:
@@ -122,7 +102,7 @@ def check_width(width, where: str = "path") -> float:
 def _check_segments(specs, width: float, where: str) -> None:
     if not isinstance(specs, list) or not specs:
         raise PathError(f"{where}: 'segments' must be a non-empty list of at most {MAX_SEGMENTS} segments, got "
-                        f"{_show(specs)}")
+                        f"{show(specs)}")
     if len(specs) > MAX_SEGMENTS:
         raise PathError(f"{where}: {len(specs)} segments; a path may have at most {MAX_SEGMENTS}")
     r_min = min_radius(width)
@@ -130,41 +110,41 @@ def _check_segments(specs, width: float, where: str) -> None:
     for i, seg in enumerate(specs):
         at = f"{where}: segment {i}"
         if not isinstance(seg, dict):
-            raise PathError(f"{at}: expected an object with 'type' and its fields, got {_show(seg)}")
+            raise PathError(f"{at}: expected an object with 'type' and its fields, got {show(seg)}")
         kind = seg.get("type")
         if not isinstance(kind, str) or kind not in SEGMENT_KEYS:
-            raise PathError(f"{at}: 'type' must be 'straight' or 'arc', got {_show(kind)}")
-        _check_keys(seg, SEGMENT_KEYS[kind], at)
+            raise PathError(f"{at}: 'type' must be 'straight' or 'arc', got {show(kind)}")
+        check_keys(seg, SEGMENT_KEYS[kind], at)
         if kind == "straight":
             total += _number(seg, "length", at, 0.0, STRAIGHT_MAX, "m", lo_open=True)
         else:
             if "radius" in seg and isinstance(seg["radius"], numbers.Real) and not isinstance(seg["radius"], bool) \
                     and math.isfinite(seg["radius"]) and 0 < seg["radius"] < r_min:
-                raise PathError(f"{at}: an arc of radius {_fmt(seg['radius'])} m is too tight for a path "
-                                f"{_fmt(width)} m wide (at least {r_min:g} m: width / 2 + {BORDER_ZONE:g} m)")
+                raise PathError(f"{at}: an arc of radius {fmt_number(seg['radius'])} m is too tight for a path "
+                                f"{fmt_number(width)} m wide (at least {r_min:g} m: width / 2 + {BORDER_ZONE:g} m)")
             radius = _number(seg, "radius", at, r_min, RADIUS_MAX, "m")
             angle = _number(seg, "angle_deg", at, 0.0, 360.0, "degrees", lo_open=True)
             if seg.get("turn") not in ("left", "right"):
-                raise PathError(f"{at}: 'turn' must be 'left' or 'right', got {_show(seg.get('turn'))}")
+                raise PathError(f"{at}: 'turn' must be 'left' or 'right', got {show(seg.get('turn'))}")
             total += radius * math.radians(angle)
     if not LENGTH_RANGE[0] <= total <= LENGTH_RANGE[1]:
-        raise PathError(f"{where}: the segments add up to {total:.1f} m; a path loop is {_fmt(LENGTH_RANGE[0])} to "
-                        f"{_fmt(LENGTH_RANGE[1])} m long")
+        raise PathError(f"{where}: the segments add up to {total:.1f} m; a path loop is {fmt_number(LENGTH_RANGE[0])} to "
+                        f"{fmt_number(LENGTH_RANGE[1])} m long")
 
 
 def path_from_spec(spec, width: float | None = None, ref: str | None = None, style: str | None = None) -> SidewalkPath:
     """A validated path from its JSON object; `width` overrides the file's."""
     if not isinstance(spec, dict):
-        raise PathError(f"a path must be a JSON object with {', '.join(PATH_KEYS)}, got {_show(spec)}")
-    _check_keys(spec, PATH_KEYS, "path")
+        raise PathError(f"a path must be a JSON object with {', '.join(PATH_KEYS)}, got {show(spec)}")
+    check_keys(spec, PATH_KEYS, "path")
     name = spec.get("name", "unnamed")
     if not isinstance(name, str) or not name or len(name) > MAX_NAME or not name.isprintable():
         raise PathError(f"path: 'name' must be a non-empty line of at most {MAX_NAME} printable characters, got "
-                        f"{_show(name)}")
+                        f"{show(name)}")
     where = f"path '{name}'"
     style = style or spec.get("style", "park")
     if not isinstance(style, str) or style not in STYLES:
-        raise PathError(f"{where}: 'style' must be one of {', '.join(STYLES)}, got {_show(style)}")
+        raise PathError(f"{where}: 'style' must be one of {', '.join(STYLES)}, got {show(style)}")
     w = check_width(width, where) if width is not None else _number(spec, "width", where, *WIDTH_RANGE, "m")
     _check_segments(spec.get("segments"), w, where)
     segments = chain_segments(spec["segments"])
@@ -256,17 +236,17 @@ def load_path(ref, width: float | None = None) -> SidewalkPath:
     if isinstance(ref, dict):
         return path_from_spec(ref, width)
     if not isinstance(ref, (str, FilePath)):
-        raise PathError(f"a path is an object, a preset name, procedural:SEED or a file, got {_show(ref)}")
+        raise PathError(f"a path is an object, a preset name, procedural:SEED or a file, got {show(ref)}")
     ref = str(ref)
     if ref.startswith("procedural:"):
         text = ref.split(":", 1)[1]
         if not (text.isascii() and text.isdigit()) or len(text) > 19 or int(text) > MAX_SEED:
-            raise PathError(f"{_show(ref)}: the seed of a procedural path must be an integer from 0 to {MAX_SEED}")
+            raise PathError(f"{show(ref)}: the seed of a procedural path must be an integer from 0 to {MAX_SEED}")
         return path_from_spec(procedural_spec(int(text), width), ref=ref)
     if "/" not in ref and not ref.endswith(".json"):
         names = preset_names()
         if ref not in names:
-            raise PathError(f"unknown path preset {_show(ref)} (presets: {', '.join(names)}; or a .json file or "
+            raise PathError(f"unknown path preset {show(ref)} (presets: {', '.join(names)}; or a .json file or "
                             f"procedural:SEED)")
         return path_from_spec(read_json(PATHS_DIR / f"{ref}.json", "path", error=PathError), width, ref=ref)
     data = read_json(FilePath(ref), "path", error=PathError)

@@ -9,7 +9,7 @@ same row. At the default 336x188 per camera (2x2-averaged, the network's 94x168)
     vertical field of view 56 deg, horizontal 2 * atan(tan(28 deg) * 336 / 188) = 87.1 deg
     focal length 94 / tan(28 deg) = 176.8 px (88.4 px at 168x94); disparity 21.2 px at 1 m, 4.2 px at 5 m
 
-Each image is composed in three layers, as the highway's (sim/renderer.py): the backdrop (sky gradient, a
+Each image is composed in three layers, as the highway's (sim/highway/renderer.py): the backdrop (sky gradient, a
 distant skyline that turns with the car, the grass), the ground painted as exact projected polygons
 (sim/ground_painter.py) and the objects painted far to near (sim/sidewalk/painter.py).
 """
@@ -22,12 +22,12 @@ import numpy as np
 
 from sim.camera import CameraConfig
 
-from .layout import Layout
-from .look import SidewalkLook, make_look
-from .ground import StereoGroundPainter
-from .painter import PieceSet, StereoObjectPainter, face_colours
-from .scenery import DETAIL, GROUND, GROUND_BASE, build_scenery, lead_pieces
-from .shapes import concat
+from sim.sidewalk.layout import Layout
+from sim.sidewalk.look import SidewalkLook, make_look
+from sim.sidewalk.ground import StereoGroundPainter
+from sim.sidewalk.painter import PieceSet, StereoObjectPainter, face_colours
+from sim.sidewalk.scenery import DETAIL, GROUND, GROUND_BASE, build_scenery, lead_pieces
+from sim.sidewalk.shapes import concat
 
 BASELINE = 0.12           # [m] between the two cameras' centres (ZED: 120 mm)
 EYE_HEIGHT = 0.24         # [m] above the ground

@@ -7,9 +7,9 @@ import math
 import cv2
 import numpy as np
 
-from .car import CAR
-from .layout import Layout
-from .shapes import rectangle
+from sim.sidewalk.car import CAR
+from sim.sidewalk.layout import Layout
+from sim.sidewalk.shapes import rectangle
 
 SHIFT = 3    # cv2 fixed-point bits
 COLOURS = {"grass": (96, 140, 70), "path": (200, 196, 186), "edge": (120, 118, 112), "hedge": (35, 90, 35),

@@ -1,4 +1,4 @@
-"""The exact truth record of the sidewalk world (SIDEWALK's fields, shm_bridge/worlds/sidewalk.py), from geometry.
+"""The exact truth record of the sidewalk world (SIDEWALK's fields, core/worlds/sidewalk.py), from geometry.
 
 The car is integrated in path coordinates (s, d, heading), so its pose is exact; the body's corners are
 projected onto the path (Track.frenet) to measure its clearance to the borders; obstacles and the lead car are
@@ -10,13 +10,13 @@ import math
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import SIDEWALK
+from core.worlds.sidewalk import SIDEWALK
 
 from sim.collision import overlaps
 
-from .car import CAR, CarParams, CarState
-from .layout import BORDER_CAP, Layout
-from .lead import LeadState
+from sim.sidewalk.car import CAR, CarParams, CarState
+from sim.sidewalk.layout import BORDER_CAP, Layout
+from sim.sidewalk.lead import LeadState
 
 GAP_CAP = 30.0          # [m] obstacle_gap and lead_gap when there is nothing within reach
 NEAR = 3.0              # [m] obstacle_near below this gap

@@ -16,17 +16,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
+from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
 
 from sim.collision import overlaps
 
-from .car import CAR, CarState, step_car
-from .errors import PathError
-from .layout import Layout, build_layout
-from .lead import START_GAP, LeadCar
-from .paths import SidewalkPath, load_path
-from .stereo import StereoConfig, StereoRenderer
-from .truth import truth_record
+from sim.sidewalk.car import CAR, CarState, step_car
+from sim.sidewalk.errors import PathError
+from sim.sidewalk.layout import Layout, build_layout
+from sim.sidewalk.lead import START_GAP, LeadCar
+from sim.sidewalk.paths import SidewalkPath, load_path
+from sim.sidewalk.stereo import StereoConfig, StereoRenderer
+from sim.sidewalk.truth import truth_record
 
 NEUTRAL = (0.5, 0.5)    # steer straight, motor stopped
 

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .trackfile import MAX_LANES, TrackError, build_segments, chain_segments, track_from_spec
+from sim.track.trackfile import MAX_LANES, TrackError, build_segments, chain_segments, track_from_spec
 
 
 def close_with_straights(specs: list[dict], unknown: tuple[int, int]) -> list[dict] | None:

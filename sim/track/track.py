@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from shm_bridge.worlds.highway import lane_centres, markings
+from core.worlds.highway import lane_centres, markings
 
-from .segments import Segment, wrap_angle
+from sim.track.segments import Segment, wrap_angle
 
 VERGE_WIDTH = 2.0  # [m] shoulder beside each edge; the on-marking system covers it (docs/affordances.md)
 

@@ -5,11 +5,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controller import ChenController
+from controller.highway import ChenController
 from sim.track import Track
-from sim.traffic import ScriptedTraffic
-from sim.truth import affordances
-from sim.vehicle import VehicleState, step_vehicle
+from sim.highway.traffic import ScriptedTraffic
+from sim.highway.truth import affordances
+from sim.highway.vehicle import VehicleState, step_vehicle
 
 DT = 0.1  # [s] the controller's 10 Hz frame
 

@@ -10,14 +10,14 @@ import math
 import numpy as np
 import pytest
 
-from controller import ChenController, ChenParams
-from shm_bridge.worlds.highway import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
+from controller.highway import ChenController, ChenParams
+from core.worlds.highway import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
 from sim.track import load_track
-from sim.traffic import ScriptedTraffic
-from sim.truth import affordances
-from sim.vehicle import VehicleState
+from sim.highway.traffic import ScriptedTraffic
+from sim.highway.truth import affordances
+from sim.highway.vehicle import VehicleState
 
-from .drive_helpers import collided, drive
+from tests.controller.drive_helpers import collided, drive
 
 LOCK = 0.541052   # [rad] the doc's steering gain divisor
 ROAD = 8.0        # [m] the doc's road_width

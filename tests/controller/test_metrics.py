@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from controller.metrics import ClosedLoopMetrics
+from controller.highway.metrics import ClosedLoopMetrics
 
 
 def feed(m, steps):

@@ -9,7 +9,7 @@ import torch
 
 from perception.datasets import FrameDataset, FrameStream
 from perception.shards import DatasetError
-from shm_bridge.worlds.highway import HIGHWAY, PAPER_INDICATORS, label_set
+from core.worlds.highway import HIGHWAY, PAPER_INDICATORS, label_set
 
 
 @pytest.fixture(scope="module")

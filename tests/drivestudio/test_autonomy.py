@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from drivestudio.autonomy import percentage_autonomy
+from drivestudio.worlds.sidewalk.autonomy import percentage_autonomy
 from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 from perception.shards import Dataset
-from shm_bridge import worlds
+from core import worlds
 
 REPO = Path(__file__).resolve().parents[2]
 SIDEWALK = worlds.get("sidewalk")
@@ -60,7 +60,7 @@ def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_p
 
 
 def test_a_highway_model_is_refused_in_one_line(tmp_path):
-    from shm_bridge.worlds.highway import HIGHWAY
+    from core.worlds.highway import HIGHWAY
     model = Regressor(make_spec("gist", HIGHWAY))
     save_checkpoint(tmp_path / "gist.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
     r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "gist.pt"),

@@ -152,7 +152,7 @@ def test_bad_input_gets_one_line_and_status_2(fixture, case):
 
 def test_a_kill_during_a_save_leaves_nothing_behind_for_long(tmp_path):
     """A temporary of a writer that died (kill -9 during a checkpoint save) is removed by the next write there."""
-    from perception.files import atomic_write, temporary_for
+    from core.files import atomic_write, temporary_for
     target = tmp_path / "model.pt"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -165,7 +165,7 @@ def test_a_kill_during_a_save_leaves_nothing_behind_for_long(tmp_path):
 
 
 def test_write_never_replaces_a_special_file(tmp_path):
-    from perception.files import OutputError, atomic_write
+    from core.files import OutputError, atomic_write
     os.mkfifo(tmp_path / "pipe")
     with pytest.raises(OutputError, match="FIFO"):
         atomic_write(tmp_path / "pipe", b"data")

@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 import torch
 
-from drivestudio.benchmark import DEFAULT_SUITE, ModelSpec, RunOptions, SuiteError, driving_score, load_suite
-from drivestudio.benchmark.models import parse_model
-from drivestudio.benchmark.route import RouteMetrics, run_route
-from drivestudio.benchmark.suite import parse_suite
+from drivestudio.worlds.highway.benchmark import DEFAULT_SUITE, ModelSpec, RunOptions, SuiteError, driving_score, load_suite
+from drivestudio.worlds.highway.benchmark.models import parse_model
+from drivestudio.worlds.highway.benchmark.route import RouteMetrics, run_route
+from drivestudio.worlds.highway.benchmark.suite import parse_suite
 from drivestudio.errors import UsageError
 from perception.checkpoint import save_checkpoint
 from perception.models import build
-from shm_bridge.worlds.highway import HIGHWAY, NORMALISATION
+from core.worlds.highway import HIGHWAY, NORMALISATION
 
 ROUTE_A = {"name": "a", "track": "procedural:11", "lanes": 3, "cars": 20, "seed": 3, "start_lane": 1,
            "seconds": 10}
@@ -186,7 +186,7 @@ def test_model_options_after_an_at_sign():
 def test_the_cli_refuses_bad_input_in_one_line_before_driving(tmp_path, blind):
     suite = write_suite(tmp_path / "s.json", [ROUTE_A])
     sidewalk = tmp_path / "z2color.pt"
-    from shm_bridge import worlds as declared
+    from core import worlds as declared
     net = build("z2color", declared.get("sidewalk"))
     save_checkpoint(sidewalk, {"spec": net.spec, "state_dict": net.state_dict()})
     (tmp_path / "afile").write_text("x")

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from shm_bridge.worlds.highway import INDICATORS
+from core.worlds.highway import INDICATORS
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 

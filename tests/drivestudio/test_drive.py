@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import sim  # noqa: F401  registers drivestudio/Highway-v0
-from controller import ChenController
+from controller.highway import ChenController
 
 DRIVE = [sys.executable, "-m", "drivestudio", "drive"]
 WORLD = ["--track", "oval", "--lanes", "3", "--cars", "6"]
@@ -144,7 +144,7 @@ def test_a_controller_drives_the_gymnasium_environment():
 DRIVER_SCRIPT = r'''
 import sys, time
 from shm_bridge.endpoints import DriverEndpoint
-from shm_bridge.worlds.highway import Action
+from core.worlds.highway import Action
 name = sys.argv[1]
 with DriverEndpoint(name, attach_timeout=60) as ep:
     ep.driver_mode = "manual"          # an expert takes over: our (absurd) commands must not steer the car

@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from perception.overlay import (CANVAS, GREEN, HOST_Y, PX_PER_M, PURPLE, RED, YELLOW, compose, draw_topdown,
+from perception.highway.overlay import (CANVAS, GREEN, HOST_Y, PX_PER_M, PURPLE, RED, YELLOW, compose, draw_topdown,
                                 estimate_host, mean_normalised_error)
-from shm_bridge.worlds.highway import INDEX
+from core.worlds.highway import INDEX
 from sim.track import load_track
-from sim.truth import affordances
+from sim.highway.truth import affordances
 
 
 def centroid(img, colour):

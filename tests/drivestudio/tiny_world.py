@@ -21,7 +21,7 @@ from torch import nn
 
 from drivestudio.worlds import Episode, Plugin as BasePlugin
 from perception import models
-from shm_bridge.declaration import Camera, Control, Label, Moment, Quantity, WorldDeclaration
+from core.declaration import Camera, Control, Label, Moment, Quantity, WorldDeclaration
 
 H, W = 12, 20          # [px] each camera's image
 DISPARITY = 3          # [px] the right camera sees the stripe this far to the left

@@ -8,9 +8,9 @@ from drivestudio.cli import main
 from perception.checkpoint import CheckpointError, load_checkpoint, load_model, save_checkpoint
 from perception.models import build, load_trunk
 from perception.train import train
-from shm_bridge.worlds.highway import HIGHWAY, label_set
+from core.worlds.highway import HIGHWAY, label_set
 
-from .frames import dataset, gist_checkpoint, tiny_config
+from tests.perception.frames import dataset, gist_checkpoint, tiny_config
 
 
 class _Payload:

@@ -16,7 +16,7 @@ from perception.predictor import load_predictor
 from perception.shards import Dataset
 from perception.train import curve_paths
 
-from .frames import dataset
+from tests.perception.frames import dataset
 
 REPO = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO),

@@ -10,9 +10,9 @@ from drivestudio.cli import main
 from perception.datasets import FrameDataset
 from perception.evaluate import TABLE3, evaluate
 from perception.predictor import load_predictor
-from shm_bridge.worlds.highway import PAPER_INDICATORS
+from core.worlds.highway import PAPER_INDICATORS
 
-from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
+from tests.perception.frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
 
 
 @pytest.fixture(scope="module")

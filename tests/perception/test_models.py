@@ -5,7 +5,7 @@ import torch
 
 from perception.gist import GistDescriptor, gabor_bank
 from perception.models import IMAGENET_MEAN, build, describe, make_spec
-from shm_bridge.worlds.highway import HIGHWAY, label_set
+from core.worlds.highway import HIGHWAY, label_set
 
 LABEL_SETS = [label_set(), label_set(fast=True), label_set(fast=True, lanes_left=True)]
 

@@ -8,7 +8,7 @@ import torch
 from perception.models import Regressor, make_spec
 from perception.multinet import (balanced_batches, summarise_trials, t95, train_loss, validation_loss)
 from perception.z2color import Z2Color
-from shm_bridge import worlds
+from core import worlds
 
 SIDEWALK = worlds.get("sidewalk")
 

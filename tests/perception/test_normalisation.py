@@ -5,11 +5,11 @@ import pytest
 import torch
 
 from perception.models import build
-from shm_bridge.worlds.highway import HIGHWAY, INACTIVE, INDICATORS, NORMALISATION, label_set
+from core.worlds.highway import HIGHWAY, INACTIVE, INDICATORS, NORMALISATION, label_set
 
 normalise, denormalise = HIGHWAY.normalise, HIGHWAY.denormalise
 
-from .frames import dataset
+from tests.perception.frames import dataset
 
 
 def test_label_sets_are_13_14_15():

@@ -5,9 +5,9 @@ import pytest
 
 from perception.datasets import FrameDataset
 from perception.predictor import load_predictor
-from shm_bridge.worlds.highway import HIGHWAY, INDICATORS, label_set
+from core.worlds.highway import HIGHWAY, INDICATORS, label_set
 
-from .frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint
+from tests.perception.frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def test_outputs_are_denormalised_indicators(frame):
 
 
 def test_the_chen_driver_places_outputs_into_the_estimate_record(frame):
-    from drivestudio.worlds.highway import ChenDriver
+    from drivestudio.worlds.highway.plugin import ChenDriver
     predict = load_predictor(gist15_checkpoint())
     everything = predict.named(frame)
     assert set(everything) == set(INDICATORS) | {"lanes_left"}
@@ -70,7 +70,7 @@ def test_bad_frames_are_refused():
 
 
 def test_the_closed_loop_driver_accepts_it(frame):
-    from drivestudio.worlds.highway import ChenDriver
+    from drivestudio.worlds.highway.plugin import ChenDriver
 
     driver = ChenDriver(load_predictor(gist_checkpoint()[0]))
     action, estimate = driver.act(_percept(frame))

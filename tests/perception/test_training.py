@@ -8,9 +8,9 @@ from perception.checkpoint import load_checkpoint
 from perception.datasets import FrameDataset
 from perception.models import family
 from perception.train import TrainConfig, curve_paths, euclidean_loss, train
-from shm_bridge.worlds.highway import label_set
+from core.worlds.highway import label_set
 
-from .frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
+from tests.perception.frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
 
 
 def test_paper_settings_are_the_defaults():

@@ -1,7 +1,7 @@
 """What the bridge tests publish: the highway's declaration (or the same world with tiny frames) and records."""
 import numpy as np
 
-from shm_bridge.worlds.highway import HIGHWAY
+from core.worlds.highway import HIGHWAY
 
 TRUTH_LEN = len(HIGHWAY.truth)
 ESTIMATE_LEN = len(HIGHWAY.estimate_names)

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.worlds.highway import HIGHWAY, Action
+from core.worlds.highway import HIGHWAY, Action
 
 from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 

@@ -15,7 +15,7 @@ import pytest
 from shm_bridge import layout
 from shm_bridge.endpoints import (ActionMsg, BridgeError, BridgeTimeout, DriverEndpoint, PeerGone, ProtocolMismatch,
                                   WorldEndpoint)
-from shm_bridge.worlds.highway import HIGHWAY, Action
+from core.worlds.highway import HIGHWAY, Action
 
 from tests.shm_bridge.processes import REPO
 from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
@@ -254,7 +254,7 @@ def test_a_driver_ends_the_run_in_order(name):
 
 
 def test_behavioural_mode_is_a_shared_flag(name):
-    from shm_bridge import worlds
+    from core import worlds
     with WorldEndpoint(name, worlds.get("sidewalk")) as world, DriverEndpoint(name, attach_timeout=1) as driver:
         assert world.behaviour == driver.behaviour == "direct"
         driver.behaviour = "furtive"

@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shm_bridge import layout, worlds
+from core import worlds
+from shm_bridge import layout
 from shm_bridge.layout import (ACTION_FIELDS, CAMERA_FIELDS, CONTROL_FIELDS, NAME_FIELDS, SLOT_FIELDS, Layout,
                                layout_for)
-from shm_bridge.worlds.highway import HIGHWAY, INDICATORS
+from core.worlds.highway import HIGHWAY, INDICATORS
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "shm-protocol.md"
 STRUCTS = (("ds_control", CONTROL_FIELDS, layout.FIXED_SIZE), ("ds_camera", CAMERA_FIELDS, layout.CAMERA_ENTRY),

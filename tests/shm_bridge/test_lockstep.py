@@ -12,7 +12,7 @@ import pytest
 
 from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from shm_bridge.worlds.highway import HIGHWAY, Action
+from core.worlds.highway import HIGHWAY, Action
 
 from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
@@ -139,7 +139,7 @@ def test_the_documented_c_driver_refuses_another_world(name, tmp_path):
     (tmp_path / "ds_bridge.h").write_text(layout.c_header())
     (tmp_path / "ds_driver.c").write_text(example)
     subprocess.run(["cc", "-std=c11", "-O2", "-Wall", "-o", "ds_driver", "ds_driver.c"], cwd=tmp_path, check=True)
-    from shm_bridge import worlds
+    from core import worlds
     with WorldEndpoint(name, worlds.get("sidewalk")):
         r = subprocess.run([str(tmp_path / "ds_driver"), name], capture_output=True, text=True, timeout=20)
     assert r.returncode == 2 and "does not serve a highway" in r.stderr

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEndpoint
-from shm_bridge.signals import exit_on_sigterm
-from shm_bridge.worlds.highway import HIGHWAY, Action
+from core.signals import exit_on_sigterm
+from core.worlds.highway import HIGHWAY, Action
 
 from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
@@ -224,7 +224,7 @@ def test_a_sigterm_whose_exception_a_finaliser_swallowed_still_ends_the_loop():
     in ..."); check() raises it at the loop's next step (a training run once ran on for minutes after SIGTERM)."""
     import weakref
 
-    from shm_bridge.signals import Terminated, check
+    from core.signals import Terminated, check
 
     class Thing:
         pass
@@ -243,7 +243,7 @@ def test_a_sigterm_whose_exception_a_finaliser_swallowed_still_ends_the_loop():
 
 
 def test_in_poll_mode_a_sigterm_is_raised_at_the_next_check_only():
-    from shm_bridge.signals import Terminated, check
+    from core.signals import Terminated, check
 
     with pytest.raises(Terminated):
         with exit_on_sigterm(poll=True):

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from shm_bridge.worlds.sidewalk import SIDEWALK
+from core.worlds.sidewalk import SIDEWALK
 from sim.sidewalk.layout import Border, make_obstacle
 from sim.sidewalk.paths import load_path
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld

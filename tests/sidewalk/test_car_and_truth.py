@@ -4,12 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from shm_bridge.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, SIDEWALK
+from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, SIDEWALK
 from sim.sidewalk.car import CarState
 from sim.sidewalk.layout import OBSTACLE_SIZES
 from sim.sidewalk.truth import GAP_CAP
 
-from .helpers import STRAIGHT, world
+from tests.sidewalk.helpers import STRAIGHT, world
 
 I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from controller.sidewalk import CorrectionRule, PoorDriver, SidewalkExpert, SidewalkMetrics
-from drivestudio.worlds.sidewalk import Supervisor
+from drivestudio.worlds.sidewalk.plugin import Supervisor
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 
-from .helpers import record
+from tests.sidewalk.helpers import record
 
 SAME = ((0.5, 0.6), (0.5, 0.6))   # driver and expert agree
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from controller.sidewalk import SidewalkExpert, SidewalkMetrics
-from shm_bridge.worlds.sidewalk import SIDEWALK
+from core.worlds.sidewalk import SIDEWALK
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 
 I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}

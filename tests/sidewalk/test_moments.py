@@ -10,7 +10,7 @@ import pytest
 
 from perception.datasets import FrameDataset
 from perception.shards import Dataset, image_column
-from shm_bridge.worlds.sidewalk import MODES
+from core.worlds.sidewalk import MODES
 
 GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "90",
             "--episode-frames", "30", "--width", "168", "--height", "94", "--paths", "park,procedural:3",

@@ -9,7 +9,7 @@ from sim.sidewalk.errors import PathError
 from sim.sidewalk.paths import (LENGTH_RANGE, PROCEDURAL_LENGTH, WIDTH_RANGE, load_path, min_radius, path_from_spec,
                                 preset_names, procedural_spec)
 
-from .helpers import stadium
+from tests.sidewalk.helpers import stadium
 
 
 def test_presets_are_closed_loops_of_path_size():
@@ -45,10 +45,10 @@ def test_the_width_option_overrides_and_is_checked():
 
 @pytest.mark.parametrize("change, message", [
     (lambda s: s["segments"].pop(), "does not close"),
-    (lambda s: s.update(width=3.4), "'width' must be from 1.5 to 3"),
-    (lambda s: s.update(width=1.0), "'width' must be from 1.5 to 3"),
+    (lambda s: s.update(width=3.4), "'width' must be a number from 1.5 to 3"),
+    (lambda s: s.update(width=1.0), "'width' must be a number from 1.5 to 3"),
     (lambda s: s["segments"][1].update(radius=2.0), "too tight"),
-    (lambda s: s["segments"][0].update(length=float("nan")), "must be a number"),
+    (lambda s: s["segments"][0].update(length=float("nan")), "must be a positive number"),
     (lambda s: s.update(style="beach"), "'style' must be one of"),
     (lambda s: s.update(lanes=2), "unknown field 'lanes'"),
     (lambda s: s["segments"][1].update(turn="up"), "'turn' must be 'left' or 'right'"),

@@ -8,7 +8,7 @@ import pytest
 from sim.sidewalk.car import CarState
 from sim.sidewalk.stereo import BASELINE, EYE_FORWARD, FOV_DEG, PITCH_DEG, SIZE, StereoConfig
 
-from .helpers import world
+from tests.sidewalk.helpers import world
 
 
 def test_the_documented_geometry():

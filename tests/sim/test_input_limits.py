@@ -14,11 +14,13 @@ from pathlib import Path
 
 import pytest
 
+import core.inputs as inputs
 import sim.track.trackfile as trackfile
-from sim.scenario import MAX_CARS, MAX_SEED, MAX_SPEED, ScenarioError, load_scenario, scenario_from_dict
+from sim.highway.scenario import MAX_CARS, MAX_SEED, MAX_SPEED, ScenarioError, load_scenario, scenario_from_dict
 from sim.track import TrackError, load_track, preset_names, track_from_spec, write_track
-from sim.track.trackfile import (MAX_ANGLE_DEG, MAX_ARC_RADIUS, MAX_JSON_BYTES, MAX_JSON_DEPTH, MAX_SEGMENTS,
-                                 MAX_STRAIGHT_LENGTH, MAX_TRACK_LENGTH, parse_json_text, read_json)
+from core.inputs import MAX_JSON_BYTES, MAX_JSON_DEPTH, InputError, parse_json_text, read_json
+from sim.track.trackfile import (MAX_ANGLE_DEG, MAX_ARC_RADIUS, MAX_SEGMENTS, MAX_STRAIGHT_LENGTH,
+                                 MAX_TRACK_LENGTH)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -171,14 +173,14 @@ def finishes(call, seconds=5.0):
 
 
 def test_dev_zero_is_refused_without_reading_it():
-    refused(TrackError, lambda: finishes(lambda: read_json("/dev/zero")), "/dev/zero", "character device")
+    refused(InputError, lambda: finishes(lambda: read_json("/dev/zero")), "/dev/zero", "character device")
     refused(ScenarioError, lambda: finishes(lambda: load_scenario("/dev/zero")), "/dev/zero", "not a scenario file")
 
 
 def test_a_fifo_is_refused_without_blocking(tmp_path):
     fifo = tmp_path / "pipe.json"
     os.mkfifo(fifo)
-    refused(TrackError, lambda: finishes(lambda: read_json(fifo)), str(fifo), "FIFO")
+    refused(InputError, lambda: finishes(lambda: read_json(fifo)), str(fifo), "FIFO")
     refused(ScenarioError, lambda: finishes(lambda: load_scenario(fifo)), str(fifo), "FIFO")
 
 
@@ -186,8 +188,8 @@ def test_a_fifo_swapped_in_after_the_check_cannot_block(tmp_path, monkeypatch):
     fifo = tmp_path / "pipe.json"
     os.mkfifo(fifo)
     regular = os.stat(__file__)
-    monkeypatch.setattr(trackfile.os, "stat", lambda path: regular)  # as if the FIFO replaced a file meanwhile
-    refused(TrackError, lambda: finishes(lambda: read_json(fifo)), str(fifo), "FIFO")
+    monkeypatch.setattr(inputs.os, "stat", lambda path: regular)  # as if the FIFO replaced a file meanwhile
+    refused(InputError, lambda: finishes(lambda: read_json(fifo)), str(fifo), "FIFO")
 
 
 def test_a_directory_is_refused(tmp_path):
@@ -202,8 +204,8 @@ def test_a_file_over_the_size_limit_is_refused_unread(tmp_path, monkeypatch):
     with open(big, "wb") as f:
         f.truncate(MAX_JSON_BYTES + 1)  # sparse: nothing to write, nothing should be read
     reads = []
-    monkeypatch.setattr(trackfile.os, "read", lambda fd, n: reads.append(n) or b"")
-    refused(TrackError, lambda: read_json(big), str(big), f"at most {MAX_JSON_BYTES} bytes")
+    monkeypatch.setattr(inputs.os, "read", lambda fd, n: reads.append(n) or b"")
+    refused(InputError, lambda: read_json(big), str(big), f"at most {MAX_JSON_BYTES} bytes")
     assert reads == []
 
 
@@ -216,18 +218,18 @@ def test_no_more_than_the_limit_is_read_when_the_size_lies(tmp_path, monkeypatch
         st = list(real(fd))
         st[6] = 0
         return os.stat_result(st)
-    monkeypatch.setattr(trackfile.os, "fstat", fstat_says_empty)
+    monkeypatch.setattr(inputs.os, "fstat", fstat_says_empty)
     reads = []
     real_read = os.read
-    monkeypatch.setattr(trackfile.os, "read", lambda fd, n: reads.append(n) or real_read(fd, n))
-    refused(TrackError, lambda: read_json(big), str(big), f"at most {MAX_JSON_BYTES} bytes")
+    monkeypatch.setattr(inputs.os, "read", lambda fd, n: reads.append(n) or real_read(fd, n))
+    refused(InputError, lambda: read_json(big), str(big), f"at most {MAX_JSON_BYTES} bytes")
     assert sum(reads) <= MAX_JSON_BYTES + 1
 
 
 def test_text_that_is_not_utf8_is_refused(tmp_path):
     path = tmp_path / "latin1.json"
     path.write_bytes('{"name": "Fahrbahn über"}'.encode("latin-1"))
-    refused(TrackError, lambda: read_json(path), str(path), "not UTF-8", "0xfc")
+    refused(InputError, lambda: read_json(path), str(path), "not UTF-8", "0xfc")
 
 
 def test_a_utf8_byte_order_mark_is_accepted(tmp_path):
@@ -240,7 +242,7 @@ def test_a_utf8_byte_order_mark_is_accepted(tmp_path):
                                   "[" * (MAX_JSON_DEPTH + 1) + "]" * (MAX_JSON_DEPTH + 1)])
 def test_deep_nesting_is_refused_without_recursion(tmp_path, text):
     path = write(tmp_path / "deep.json", text)
-    refused(TrackError, lambda: read_json(path), str(path), f"nested more than {MAX_JSON_DEPTH} levels")
+    refused(InputError, lambda: read_json(path), str(path), f"nested more than {MAX_JSON_DEPTH} levels")
 
 
 def test_nesting_up_to_the_limit_is_parsed():
@@ -267,8 +269,8 @@ def test_numbers_json_should_not_hold_are_refused_by_the_parser(tmp_path, text, 
 
 
 def test_empty_and_malformed_files(tmp_path):
-    refused(TrackError, lambda: read_json(write(tmp_path / "e.json", "")), "empty")
-    refused(TrackError, lambda: read_json(write(tmp_path / "m.json", "{not json")), "malformed JSON at line 1")
+    refused(InputError, lambda: read_json(write(tmp_path / "e.json", "")), "empty")
+    refused(InputError, lambda: read_json(write(tmp_path / "m.json", "{not json")), "malformed JSON at line 1")
 
 
 def test_odd_file_names_stay_on_one_line(tmp_path):

@@ -4,12 +4,12 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from shm_bridge.worlds.highway import Action
+from core.worlds.highway import Action
 from sim.collision import overlaps
-from sim.errors import TrafficError
-from sim.sumo_network import network_for
+from sim.highway.errors import TrafficError
+from sim.highway.sumo_network import network_for
 from sim.track import load_track
-from sim.world import World, WorldConfig
+from sim.highway.world import World, WorldConfig
 
 
 @pytest.fixture(autouse=True)
@@ -53,7 +53,7 @@ def test_network_is_cached_and_no_temporary_files_remain(tmp_path):
 
 
 def test_failed_netconvert_is_a_clear_error_and_leaves_nothing(tmp_path, monkeypatch):
-    import sim.sumo_network as sn
+    import sim.highway.sumo_network as sn
     monkeypatch.setattr(sn, "_netconvert", lambda: "/bin/false")
     with pytest.raises(TrafficError, match="SUMO cannot build a network for track 'oval'"):
         network_for(load_track("oval", lanes=3))

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from shm_bridge.worlds.highway import INACTIVE, INDICATORS, indicators_to_dict
+from core.worlds.highway import INACTIVE, INDICATORS, indicators_to_dict
 from sim.track import load_track
-from sim.truth import affordances, ground_truth
+from sim.highway.truth import affordances, ground_truth
 
 # oval: straight 500 m from s = 0, then a 150 m radius half circle (s 500..971.2), straight, half circle
 S_STRAIGHT = 100.0

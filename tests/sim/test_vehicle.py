@@ -4,10 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from shm_bridge.worlds.highway import STEER_LOCK_RAD, Action
+from core.worlds.highway import STEER_LOCK_RAD, Action
 from sim.collision import overlaps
 from sim.track import load_track
-from sim.vehicle import VehicleParams, VehicleState, step_vehicle
+from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,3 @@
+from drivestudio.worlds.highway.plugin import Plugin
+
+__all__ = ["Plugin"]

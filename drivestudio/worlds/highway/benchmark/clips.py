@@ -1,0 +1,271 @@
+"""Why it crashed: a short clip of every collision and off-road event, and the indicator most to blame.
+
+A route keeps a ring buffer of its last CLIP_BEFORE seconds of StepRecords. When the host car starts touching
+another car, or its centre starts being beyond a road edge, the buffer (and the next CLIP_AFTER seconds) becomes an
+mp4: each frame is the box overlay of truth against estimate (drivestudio/worlds/highway/overlays.py, docs/overlays.md) over a
+text panel with the Chen controller's state and command. The indicator whose error, divided by its error-bar scale
+(perception/highway/overlay.py ERROR_SCALE: 0.2 rad, 2 m for the markings, 20 m for the gaps; one lane for lanes_left),
+was largest on average over the seconds before the event is named in the panel and in the leaderboard.
+
+The controller's state is read from a shadow Chen controller fed exactly what the driver's controller was fed
+(the estimate record, NaN as 0, and the speed): the controller is deterministic, so the shadow holds the same state
+whether the driver ran in this process or in another one over the bridge. Its command is checked against the
+action the driver sent every step (`agreed`).
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS
+
+from drivestudio.worlds.highway.benchmark.models import ModelSpec
+from drivestudio.worlds.highway.benchmark.suite import Route
+
+PANEL_HEIGHT = 118
+LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
+GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller reacts to cars within 20 m (rule 1)
+                           # and 15 m (rule 2; its follow speed is 97 % of v_max at 30 m), so 60 read as 40 is no fault
+_I_LANES_LEFT_EST = HIGHWAY.estimate_names.index("lanes_left")
+_I_SPEED, _I_LANES = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
+
+
+@dataclass
+class Entry:
+    """One step in the ring buffer: the observation, the command applied on it, the estimate and the controller
+    state the command came from."""
+
+    obs: object
+    action: np.ndarray
+    estimate: np.ndarray
+    control: dict | None
+
+
+@dataclass
+class _Pending:
+    event: str
+    index: int                     # the route's clip number
+    before: list
+    after: list = field(default_factory=list)
+
+
+class ShadowController:
+    """The driver's Chen controller, replayed on the world side from the estimates the driver reported."""
+
+    def __init__(self):
+        self.ctrl = None
+        self.agreed = True
+
+    def __call__(self, rec) -> dict:
+        from controller.highway import ChenController
+        record = rec.obs.record
+        lanes = int(record[_I_LANES])
+        if self.ctrl is None or self.ctrl.lanes != lanes:
+            self.ctrl = ChenController(lanes)
+        est = np.nan_to_num(np.asarray(rec.estimate, dtype=np.float64)[:len(INDICATORS)], nan=0.0)
+        action = self.ctrl.act(est, float(record[_I_SPEED])).as_array()
+        same = bool(np.allclose(action, np.asarray(rec.action, dtype=np.float64), rtol=0, atol=1e-9))
+        self.agreed &= same
+        c = self.ctrl
+        follow = c.follow_speed(est[INDEX["dist_MM"]]) if (c.state == "keep" and
+                                                          est[INDEX["dist_MM"]] < c.params.follow_gap) else None
+        return {"state": c.state, "left_clear": c.left_clear, "right_clear": c.right_clear,
+                "steer_trend": round(c.steer_trend, 4), "follow_mps": None if follow is None else round(follow, 2),
+                "agrees": same}
+
+
+def largest_error(entries: list[Entry]) -> dict | None:
+    """The indicator whose error divided by its error-bar scale was largest on average over `entries`
+    (None when the estimates are exact: the oracle)."""
+    from perception.highway.overlay import ERROR_SCALE
+    rows = [(e.obs.truth, e.estimate) for e in entries if e.estimate is not None and
+            np.isfinite(e.estimate[:len(PAPER_INDICATORS)]).all()]
+    if not rows:
+        return None
+    names = list(PAPER_INDICATORS)
+    truth = np.array([t.indicators[:len(names)] for t, _ in rows])
+    est = np.array([e[:len(names)] for _, e in rows])
+    gaps = [i for i, n in enumerate(names) if n.startswith("dist_")]
+    truth[:, gaps] = np.minimum(truth[:, gaps], GAP_RELEVANT)
+    est[:, gaps] = np.minimum(est[:, gaps], GAP_RELEVANT)
+    err = np.abs(est - truth)
+    scales = np.array([ERROR_SCALE[n] for n in names])
+    if all(np.isfinite(e[_I_LANES_LEFT_EST]) for _, e in rows):
+        names.append("lanes_left")
+        ll = np.abs(np.array([e[_I_LANES_LEFT_EST] - t.lanes_left for t, e in rows]))
+        err = np.column_stack([err, ll])
+        scales = np.append(scales, LANES_LEFT_SCALE)
+    norm = err / scales
+    mean = norm.mean(axis=0)
+    if not mean.max() > 0:
+        return None
+    order = np.argsort(-mean, kind="stable")
+    return {"indicator": names[order[0]], "normalised": round(float(mean[order[0]]), 3),
+            "mean_error": round(float(err[:, order[0]].mean()), 3), "peak_normalised": round(float(norm[:, order[0]]
+                                                                                                   .max()), 3),
+            "ranking": [[names[i], round(float(mean[i]), 3)] for i in order[:4]]}
+
+
+def describe_contact(entries: list[Entry], track) -> str:
+    """Who touched whom at a collision: the nearest other car, where it was and whether it or the host changed
+    lanes in the second before."""
+    last = entries[-1].obs.truth
+    cars = np.asarray(last.cars, dtype=np.float64).reshape(-1, 5)
+    if not len(cars):
+        return "no other car near"
+    ego_s, ego_d = float(last.ego[3]), float(last.ego[4])
+    gaps = track.gap(ego_s, cars[:, 3])
+    lateral = cars[:, 4] - ego_d
+    i = int(np.argmin(np.hypot(gaps, lateral * 2.0)))
+    gap, lat = float(gaps[i]), float(lateral[i])
+    host_lane, car_lane = track.lane_of(ego_d), track.lane_of(float(cars[i, 4]))
+    where = "ahead" if gap > 1.0 else "behind" if gap < -1.0 else "alongside"
+    side = "left" if lat > 0 else "right"
+    text = f"a car {abs(gap):.1f} m {where}, {abs(lat):.1f} m to the {side}"
+    text += " in the host's lane" if car_lane == host_lane else \
+        f" in lane {car_lane + 1} (host in lane {host_lane + 1}; 1 = leftmost)"
+    back = entries[max(0, len(entries) - 11)].obs.truth   # a second earlier
+    back_cars = np.asarray(back.cars, dtype=np.float64).reshape(-1, 5)
+    changed = []
+    if track.lane_of(float(back.ego[4])) != host_lane or abs(float(back.ego[4]) - ego_d) > 1.0:
+        changed.append("the host was changing lanes")
+    if len(back_cars) == len(cars) and (track.lane_of(float(back_cars[i, 4])) != car_lane
+                                        or abs(float(back_cars[i, 4]) - float(cars[i, 4])) > 1.0):
+        changed.append("the other car was changing lanes")
+    if where == "ahead" and car_lane == host_lane and not changed:
+        changed.append("the host ran into it")
+    elif where == "behind" and not changed:
+        changed.append("it ran into the host")
+    return text + ("; " + ", ".join(changed) if changed else "")
+
+
+class ClipRecorder:
+    """on_step callback of a route: the ring buffer, event detection and the clips (at most opts.clips)."""
+
+    def __init__(self, world, route: Route, model: ModelSpec, clip_dir: Path | None, opts):
+        self.world, self.route, self.model = world, route, model
+        self.dir = clip_dir
+        self.limit = opts.clips if clip_dir is not None else 0
+        self.before_n = int(round(opts.clip_before / world.dt))
+        self.after_n = int(round(opts.clip_after / world.dt))
+        self.buffer: deque = deque(maxlen=self.before_n + 1)
+        self.shadow = ShadowController()
+        self.pending: list[_Pending] = []
+        self.clips: list[dict] = []
+        self.skipped = 0
+        self._events = 0
+        self._was = {"collision": False, "off-road": False}
+
+    @property
+    def agreed(self) -> bool:
+        return self.shadow.agreed
+
+    def __call__(self, rec) -> None:
+        self._push(Entry(rec.obs, np.asarray(rec.action, dtype=np.float64),
+                         np.asarray(rec.estimate, dtype=np.float64), self.shadow(rec)))
+
+    def _push(self, entry: Entry) -> None:
+        self.buffer.append(entry)
+        for p in list(self.pending):
+            p.after.append(entry)
+            if len(p.after) >= self.after_n:
+                self._write(p)
+        obs = entry.obs
+        for event, now in (("collision", bool(obs.collision)), ("off-road", bool(obs.off_road))):
+            if now and not self._was[event]:
+                self._events += 1
+                if len(self.clips) + len(self.pending) < self.limit:
+                    self.pending.append(_Pending(event, self._events, list(self.buffer)))
+                else:
+                    self.skipped += 1
+            self._was[event] = now
+
+    def finish(self, last_obs) -> list[dict]:
+        """The route's last observation (which no action followed) may hold an event too; then every clip still
+        waiting for its after-seconds is written with what there is."""
+        self._push(Entry(last_obs, np.full(3, np.nan), np.full(len(HIGHWAY.estimate_names), np.nan), None))
+        for p in list(self.pending):
+            self._write(p)
+        return self.clips
+
+    # --- writing ---------------------------------------------------------------------------------------------
+    def _write(self, p: _Pending) -> None:
+        from drivestudio.outputs import VideoWriter
+        self.pending.remove(p)
+        event_entry = p.before[-1]
+        t = float(event_entry.obs.t)
+        blame = largest_error(p.before)
+        info = {"event": p.event, "t": round(t, 1), "route": self.route.name,
+                "largest_error": blame, "control": event_entry.control,
+                "command": None if not np.isfinite(event_entry.action).all() else
+                [round(float(v), 4) for v in event_entry.action]}
+        if p.event == "collision":
+            info["contact"] = describe_contact(p.before, self.world.track)
+        else:
+            d = float(event_entry.obs.truth.ego[4])
+            info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
+        name = f"{self.route.name}-{p.index:02d}-{p.event}-t{t:06.1f}s.mp4"
+        writer = VideoWriter(self.dir / name)
+        try:
+            for entry in p.before + p.after:
+                writer.write(self._frame(entry, t, info))
+            writer.close()
+        except BaseException:
+            writer.abort()
+            raise
+        info["file"] = name
+        self.clips.append(info)
+
+    def _frame(self, entry: Entry, t_event: float, info: dict) -> np.ndarray:
+        from drivestudio.worlds.highway.overlays import overlay_observation
+        obs = entry.obs
+        truth = obs.truth
+        title = (f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, "
+                 f"{self.route.cars} cars")
+        if self.model.is_oracle or not np.isfinite(entry.estimate[:len(PAPER_INDICATORS)]).all():
+            est, ll = None, None
+        else:
+            est = entry.estimate[:len(INDICATORS)]
+            ll = entry.estimate[_I_LANES_LEFT_EST]
+            ll = float(ll) if np.isfinite(ll) else None
+        label = "oracle" if self.model.is_oracle else (self.model.family or "estimate")
+        top = overlay_observation(obs, est, self.world.track, title, ll, label=label)
+        panel = self._panel(entry, obs.t - t_event, info, top.shape[1])
+        frame = np.vstack([top, panel])
+        if obs.t >= t_event - 1e-6:   # from the event on: a red frame
+            cv2.rectangle(frame, (0, 0), (frame.shape[1] - 1, frame.shape[0] - 1), (230, 30, 30), 6)
+        return frame
+
+    def _panel(self, entry: Entry, dt_event: float, info: dict, width: int) -> np.ndarray:
+        img = np.full((PANEL_HEIGHT, width, 3), 28, np.uint8)
+        truth = entry.obs.truth
+        c = entry.control
+        lines = [(f"{info['event'].upper()} at t = {info['t']:.1f} s ({dt_event:+.1f} s)   model: {self.model.label}",
+                  (255, 210, 90))]
+        if c is None:
+            lines.append(("controller: (the route's last step: no command)", (235, 235, 235)))
+        else:
+            follow = f"   following: at most {c['follow_mps']:.1f} m/s" if c["follow_mps"] is not None else ""
+            lines.append((f"controller: state {c['state']}   left lane clear {'yes' if c['left_clear'] else 'no'}"
+                          f"   right lane clear {'yes' if c['right_clear'] else 'no'}   steer trend "
+                          f"{c['steer_trend']:+.2f}{follow}", (235, 235, 235)))
+        a = entry.action
+        cmd = "-" if not np.isfinite(a).all() else f"steer {a[0]:+.3f}  accel {a[1]:.2f}  brake {a[2]:.2f}"
+        lines.append((f"command: {cmd}   speed {truth.speed:4.1f} m/s   lane {truth.lanes_left + 1} of {truth.lanes} "
+                      f"(1 = leftmost)   d {truth.ego[4]:+.2f} m", (235, 235, 235)))
+        blame = info["largest_error"]
+        if blame is None:
+            lines.append(("largest error in the 5 s before: none (exact indicators)", (160, 230, 160)))
+        else:
+            then = ", ".join(f"{n} {v:.2f}" for n, v in blame["ranking"][1:3])
+            lines.append((f"largest error in the 5 s before: {blame['indicator']} (mean |error| "
+                          f"{blame['mean_error']:g}, {blame['normalised']:.2f} of its scale; then {then})",
+                          (255, 140, 140)))
+        lines.append((f"contact: {info['contact']}", (235, 235, 235)))
+        for i, (text, colour) in enumerate(lines):
+            cv2.putText(img, text[:150], (10, 20 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
+        return img

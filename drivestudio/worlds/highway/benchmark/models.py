@@ -1,0 +1,136 @@
+"""The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound) or a
+checkpoint of the highway world, optionally with the controller-side filters of its estimates.
+
+    --model oracle
+    --model runs/alexnet.pt
+    --model runs/alexnet.pt@smoothing=0.5      e = 0.5 e_previous + 0.5 e_now before the Chen controller
+    --model runs/alexnet.pt@gap_hold=0.8       gaps: g = min(g_now, 0.8 g_held + 0.2 g_now)
+    --model runs/alexnet.pt@smoothing=0.3,gap_hold=0.8
+
+Every checkpoint is opened and checked before anything is driven: a missing file, a file that is no checkpoint,
+or a model of another world (a sidewalk Z2Color) is refused in one line (exit status 2).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from drivestudio.errors import UsageError
+
+ORACLE = "oracle"
+MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
+FILTERS = ("smoothing", "gap_hold")
+OPTION = re.compile(r"([a-z_]+)=(.*)")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    text: str                  # as given on the command line
+    path: str | None           # the checkpoint; None: the oracle
+    smoothing: float = 0.0
+    label: str = ORACLE        # the row's name in the leaderboard
+    family: str = ORACLE       # "oracle", "alexnet", "gist", "vgg16", ...
+    outputs: tuple = ()
+    gap_hold: float = 0.0
+
+    @property
+    def key(self) -> str:
+        """What identifies the row: the same checkpoint with other filters is another row."""
+        return ORACLE if self.path is None else f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
+
+    def filters(self) -> dict[str, float]:
+        """The controller-side filters in use, by name."""
+        return {f: getattr(self, f) for f in FILTERS if getattr(self, f)}
+
+    @property
+    def is_oracle(self) -> bool:
+        return self.path is None
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["outputs"] = list(self.outputs)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ModelSpec":
+        return cls(**{**d, "outputs": tuple(d.get("outputs", ()))})
+
+
+def _factor(name: str, value: str, text: str) -> float:
+    try:
+        a = float(value)
+    except ValueError:
+        a = math.nan
+    if not math.isfinite(a) or not 0.0 <= a <= MAX_SMOOTHING:
+        raise UsageError(f"--model {text}: {name} must be a number from 0 to {MAX_SMOOTHING}, got {value!r}")
+    return a
+
+
+def parse_model(text: str) -> tuple[str, dict[str, float]]:
+    """(checkpoint or 'oracle', {filter: factor}) of a --model value: PATH or PATH@smoothing=A,gap_hold=B."""
+    if not text.strip():
+        raise UsageError("--model: empty; give 'oracle' or a checkpoint file")
+    path, filters = text, {}
+    head, at, tail = text.rpartition("@")
+    if at and not Path(text).is_file():   # a file whose name holds '@' is still a file
+        path = head
+        for part in tail.split(","):
+            m = OPTION.fullmatch(part.strip())
+            if m is None or m[1] not in FILTERS:
+                raise UsageError(f"--model {text}: after '@' the options are smoothing=A and gap_hold=B (0 to "
+                                 f"{MAX_SMOOTHING}), got {part!r}")
+            value = _factor(m[1], m[2], text)
+            if value:
+                filters[m[1]] = value
+    if path == ORACLE and filters:
+        raise UsageError(f"--model {text}: the oracle reads the exact indicators; {', '.join(filters)} applies to "
+                         "checkpoints")
+    return path, filters
+
+
+def check_model(text: str) -> ModelSpec:
+    """The model of a --model value, its checkpoint opened and checked (a model of the highway world)."""
+    path, filters = parse_model(text)
+    if path == ORACLE:
+        return ModelSpec(text, None)
+    from perception.checkpoint import load_checkpoint
+    from perception.models import check_spec, describe
+
+    from drivestudio.commands.common import check_checkpoint_path
+    check_checkpoint_path(path)
+    ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
+    spec = ckpt["spec"]
+    check_spec(spec, path)
+    label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
+                                                               for f, a in filters.items())
+    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]), **filters)
+
+
+def check_models(texts: list[str] | None) -> list[ModelSpec]:
+    """The rows of a benchmark, the oracle first (added when not asked for: it is the upper bound every other row
+    is compared with); a model given twice is refused."""
+    models = [check_model(t) for t in (texts or [ORACLE])]
+    seen: dict[str, str] = {}
+    for m in models:
+        if m.key in seen:
+            raise UsageError(f"--model {m.text} is the same model as --model {seen[m.key]}; give each once")
+        seen[m.key] = m.text
+    oracle = [m for m in models if m.is_oracle] or [ModelSpec(ORACLE, None)]
+    return oracle + [m for m in models if not m.is_oracle]
+
+
+def slug(model: ModelSpec, taken: set[str]) -> str:
+    """A file-name-safe short name of the model, unique among `taken` (clip folders)."""
+    if model.is_oracle:
+        base = ORACLE
+    else:
+        base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(model.path).stem).strip("-.") or "model"
+        for f, a in model.filters().items():
+            base += f"-{f.replace('_', '')}{a:g}"
+    name, i = base, 2
+    while name in taken:
+        name, i = f"{base}-{i}", i + 1
+    taken.add(name)
+    return name

@@ -1,0 +1,97 @@
+"""Running a benchmark: every route with every model, in parallel worker processes, then the leaderboard.
+
+Workers are plain child processes (`python -m drivestudio.worlds.highway.benchmark worker`, as generate's) that take one
+(route, model) job at a time as a JSON line on stdin and answer with JSON lines on stdout: progress in simulated
+seconds, the route's result, or an error. Each route builds its world afresh from the route's seed, so a route
+drives the same whichever worker takes it and whatever ran before it in that worker; torch runs one thread per
+worker (parallelism comes from the routes), so the same model gives the same scores run after run.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from drivestudio.worker_pool import run_pool, serve
+from drivestudio.worlds.highway.benchmark.models import ModelSpec, slug
+from drivestudio.worlds.highway.benchmark.route import RunOptions, run_route
+from drivestudio.worlds.highway.benchmark.suite import Route, Suite
+
+STOP_WAIT = 5.0    # [s] a worker told to stop (SIGTERM) gets this long to unwind before it is killed
+THREADS_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def run_job(job: dict, progress=None) -> dict:
+    """One route with one model (in a worker, or in this process)."""
+    route = Route(**job["route"])
+    model = ModelSpec.from_dict(job["model"])
+    opts = RunOptions(**job["options"])
+    clip_dir = Path(job["out"]) / "clips" / job["slug"] if opts.clips else None
+    result = run_route(route, model, opts, clip_dir, progress)
+    for c in result["clips"]:
+        c["file"] = f"clips/{job['slug']}/{c['file']}"
+    return result
+
+
+def _job_name(job: dict) -> str:
+    return f"route {job['route']['name']}, model {job['model']['text']}"
+
+
+def _worker_job(job: dict, progress) -> dict:
+    if job["model"]["path"] is not None:
+        import torch
+        torch.set_num_threads(1)   # the parallelism is the routes'
+    return run_job(job, progress)
+
+
+def worker_main() -> int:
+    """A worker (worker_pool): jobs of jobs_for(), results of run_job()."""
+    from core.signals import exit_on_sigterm
+    with exit_on_sigterm():   # SIGTERM from the parent unwinds: worlds, bridges and half-written clips are closed
+        return serve(_worker_job, _job_name)
+
+
+def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path) -> list[dict]:
+    """Every (route, model) pair, the costliest first (checkpoints perceive every frame; long routes), so that
+    the workers finish together."""
+    taken: set[str] = set()
+    slugs = {m.key: slug(m, taken) for m in models}
+    jobs = [{"route": asdict(r), "model": m.as_dict(), "options": asdict(opts), "out": str(out),
+             "slug": slugs[m.key]} for m in models for r in suite.routes]
+    return sorted(jobs, key=lambda j: -j["route"]["seconds"] * (1 if j["model"]["path"] is None else 8))
+
+
+def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
+    """Run the jobs on `workers` worker processes; on_progress(simulated seconds), on_done(result)."""
+    run_pool("drivestudio.worlds.highway.benchmark", jobs, workers, on_progress, on_done, _job_name, env=THREADS_ENV,
+             stop_wait=STOP_WAIT)
+
+
+def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
+                  show_progress: bool = True) -> dict:
+    """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
+    from tqdm import tqdm
+
+    from core.signals import exit_on_sigterm
+
+    from drivestudio.worlds.highway.benchmark.score import leaderboard
+    jobs = jobs_for(suite, models, opts, out)
+    results: list[dict] = []
+    total = sum(j["route"]["seconds"] for j in jobs)
+    bar = tqdm(total=round(total), unit="sim s", disable=not show_progress, file=sys.stderr, dynamic_ncols=True,
+               smoothing=0.05, desc=f"{len(suite.routes)} routes x {len(models)} models")
+    t0 = time.perf_counter()
+    try:
+        with exit_on_sigterm():
+            run_jobs(jobs, workers, lambda s: bar.update(s), results.append)
+    finally:
+        bar.close()
+    board = leaderboard(suite, models, results)
+    board["run"] = {"transport": opts.transport, "workers": max(1, min(workers, len(jobs))),
+                    "wall_time_s": round(time.perf_counter() - t0, 1), "device": opts.device,
+                    "renderer": opts.renderer, "clips_per_route": opts.clips, "python": platform.python_version(),
+                    "machine": f"{platform.machine()}, {os.cpu_count()} cores", "threads_per_worker": 1}
+    return board

@@ -1,0 +1,167 @@
+"""The suite file format (docs/benchmark.md): the fixed routes a benchmark drives every model on.
+
+{"name": str (optional, default: the file's name), "description": str (optional),
+ "routes": [{"name": str, "track": preset | "procedural:SEED" | track file (relative to the suite file),
+             "lanes": 1..4 (optional, default the track's), "cars": AI cars 0..300, "seed": traffic seed,
+             "start_lane": 0..lanes-1 counted from the left (optional, default drawn from the seed),
+             "seconds": simulated seconds of the route}, ...]}
+
+A suite is checked whole before anything is driven: malformed JSON, unknown fields, an unknown track, a lane
+count or start lane out of range, NaN, negative or absurd numbers, more cars than the track holds: one line
+naming the file, the route and the field (SuiteError, a UsageError: exit status 2).
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from sim.track import MAX_LANES, TrackError, load_track
+from assets import ASSETS_DIR
+from core.inputs import check_keys, number, read_bytes, read_json, show, show_path
+
+from drivestudio.errors import UsageError
+
+SUITES_DIR = ASSETS_DIR / "suites"
+DEFAULT_SUITE = SUITES_DIR / "default.json"
+
+SUITE_KEYS = ("name", "description", "routes")
+ROUTE_KEYS = ("name", "track", "lanes", "cars", "seed", "start_lane", "seconds")
+MAX_ROUTES = 200
+MAX_SECONDS = 7200.0          # [s] two simulated hours per route
+MIN_SECONDS = 1.0             # [s]
+MAX_CARS = 300                # SUMO's AI cars (sim/highway/sumo_traffic.py)
+MAX_SEED = 2**32 - 1
+MAX_TEXT = 2000               # characters of a description
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")   # route and suite names: used in file names
+
+
+class SuiteError(UsageError):
+    """A suite that cannot be driven; the message is one line naming the file, the route and the field."""
+
+
+@dataclass(frozen=True)
+class Route:
+    name: str
+    track: str               # as given: a preset, procedural:SEED, or a track file (resolved, see `track_ref`)
+    lanes: int               # resolved: the track's own count when the suite gives none
+    cars: int
+    seed: int
+    start_lane: int | None   # 0 = leftmost; None: drawn from the seed (sim/highway/world.py)
+    seconds: float
+    track_ref: str = ""      # what load_track reads (a track file's path made absolute)
+    length_m: float = 0.0    # [m] one lap of the track
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("track_ref")
+        return d
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    description: str
+    routes: tuple[Route, ...]
+    path: str
+    sha256: str
+
+    @property
+    def seconds(self) -> float:
+        return sum(r.seconds for r in self.routes)
+
+    def select(self, names: list[str]) -> "Suite":
+        """The suite cut down to the named routes, in the suite's order."""
+        known = {r.name for r in self.routes}
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise SuiteError(f"--routes: no route {show(unknown[0])} in suite '{self.name}' (routes: "
+                             f"{', '.join(r.name for r in self.routes)})")
+        return Suite(self.name, self.description, tuple(r for r in self.routes if r.name in names), self.path,
+                     self.sha256)
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "description": self.description, "path": self.path, "sha256": self.sha256,
+                "routes": [r.as_dict() for r in self.routes]}
+
+
+def _text(obj: dict, key: str, where: str, default: str | None = None, pattern=None, limit: int = MAX_TEXT) -> str:
+    if key not in obj:
+        if default is None:
+            raise SuiteError(f"{where}: missing '{key}'")
+        return default
+    v = obj[key]
+    if not isinstance(v, str) or not v or len(v) > limit or not v.isprintable():
+        raise SuiteError(f"{where}: '{key}' must be a line of 1 to {limit} printable characters, got {show(v)}")
+    if pattern is not None and not pattern.fullmatch(v):
+        raise SuiteError(f"{where}: '{key}' must be 1 to 64 letters, digits, '_', '.', '+' or '-' (starting with "
+                         f"a letter or digit), got {show(v)}")
+    return v
+
+
+def _track_ref(track: str, base: Path) -> str:
+    """A track file named relative to the suite file is found beside it; presets and procedural:SEED as given."""
+    if track.startswith("procedural:") or ("/" not in track and not track.endswith(".json")):
+        return track
+    p = Path(track)
+    return str(p if p.is_absolute() else base / p)
+
+
+def _route(obj, i: int, base: Path) -> Route:
+    where = f"route {i}"
+    if not isinstance(obj, dict):
+        raise SuiteError(f"{where}: expected an object with {', '.join(ROUTE_KEYS)}, got {show(obj)}")
+    check_keys(obj, ROUTE_KEYS, where, SuiteError, kind="a route")
+    name = _text(obj, "name", where, pattern=NAME, limit=64)
+    where = f"route {i} ('{name}')"
+    track = _text(obj, "track", where, limit=300)
+    lanes = number(obj, "lanes", where, lo=1, hi=MAX_LANES, integer=True, default=None, error=SuiteError)
+    cars = number(obj, "cars", where, lo=0, hi=MAX_CARS, integer=True, error=SuiteError)
+    seed = number(obj, "seed", where, lo=0, hi=MAX_SEED, integer=True, error=SuiteError)
+    seconds = number(obj, "seconds", where, lo=MIN_SECONDS, hi=MAX_SECONDS, unit="s", error=SuiteError)
+    ref = _track_ref(track, base)
+    try:
+        tr = load_track(ref, lanes=lanes)
+    except TrackError as e:
+        raise SuiteError(f"{where}: track {show(track, 60)}: {e}") from None
+    start = number(obj, "start_lane", where, lo=0, hi=tr.lanes - 1, integer=True, default=None, error=SuiteError)
+    from sim.highway.sumo_traffic import MIN_SPACING
+    capacity = int(tr.lanes * tr.length / MIN_SPACING)
+    if cars > capacity:
+        raise SuiteError(f"{where}: {cars} cars do not fit on track {show(track, 60)} with {tr.lanes} lane(s) "
+                         f"({tr.length:.0f} m): at most {capacity}")
+    return Route(name, track, tr.lanes, cars, seed, start, seconds, ref, round(float(tr.length), 1))
+
+
+def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: str = "suite") -> Suite:
+    """A Suite from the parsed JSON of a suite file (`source` names it in messages; `base` is its folder)."""
+    try:
+        if not isinstance(obj, dict):
+            raise SuiteError(f"a suite must be a JSON object with {', '.join(SUITE_KEYS)}, got {show(obj)}")
+        check_keys(obj, SUITE_KEYS, "suite", SuiteError)
+        name = _text(obj, "name", "suite", default=default_name, pattern=NAME, limit=64)
+        description = _text(obj, "description", "suite", default="-")
+        routes = obj.get("routes")
+        if not isinstance(routes, list) or not routes or len(routes) > MAX_ROUTES:
+            raise SuiteError(f"'routes' must be a list of 1 to {MAX_ROUTES} routes, got "
+                             f"{show(routes) if not isinstance(routes, list) else f'{len(routes)} routes'}")
+        parsed = tuple(_route(r, i, base) for i, r in enumerate(routes))
+        seen: set[str] = set()
+        for r in parsed:
+            if r.name in seen:
+                raise SuiteError(f"two routes are named '{r.name}'; route names must be unique")
+            seen.add(r.name)
+    except SuiteError as e:
+        raise SuiteError(f"{source}: {e}") from None
+    return Suite(name, description, parsed, source, sha256)
+
+
+def load_suite(path=None) -> Suite:
+    """The suite in the file `path` (default: the shipped held-out suite), checked whole."""
+    path = Path(path) if path is not None else DEFAULT_SUITE
+    obj = read_json(path, "suite", error=SuiteError)   # the bounded, strict reader of every JSON input
+    sha256 = hashlib.sha256(read_bytes(path, "suite", error=SuiteError)).hexdigest()
+    source = show_path(path)
+    stem = path.stem if NAME.fullmatch(path.stem) else "suite"
+    return parse_suite(obj, source, path.resolve().parent, sha256, stem)

@@ -1,0 +1,3 @@
+from drivestudio.worlds.sidewalk.plugin import Plugin
+
+__all__ = ["Plugin"]

@@ -1,0 +1,68 @@
+"""The host car's camera image, composed in three layers (docs/rendering.md):
+
+1. backdrop: sky above the horizon, open grass below (precomputed once);
+2. ground: asphalt, verges, markings and grass patches, painted as exact projected polygons;
+3. objects: cars, trees, poles, buildings, guard rails, drawn by PyBullet (TinyRenderer or EGL) and
+   laid over wherever PyBullet drew something; every object stands on the ground, so it is in front of it.
+
+Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from sim.camera import CameraConfig
+from sim.ground_painter import GroundPainter
+from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
+from sim.track import Track
+from sim.highway.traffic import CarStates
+
+CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
+
+
+class Renderer:
+    def __init__(self, track: Track, seed: int, camera: CameraConfig = CameraConfig(), renderer: str = "tiny"):
+        from sim.highway.bullet_scene import BulletScene  # pybullet loads only when frames are wanted
+        self.camera = camera
+        self.look: Look = make_look(seed)
+        chunks = build_scenery(track, seed)
+        self._centres = np.array([c.centre for c in chunks]).reshape(-1, 2)
+        self._radii = np.array([c.radius for c in chunks])
+        self._painter = GroundPainter(chunks, self.look, camera, GROUND_MATERIALS)
+        self._objects = BulletScene(chunks, self.look, camera, renderer)
+        self._backdrop = self._make_backdrop()
+
+    def _make_backdrop(self) -> np.ndarray:
+        cam, look = self.camera, self.look
+        rows = np.arange(cam.height)[:, None] + 0.5
+        horizon = cam.horizon_row()
+        t = np.clip((horizon - rows) / max(horizon, 1.0), 0.0, 1.0)  # 0 at the horizon, 1 at the top row
+        sky = (np.array(look.sky_horizon) * (1 - t) + np.array(look.sky_top) * t) * 255.0
+        ground = np.broadcast_to(look.lit(look.grass).astype(np.float64), sky.shape)
+        col = np.where(rows < horizon, sky, ground).astype(np.uint8)
+        return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (cam.height, cam.width, 3)))
+
+    def in_view(self, centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float) -> np.ndarray:
+        """Which bounding circles (centres (n, 2), radii (n,) [m]) reach into the camera's view wedge."""
+        v = centres - (x, y)
+        dist = np.hypot(v[:, 0], v[:, 1])
+        bearing = np.abs((np.arctan2(v[:, 1], v[:, 0]) - yaw + np.pi) % (2 * np.pi) - np.pi)
+        margin = np.arcsin(np.clip(radii / np.maximum(dist, 1e-6), 0.0, 1.0))
+        in_wedge = (dist <= radii) | (bearing <= self.camera.hfov / 2 + margin)
+        return in_wedge & (dist - radii < self.camera.cull_distance)
+
+    def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
+        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad]."""
+        visible = self.in_view(self._centres, self._radii, x, y, yaw)
+        car_visible = self.in_view(np.stack([cars.x, cars.y], axis=1), np.full(len(cars), CAR_RADIUS), x, y, yaw)
+        self._objects.set_visible_chunks(visible)
+        self._objects.set_cars(np.stack([cars.x, cars.y, cars.yaw], axis=1), cars.models, cars.paints, car_visible)
+        frame = self._backdrop.copy()
+        self._painter.paint(frame, visible, x, y, yaw)
+        rgb, drawn = self._objects.render(x, y, yaw)
+        cv2.copyTo(rgb, drawn, frame)
+        return frame
+
+    def close(self) -> None:
+        self._objects.close()

@@ -1,0 +1,237 @@
+"""AI traffic driven by SUMO: the only module that imports libsumo.
+
+SUMO runs in this process (libsumo), in lock-step with the world at the world's step. The AI cars use SUMO's
+own car-following (Krauss) and lane-change (LC2013) models with varied desired speeds and driver styles, so
+they overtake each other and the host car. The host car is a SUMO vehicle too, moved to its true pose every
+step, so AI cars brake behind it and change lanes around it. Poses come back with the conventions of
+docs/affordances.md: SUMO's position is the front bumper and its angle is a compass heading; SUMO's lane 0
+is the rightmost.
+
+libsumo holds one simulation per process; a second SumoTraffic while one is open is refused.
+"""
+from __future__ import annotations
+
+
+import numpy as np
+
+from sim.highway.car_models import car_models
+from sim.highway.errors import TrafficError
+from sim.highway.sumo_network import SumoNetwork, network_for
+from sim.track import Track
+from sim.highway.traffic import CarStates, assign_looks
+
+MAX_CARS = 300
+MIN_SPACING = 20.0        # [m] of lane per car: denser traffic cannot be inserted
+EGO_CLEARANCE = 30.0      # [m] no AI car starts closer than this to the host car, along the loop
+START_SPACING = 60.0      # [m] between cars of one lane at the start
+LAPS_PER_ROUTE = 4        # routes are renewed before a car reaches their end, so cars circulate forever
+RENEW_EVERY = 50          # steps between route renewals
+EGO_ID = "ego"
+EGO_SIZE = (4.6, 1.9)     # [m] length, width (sim.highway.vehicle.VehicleParams)
+
+# (name, accel [m/s^2], decel [m/s^2], tau [s], imperfection sigma, lcSpeedGain, lcKeepRight)
+DRIVER_STYLES = (
+    ("calm", 2.0, 4.0, 1.4, 0.3, 0.6, 1.5),
+    ("normal", 2.6, 4.5, 1.1, 0.4, 1.0, 1.0),
+    ("sporty", 3.5, 6.0, 0.8, 0.2, 2.5, 0.5),
+)
+
+
+def _load_libsumo():
+    try:
+        import libsumo
+    except ImportError as e:  # pragma: no cover - libsumo is a declared dependency
+        raise TrafficError(f"libsumo cannot be loaded: {e}") from None
+    return libsumo
+
+
+class SumoTraffic:
+    _open: "SumoTraffic | None" = None
+    _started = False
+
+    def __init__(self, track: Track, n_cars: int, seed: int = 0, dt: float = 0.1, ego: np.ndarray | None = None,
+                 ego_speed: float = 0.0):
+        if isinstance(n_cars, bool) or not isinstance(n_cars, (int, np.integer)) or not 0 <= n_cars <= MAX_CARS:
+            raise TrafficError(f"the number of AI cars must be an integer from 0 to {MAX_CARS}, got {n_cars!r}")
+        capacity = int(track.lanes * track.length / MIN_SPACING)
+        if n_cars > capacity:
+            raise TrafficError(f"{n_cars} cars do not fit on track '{track.name}' with {track.lanes} lane(s) "
+                               f"({track.length:.0f} m): at most {capacity}")
+        if SumoTraffic._open is not None:
+            raise TrafficError("SUMO is already running in this process (libsumo runs one simulation at a time)")
+        self.track, self.n_cars, self.seed, self.dt = track, int(n_cars), int(seed), float(dt)
+        self.net: SumoNetwork = network_for(track)
+        self._ls = _load_libsumo()
+        self._ids = [f"ai{i}" for i in range(self.n_cars)]
+        self.models, self.paints = assign_looks(self.n_cars, seed)
+        dims = np.array([(m.length, m.width) for m in car_models()])
+        self.length, self.width = dims[self.models, 0], dims[self.models, 1]
+        self._steps = 0
+        self._started = False
+        self._last_s: np.ndarray | None = None  # per AI car, for cheap projection next step
+        self._start(ego if ego is not None else np.array([*track.pose(0.0, 0.0), 0.0, 0.0]), ego_speed)
+        SumoTraffic._open = self
+
+    # --- set-up ----------------------------------------------------------------------------------------------
+    def _start(self, ego: np.ndarray, ego_speed: float) -> None:
+        ls = self._ls
+        args = ["sumo", "-n", str(self.net.path), "--step-length", f"{self.dt}", "--seed", str(self.seed),
+                "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
+                "--time-to-teleport", "-1", "--collision.action", "warn", "--collision.mingap-factor", "0",
+                "--lanechange.duration", "2.0", "--default.speeddev", "0"]
+        try:
+            ls.start(args)
+        except Exception as e:  # libsumo raises its own TraCIException / FatalTraCIError
+            raise TrafficError(f"SUMO failed to start on track '{self.track.name}': {e}") from None
+        self._started = True
+        try:
+            self._populate(ego, ego_speed)
+        except TrafficError:
+            self.close()
+            raise
+        except Exception as e:
+            self.close()
+            raise TrafficError(f"SUMO could not place the cars on track '{self.track.name}': {e}") from None
+
+    def _loop_from(self, edge: int) -> list[str]:
+        e = list(self.net.edges)
+        return (e[edge:] + e[:edge]) * LAPS_PER_ROUTE
+
+    def _edge_at(self, s: float) -> tuple[int, float]:
+        """(edge index, distance along the edge [m]) of centreline position s; approximate off the centreline."""
+        i = int(np.searchsorted(self.net.starts, s, side="right") - 1)
+        return i, s - self.net.starts[i]
+
+    def _populate(self, ego: np.ndarray, ego_speed: float) -> None:
+        ls, tr = self._ls, self.track
+        for i in range(len(self.net.edges)):
+            ls.route.add(f"loop{i}", self._loop_from(i))
+        models = car_models()
+        for m, model in enumerate(models):
+            for st, (name, accel, decel, tau, sigma, _, _) in enumerate(DRIVER_STYLES):
+                t = f"m{m}{name}"
+                ls.vehicletype.copy("DEFAULT_VEHTYPE", t)
+                ls.vehicletype.setLength(t, model.length)
+                ls.vehicletype.setWidth(t, model.width)
+                ls.vehicletype.setMinGap(t, 2.0)
+                ls.vehicletype.setAccel(t, accel)
+                ls.vehicletype.setDecel(t, decel)
+                ls.vehicletype.setTau(t, tau)
+                ls.vehicletype.setImperfection(t, sigma)
+                ls.vehicletype.setMaxSpeed(t, 50.0)
+        ls.vehicletype.copy("DEFAULT_VEHTYPE", "egotype")
+        ls.vehicletype.setLength("egotype", EGO_SIZE[0])
+        ls.vehicletype.setWidth("egotype", EGO_SIZE[1])
+        ls.vehicletype.setMaxSpeed("egotype", 60.0)
+
+        rng = np.random.default_rng([self.seed, 0x5A0])
+        ego_s = float(ego[3])
+        # the host car goes in first, onto an empty road
+        edge, pos = self._edge_at((ego_s + EGO_SIZE[0] / 2) % tr.length)
+        ls.vehicle.add(EGO_ID, f"loop{edge}", typeID="egotype", departLane=str(tr.lanes - 1 - tr.lane_of(ego[4])),
+                       departPos=f"{pos:.2f}", departSpeed=f"{max(0.0, ego_speed):.2f}")
+        ls.vehicle.setSpeedMode(EGO_ID, 0)        # we move it; SUMO must not second-guess
+        ls.vehicle.setLaneChangeMode(EGO_ID, 0)
+        slots = self._start_slots(rng, ego_s)
+        for i, vid in enumerate(self._ids):
+            s, lane = slots[i]
+            style = int(rng.integers(0, len(DRIVER_STYLES)))
+            # a fifth of the cars are slow; the rest spread up to the limit, so overtaking happens
+            factor = rng.uniform(0.45, 0.6) if rng.uniform() < 0.2 else rng.uniform(0.6, 1.0)
+            edge, pos = self._edge_at((s + self.length[i] / 2) % tr.length)  # SUMO places the front bumper
+            ls.vehicle.add(vid, f"loop{edge}", typeID=f"m{self.models[i]}{DRIVER_STYLES[style][0]}",
+                           departLane=str(tr.lanes - 1 - lane), departPos=f"{pos:.2f}",
+                           departSpeed="max")  # the fastest that is safe behind whoever is ahead
+            ls.vehicle.setSpeedFactor(vid, float(factor))
+            ls.vehicle.setParameter(vid, "laneChangeModel.lcSpeedGain", str(DRIVER_STYLES[style][5]))
+            ls.vehicle.setParameter(vid, "laneChangeModel.lcKeepRight", str(DRIVER_STYLES[style][6]))
+        ls.simulationStep()
+        if EGO_ID not in ls.vehicle.getIDList():
+            raise TrafficError("SUMO could not insert the host car at its start position")
+        # lane position -> s: each edge is all straight or all arc, so one ratio per lane converts exactly
+        ends = list(self.net.starts[1:]) + [tr.length]
+        self._lane_scale = np.array([[ls.lane.getLength(f"{e}_{j}") / (b - a) for j in range(tr.lanes)]
+                                     for e, a, b in zip(self.net.edges, self.net.starts, ends)])
+
+    def _start_slots(self, rng: np.random.Generator, ego_s: float) -> list[tuple[float, int]]:
+        """Start positions (s [m], lane): a grid around the host car, as at a TORCS race start, half ahead and
+        half behind, consecutive cars in turning lanes so that cars of one lane start about START_SPACING
+        apart (or spread over the whole loop when there are many), none within EGO_CLEARANCE of the host."""
+        tr, n = self.track, self.n_cars
+        window = min(tr.length - 2 * EGO_CLEARANCE, n * START_SPACING / tr.lanes)
+        slots = []
+        for j in range(n):
+            offset = ((j + 0.5 + 0.3 * rng.uniform(-1, 1)) / n - 0.5) * window
+            offset += EGO_CLEARANCE if offset >= 0 else -EGO_CLEARANCE
+            slots.append((float((ego_s + offset) % tr.length), j % tr.lanes))
+        return slots
+
+    # --- per step ------------------------------------------------------------------------------------------------
+    def _move_ego(self, ego: np.ndarray, speed: float) -> None:
+        """Put SUMO's host car where ours is. moveTo is 500x cheaper than moveToXY's map matching; SUMO then
+        advances it by speed * dt in the step, so it is placed that much behind."""
+        tr = self.track
+        edge, along = self._edge_at((float(ego[3]) + EGO_SIZE[0] / 2) % tr.length)  # SUMO tracks the front
+        lane = tr.lanes - 1 - tr.lane_of(float(ego[4]))
+        length = self._lane_scale[edge, lane] * (
+            (self.net.starts[edge + 1] if edge + 1 < len(self.net.starts) else tr.length) - self.net.starts[edge])
+        pos = min(max(along * self._lane_scale[edge, lane] - speed * self.dt, 0.1), length - 0.1)
+        self._ls.vehicle.moveTo(EGO_ID, f"{self.net.edges[edge]}_{lane}", pos)
+        self._ls.vehicle.setSpeed(EGO_ID, max(0.0, float(speed)))
+
+    def _renew_routes(self) -> None:
+        ls, k = self._ls, len(self.net.edges)
+        for vid in ls.vehicle.getIDList():
+            if ls.vehicle.getRouteIndex(vid) >= k:
+                edge = self.net.edges.index(ls.vehicle.getRoadID(vid))
+                ls.vehicle.setRoute(vid, self._loop_from(edge))
+
+    def step(self, dt: float, ego: np.ndarray, ego_speed: float = 0.0) -> None:
+        """Advance SUMO by one step with the host car at its true pose [x, y, yaw, s, d] and speed [m/s]."""
+        if abs(dt - self.dt) > 1e-9:
+            raise TrafficError(f"SUMO steps {self.dt} s at a time, the world asked for {dt} s")
+        self._move_ego(ego, ego_speed)
+        self._ls.simulationStep()
+        self._steps += 1
+        if self._steps % RENEW_EVERY == 0:
+            self._renew_routes()
+
+    def collisions(self) -> int:
+        """Collisions SUMO reported in the last step (AI-AI and AI-host)."""
+        return int(self._ls.simulation.getCollidingVehiclesNumber())
+
+    def states(self) -> CarStates:
+        ls, tr = self._ls, self.track
+        present = set(ls.vehicle.getIDList())
+        idx = [i for i, vid in enumerate(self._ids) if vid in present]
+        if not idx:
+            return CarStates.empty()
+        idx = np.array(idx)
+        front = np.array([ls.vehicle.getPosition(self._ids[i]) for i in idx])
+        yaw = np.radians(90.0 - np.array([ls.vehicle.getAngle(self._ids[i]) for i in idx]))
+        half = self.length[idx] / 2
+        x, y = front[:, 0] - half * np.cos(yaw), front[:, 1] - half * np.sin(yaw)
+        hint = None if self._last_s is None else self._last_s[idx]
+        s, d = tr.frenet(x, y, s_hint=hint)
+        if self._last_s is None:
+            self._last_s = np.zeros(self.n_cars)
+        self._last_s[idx] = s
+        return CarStates(x, y, yaw, np.atleast_1d(s), np.atleast_1d(d), self.length[idx], self.width[idx],
+                         self.models[idx], self.paints[idx])
+
+    def lane_index(self, i: int) -> int:
+        """Our lane (0 = leftmost) that SUMO has AI car i on."""
+        return self.track.lanes - 1 - int(self._ls.vehicle.getLaneIndex(self._ids[i]))
+
+    def close(self) -> None:
+        if self._started:
+            try:
+                self._ls.close()
+            except Exception:
+                pass
+            self._started = False
+        if SumoTraffic._open is self:
+            SumoTraffic._open = None
+
+    def __del__(self):
+        self.close()
