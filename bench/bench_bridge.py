@@ -75,7 +75,8 @@ def bench_lockstep(trips: int, warmup: int, decl, spin: float) -> dict:
             world.close()
             proc.communicate(timeout=10)
     us = lat / 1e3
-    return {"trips": trips, "world": decl.name, "images": [list(c.shape) for c in decl.cameras], "median_us": float(np.median(us)),
+    return {"trips": trips, "world": decl.name, "images": [list(c.shape) for c in decl.cameras],
+            "median_us": float(np.median(us)),
             "p90_us": float(np.percentile(us, 90)), "p99_us": float(np.percentile(us, 99)),
             "max_us": float(us.max()), "mean_us": float(us.mean()), "round_trips_per_s": trips / elapsed}
 

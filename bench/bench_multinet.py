@@ -28,9 +28,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 def checkpoint(folder: Path) -> Path:
     import torch
 
+    from core import worlds
     from perception.checkpoint import save_checkpoint
     from perception.models import Regressor, make_spec
-    from core import worlds
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", worlds.get("sidewalk")))
     path = folder / "multinet.pt"
@@ -77,9 +77,9 @@ def inference(ckpt: Path, repeats: int) -> dict:
 def training(steps: int = 20, batch: int = 60) -> dict:
     import torch
 
+    from core import worlds
     from perception.models import Regressor, make_spec
     from perception.multinet import CLIP, train_loss
-    from core import worlds
     model = Regressor(make_spec("z2color", worlds.get("sidewalk"))).train()
     opt = torch.optim.Adadelta(model.parameters(), lr=1.0)
     x = torch.randint(0, 256, (batch, 12, 94, 168), dtype=torch.uint8)

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import torch
 
-from perception.models import build, family
-from perception.train import euclidean_loss
 from core import worlds
 from core.worlds.highway import label_set
+from perception.models import build, family
+from perception.train import euclidean_loss
 
 H, W = 210, 280
 MODELS = {"alexnet": ("alexnet", {}), "vgg16": ("vgg16", {"frozen": True}),
@@ -72,14 +72,14 @@ def main() -> None:
         if name == "gist":
             model.eval()
 
-            def step():
+            def step(model=model, x=x):
                 with torch.no_grad():
                     model.net.descriptor(x.float() / 255)
         else:
             model.train()
             opt = torch.optim.SGD([p for p in model.parameters() if p.requires_grad], lr=1e-6, momentum=0.9)
 
-            def step():
+            def step(model=model, x=x, y=y, opt=opt):
                 loss = euclidean_loss(model(x), y)
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
@@ -88,8 +88,8 @@ def main() -> None:
         model.eval()
         xb = torch.randint(0, 256, (32, 3, H, W), dtype=torch.uint8, generator=g).to(device)
         with torch.inference_mode():
-            infer_rate = 32 / timed(lambda: model(xb), max(2, args.steps // 2), device)
-            latency = timed(lambda: model(xb[:1]), args.steps * 4, device, warmup=3)
+            infer_rate = 32 / timed(lambda model=model, xb=xb: model(xb), max(2, args.steps // 2), device)
+            latency = timed(lambda model=model, xb=xb: model(xb[:1]), args.steps * 4, device, warmup=3)
         print(f"{key:16s} {train_rate:16.1f} {batch:6d} {infer_rate:20.1f} {latency * 1e3:15.1f}", flush=True)
         rows.append({"model": key, "train_samples_per_s": train_rate, "batch": batch,
                      "infer_frames_per_s": infer_rate, "latency_ms": latency * 1e3})

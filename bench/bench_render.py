@@ -47,7 +47,8 @@ def main() -> None:
     print(f"track {args.track}, 3 lanes, renderer {args.renderer}, {args.frames} frames of "
           f"{obs.frame.shape[1]}x{obs.frame.shape[0]}, cars ahead per frame: {np.mean(in_view):.1f}")
     print(f"render + ground truth: {args.frames / dt:.1f} frames/s ({dt / args.frames * 1e3:.2f} ms/frame; "
-          f"render {t['render'] / (args.frames + 21) * 1e3:.2f} ms, truth {t['truth'] / (args.frames + 21) * 1e3:.2f} ms,"
+          f"render {t['render'] / (args.frames + 21) * 1e3:.2f} ms, "
+          f"truth {t['truth'] / (args.frames + 21) * 1e3:.2f} ms,"
           f" physics {t['physics'] / (args.frames + 20) * 1e3:.2f} ms)")
     if args.json:
         args.json.write_text(json.dumps({

@@ -23,9 +23,9 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
@@ -50,7 +50,8 @@ def _f(x: float, digits: int = 0) -> str:
 
 # --- the figures of each bench as table rows: (figure, measured, target) ----------------------------------------
 def rows_render(j: dict) -> list[tuple]:
-    return [(f"render + ground truth, {j['track']}, 3 lanes, {j['cars_ahead']:.1f} cars ahead, {j['size'][0]}x{j['size'][1]}, "
+    return [(f"render + ground truth, {j['track']}, 3 lanes, {j['cars_ahead']:.1f} cars ahead, "
+             f"{j['size'][0]}x{j['size'][1]}, "
              f"1 process ({j['renderer']})",
              f"**{_f(j['frames_per_s'])} frames/s** ({j['ms_per_frame']:.2f} ms: render {j['render_ms']:.2f}, "
              f"truth {j['truth_ms']:.2f}, physics {j['physics_ms']:.2f})", ">= 100 frames/s")]
@@ -197,9 +198,11 @@ BENCHES = [
           ["--frames", "200", "--seconds", "3", "--minutes", "0.2"], rows_stereo, temp_out=True),
     Bench("benchmark", "bench_benchmark.py", ["--routes", "p21-1l,p9-1l", "--workers", "2"],
           ["--routes", "p21-1l", "--workers", "1"], rows_benchmark),
-    Bench("multinet", "bench_multinet.py", ["--repeats", "100", "--seconds", "20"], ["--repeats", "5", "--seconds", "2"],
+    Bench("multinet", "bench_multinet.py", ["--repeats", "100", "--seconds", "20"],
+          ["--repeats", "5", "--seconds", "2"],
           rows_multinet),
-    Bench("highway-env", "bench_highway_env.py", ["--steps", "200", "--rounds", "5"], ["--steps", "20", "--rounds", "2"],
+    Bench("highway-env", "bench_highway_env.py", ["--steps", "200", "--rounds", "5"],
+          ["--steps", "20", "--rounds", "2"],
           rows_highway_env, group="highway-env"),
     Bench("highway-env-15hz", "bench_highway_env.py", ["--steps", "200", "--rounds", "5", "--policy-frequency", "15"],
           ["--steps", "20", "--rounds", "2", "--policy-frequency", "15"], rows_highway_env, group="highway-env"),

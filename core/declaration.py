@@ -339,7 +339,7 @@ class WorldDeclaration:
         hi = np.array([c.high for c in self.action])
         return np.clip(np.where(np.isfinite(a), a, self.neutral_action()), lo, hi)
 
-    def with_camera(self, name: str, height: int, width: int) -> "WorldDeclaration":
+    def with_camera(self, name: str, height: int, width: int) -> WorldDeclaration:
         """This declaration with camera `name` rendering height x width (a world configured for other frames)."""
         cams = tuple(Camera(c.name, int(height), int(width), c.channels) if c.name == name else c
                      for c in self.cameras)
@@ -362,7 +362,7 @@ class WorldDeclaration:
                 "targets": list(self.targets)}
 
     @classmethod
-    def from_json(cls, obj: Mapping) -> "WorldDeclaration":
+    def from_json(cls, obj: Mapping) -> WorldDeclaration:
         try:
             def label(d):
                 d = dict(d)

@@ -84,7 +84,8 @@ def number(obj: dict, key: str, where: str, *, lo: float | None = None, hi: floa
         expected = f"a positive {kind.split()[-1]}{' of' + upto if upto else ''}"
     else:
         if lo is not None and hi is not None:
-            bounds = f"{'more than' if lo_open else 'from'} {fmt_number(lo)} {'and at most' if lo_open else 'to'} {fmt_number(hi)}"
+            bounds = (f"{'more than' if lo_open else 'from'} {fmt_number(lo)} {'and at most' if lo_open else 'to'} "
+                      f"{fmt_number(hi)}")
         elif lo is not None:
             bounds = f"{'more than' if lo_open else 'at least'} {fmt_number(lo)}"
         elif hi is not None:

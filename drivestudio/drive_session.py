@@ -11,13 +11,12 @@ import time
 from pathlib import Path
 
 from core import worlds as declared
-from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
 from core.signals import Terminated, exit_on_sigterm
-
 from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
 from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
+from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
 
 ATTACH_SLICE = 0.25       # [s] while waiting for a driver we started, check it is still alive this often
 DRIVER_ATTACH = 30.0      # [s] `drive --shm` waits this long for the world's segment

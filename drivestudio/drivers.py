@@ -6,7 +6,6 @@ import time
 import numpy as np
 
 from core.declaration import WorldDeclaration, base_name
-
 from drivestudio.errors import UsageError
 
 

@@ -15,12 +15,11 @@ class RunError(RuntimeError):
 # (module, class) of the errors that are the user's to fix; looked up only among modules already imported,
 # since an exception of a class can exist only once its module is loaded (and the error path must not pay for
 # importing torch)
-_INPUT = (("sim.track.trackfile", "TrackError"), ("sim.highway.scenario", "ScenarioError"), ("sim.highway.errors", "RendererError"),
+_INPUT = (("core.inputs", "InputError"), ("sim.highway.errors", "RendererError"),
           ("sim.highway.errors", "TrafficError"), ("perception.shards", "DatasetError"),
           ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"),
           ("core.files", "OutputError"), ("core.declaration", "DeclarationError"),
-          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"),
-          ("sim.sidewalk.errors", "PathError"))
+          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 

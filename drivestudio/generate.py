@@ -24,14 +24,26 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from perception.shards import (MANIFEST, SPLIT_RULE, DatasetError, ShardInfo, ShardReader, ShardWriter,
-                               clean_temporaries, file_digest, manifest_declaration, read_manifest, shard_name,
-                               split_of, verify_shard, write_manifest)
-
 from drivestudio import worlds
 from drivestudio.errors import RunError, UsageError
 from drivestudio.worker_pool import run_pool, serve
 from drivestudio.worlds import Episode
+from perception.shards import (
+    MANIFEST,
+    SPLIT_RULE,
+    DatasetError,
+    ShardInfo,
+    ShardReader,
+    ShardWriter,
+    clean_temporaries,
+    file_digest,
+    manifest_declaration,
+    read_manifest,
+    shard_name,
+    split_of,
+    verify_shard,
+    write_manifest,
+)
 
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
 MIN_EPISODES = 10    # the split rule takes every tenth episode: fewer would leave the validation or test split empty

@@ -19,9 +19,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from core.signals import check as check_signals
-
 import numpy as np
+
+from core.signals import check as check_signals
 
 Exchange = Callable[[object], tuple[np.ndarray, np.ndarray]]
 

@@ -10,7 +10,6 @@ import cv2
 import numpy as np
 
 from core.files import atomic_write, check_output, reclaim_temporaries
-
 from drivestudio.errors import UsageError
 
 

@@ -1,8 +1,8 @@
 """DeepDriving's AlexNet regressor: five conv(-relu-pool) layers, then fully connected 4096-4096-256-N.
 
 The convolutional trunk and pooling are torchvision's AlexNet (for 210x280 input the trunk ends in 5x7 cells,
-pooled to 6x6); the head replaces the 1000-way classifier. Trained from scratch as in Liu and Wang, section 6: no dropout
-(it made the regression loss unstable) and no output sigmoid (it slowed convergence, section 6.3).
+pooled to 6x6); the head replaces the 1000-way classifier. Trained from scratch as in Liu and Wang, section 6: no
+dropout (it made the regression loss unstable) and no output sigmoid (it slowed convergence, section 6.3).
 """
 from __future__ import annotations
 

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from core.worlds.highway import GAP_MAX, GAPS, INACTIVE, INDICATORS
-
 from perception.shards import Dataset
 
 NEAR = 20.0  # [m] a car closer than this ahead counts as near

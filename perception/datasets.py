@@ -26,7 +26,6 @@ import numpy as np
 import torch
 
 from core.declaration import Moment, WorldDeclaration, base_name, expand
-
 from perception.shards import Dataset, DatasetError, ShardReader, decode_image, image_column
 
 

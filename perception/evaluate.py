@@ -21,7 +21,6 @@ import torch
 from tqdm import tqdm
 
 from core.worlds.highway import PAPER_INDICATORS
-
 from perception.checkpoint import CheckpointError, load_model
 from perception.datasets import FrameStream
 from perception.models import describe

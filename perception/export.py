@@ -15,8 +15,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from perception.checkpoint import CheckpointError, load_model
 from core.files import atomic_write, temporary_for
+from perception.checkpoint import CheckpointError, load_model
 
 OPSET = 17
 

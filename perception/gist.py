@@ -1,4 +1,5 @@
-"""The GIST baseline of Liu and Wang (Deeper Direct Perception, Table 3): a scene descriptor and a regularised regressor on it.
+"""The GIST baseline of Liu and Wang (Deeper Direct Perception, Table 3): a scene descriptor and a regularised
+regressor on it.
 
 GIST (Oliva & Torralba 2001; the LMgist reference code): the frame is made grey, resized, log-compressed,
 whitened and contrast-normalised (the pre-filter); Gabor filters of 4 scales x 8 orientations are applied in
@@ -111,7 +112,8 @@ class GistRegressor(nn.Module):
         """Descriptors -> the regressor's input: standardised, then (rbf) random Fourier features."""
         z = (descriptors - self.feature_mean) / self.feature_std
         if self.regressor == "rbf":
-            z = torch.cos(z @ self.rff_weight / self.rff_width + self.rff_phase) * math.sqrt(2.0 / self.rff_weight.shape[1])
+            scale = math.sqrt(2.0 / self.rff_weight.shape[1])
+            z = torch.cos(z @ self.rff_weight / self.rff_width + self.rff_phase) * scale
         return z
 
     def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
@@ -141,7 +143,9 @@ class GistRegressor(nn.Module):
         for alpha in alphas:
             w = evecs @ (proj / (evals.clamp_min(0) + alpha * scale)[:, None])
             b = y_mean - z_mean @ w
-            loss = lambda zz, yy: float(((zz @ w + b - yy) ** 2).sum(1).mean() / 2)
+
+            def loss(zz, yy, w=w, b=b) -> float:
+                return float(((zz @ w + b - yy) ** 2).sum(1).mean() / 2)
             row = {"alpha": alpha, "train_loss": loss(z, targets), "val_loss": loss(zv, val_targets.double())}
             sweep.append(row)
             if best is None or row["val_loss"] < best[0]["val_loss"]:

@@ -31,7 +31,6 @@ from torch import nn
 
 from core import worlds
 from core.declaration import DeclarationError, WorldDeclaration
-
 from perception.checkpoint import CheckpointError
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)

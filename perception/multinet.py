@@ -34,11 +34,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from core.signals import Terminated, check as check_signals, exit_on_sigterm
-
+from core.files import atomic_write
+from core.signals import Terminated, exit_on_sigterm
+from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.datasets import SampleSpec
-from core.files import atomic_write
 from perception.models import Regressor, family, make_spec
 from perception.shards import Dataset, DatasetError, decode_image, image_column
 

@@ -30,7 +30,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from core.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
-
 from core.files import atomic_write, reclaim_temporaries
 
 FORMAT = "drivestudio-dataset"
@@ -260,7 +259,7 @@ class ShardInfo:
     sha256: str | None = None
 
     @classmethod
-    def from_entry(cls, entry: dict) -> "ShardInfo":
+    def from_entry(cls, entry: dict) -> ShardInfo:
         try:
             params = entry.get("params")
             if params is None:   # version 1 listed track and lanes beside the file

@@ -35,12 +35,21 @@ import torch
 from tqdm import tqdm
 
 from core.declaration import WorldDeclaration
-from core.signals import Terminated, check as check_signals, exit_on_sigterm
-
+from core.files import atomic_write
+from core.signals import Terminated, exit_on_sigterm
+from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.datasets import FrameDataset, FrameStream
-from core.files import atomic_write
-from perception.models import IMAGENET_MEAN, IMAGENET_STD, Regressor, check_spec, describe, family, load_trunk, make_spec
+from perception.models import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    Regressor,
+    check_spec,
+    describe,
+    family,
+    load_trunk,
+    make_spec,
+)
 from perception.shards import Dataset, DatasetError
 
 

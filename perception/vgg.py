@@ -1,8 +1,8 @@
 """Liu and Wang's VGG-16 regressor (Deeper Direct Perception in Autonomous Driving): torchvision's VGG-16 trunk,
 fully connected layers replaced by 4096-256-N.
 
-By default the thirteen convolutional layers are frozen and only the new head learns (Liu and Wang, section 6: "fixing the
-pre-trained weights for all convolutional layers"); `frozen=False` fine-tunes everything (the paper's first
+By default the thirteen convolutional layers are frozen and only the new head learns (Liu and Wang, section 6:
+"fixing the pre-trained weights for all convolutional layers"); `frozen=False` fine-tunes everything (the paper's first
 item of future work) and `batch_norm=True` uses vgg16_bn (its second). No dropout, no output sigmoid.
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ class VGGRegressor(nn.Module):
         self.frozen = frozen
         self.features.requires_grad_(not frozen)
 
-    def train(self, mode: bool = True) -> "VGGRegressor":
+    def train(self, mode: bool = True) -> VGGRegressor:
         super().train(mode)
         if self.frozen:  # a frozen trunk keeps its batch-norm statistics too
             self.features.eval()

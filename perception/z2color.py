@@ -19,7 +19,6 @@ import torch
 from torch import nn
 
 from core.declaration import WorldDeclaration
-
 from perception.models import Family, ModelInput, register
 
 INPUT_SIZE = (94, 168)     # (rows, columns) the network reads

@@ -34,16 +34,34 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from shm_bridge import futex, layout
 from core.declaration import DeclarationError, WorldDeclaration
-from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
-from shm_bridge.layout import (ACTION_OFFSET, ACTION_VALUES, DRIVER_ATTACHED, DRIVER_DETACHED, DRIVER_MODES,
-                               DRIVER_NONE, DRIVER_STATUSES, END_REASONS, FIXED_SIZE, MAGIC, OFFSET, SLOT_COUNT,
-                               SLOT_OFFSET, SLOT_TRUTH, STATUS_FAILED, STATUS_FINISHED, VERSION, WORLD_CLOSED,
-                               WORLD_RUNNING, Layout)
 from core.processes import pid_alive
-from shm_bridge.segment import SHM_DIR, Segment, shm_path, unlink_if_same, validate_name
 from core.signals import Terminated, exit_on_sigterm
+from shm_bridge import futex, layout
+from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
+from shm_bridge.layout import (
+    ACTION_OFFSET,
+    ACTION_VALUES,
+    DRIVER_ATTACHED,
+    DRIVER_DETACHED,
+    DRIVER_MODES,
+    DRIVER_NONE,
+    DRIVER_STATUSES,
+    END_REASONS,
+    FIXED_SIZE,
+    MAGIC,
+    OFFSET,
+    SLOT_COUNT,
+    SLOT_OFFSET,
+    SLOT_TRUTH,
+    STATUS_FAILED,
+    STATUS_FINISHED,
+    VERSION,
+    WORLD_CLOSED,
+    WORLD_RUNNING,
+    Layout,
+)
+from shm_bridge.segment import SHM_DIR, Segment, shm_path, unlink_if_same, validate_name
 
 __all__ = ["WorldEndpoint", "DriverEndpoint", "FrameMsg", "ActionMsg", "BridgeError", "PeerGone",
            "ProtocolMismatch", "BridgeTimeout", "Terminated", "exit_on_sigterm"]
@@ -527,7 +545,7 @@ class WorldEndpoint(_Endpoint):
 def _create(name: str, size: int) -> Segment:
     """Create the segment; a leftover of a dead world under the same name is removed first."""
     validate_name(name)
-    for attempt in range(3):
+    for _attempt in range(3):
         try:
             return Segment.create(name, size)
         except FileExistsError:

@@ -326,7 +326,7 @@ class Layout:
         buf[start:start + len(self.declaration)] = np.frombuffer(self.declaration, dtype=np.uint8)
 
     @classmethod
-    def read(cls, buf: np.ndarray) -> "Layout":
+    def read(cls, buf: np.ndarray) -> Layout:
         """The layout a version-2 header in `buf` describes (the caller checked magic, version and byte order).
         Raises ValueError when the header contradicts itself or the buffer."""
         h = buf[:FIXED_SIZE].view(CONTROL_DTYPE)[0]

@@ -58,7 +58,7 @@ class Segment:
 
     # --- creation and opening ----------------------------------------------------------------------------------
     @classmethod
-    def create(cls, name: str, size: int) -> "Segment":
+    def create(cls, name: str, size: int) -> Segment:
         """Create /dev/shm/NAME (0600, exclusive) of `size` zero bytes; FileExistsError when the name is taken."""
         path = shm_path(name)
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, MODE)
@@ -72,7 +72,7 @@ class Segment:
             raise
 
     @classmethod
-    def open(cls, name: str, min_size: int) -> "Segment | None":
+    def open(cls, name: str, min_size: int) -> Segment | None:
         """Open an existing segment of at least `min_size` bytes (mapping all of it); None when it does not
         exist or is still shorter (being created). BridgeError when the file is not the user's own."""
         path = shm_path(name)

@@ -17,8 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.worlds.highway import (EDGE_MARKING, IN_LANE_SPAN, INACTIVE, INDICATORS, NEIGHBOUR_LANE,
-                                      STEER_LOCK_RAD, Action)
+from core.worlds.highway import EDGE_MARKING, IN_LANE_SPAN, INACTIVE, INDICATORS, NEIGHBOUR_LANE, STEER_LOCK_RAD, Action
 
 # Lane-change states: keeping a lane, or phase 1 / phase 2 of a change to the left or to the right.
 KEEP = "keep"

@@ -20,9 +20,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from core.worlds.highway import INDEX, NEIGHBOUR_LANE, STEER_LOCK_RAD, Action
-
 from controller.highway.chen import KEEP, ChenController, ChenParams
+from core.worlds.highway import INDEX, NEIGHBOUR_LANE, STEER_LOCK_RAD, Action
 
 PERTURBATIONS = ("none", "noise", "wander", "drift", "recovery", "forced-change")
 

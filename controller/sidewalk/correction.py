@@ -25,9 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from core.worlds.sidewalk import CAR_WIDTH, STEP
-
 from controller.sidewalk.experts import GAP_CAP, field
+from core.worlds.sidewalk import CAR_WIDTH, STEP
 
 
 @dataclass(frozen=True)

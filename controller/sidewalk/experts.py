@@ -21,8 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.worlds.sidewalk import (CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD,
-                                       TOP_SPEED, WHEELBASE)
+from core.worlds.sidewalk import CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD, TOP_SPEED, WHEELBASE
 
 BORDER_CAP = 5.0     # [m] the record's border distance where there is no border
 GAP_CAP = 30.0       # [m] the record's obstacle_gap / lead_gap when there is nothing

@@ -7,13 +7,13 @@ Zipser define it (MultiNet, 2017): (1 - correction time / elapsed time) * 100.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import numpy as np
 
-from core.worlds.sidewalk import MODES, SIDEWALK
-
 from controller.sidewalk.experts import BORDER_CAP, GAP_CAP
+from core.worlds.sidewalk import MODES, SIDEWALK
 
 STAGES = ("render", "transfer", "perception", "control", "physics", "truth")
 _I = {n: i for i, n in enumerate(SIDEWALK.truth_names)}

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.worlds.sidewalk import STEP, TOP_SPEED
-
 from controller.sidewalk.experts import SidewalkExpert, motor_command
+from core.worlds.sidewalk import STEP, TOP_SPEED
 
 
 @dataclass(frozen=True)

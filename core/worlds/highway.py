@@ -99,7 +99,7 @@ class Action:
     accel: float = 0.0
     brake: float = 0.0
 
-    def clipped(self) -> "Action":
+    def clipped(self) -> Action:
         return Action(float(np.clip(self.steer, -1.0, 1.0)), float(np.clip(self.accel, 0.0, 1.0)),
                       float(np.clip(self.brake, 0.0, 1.0)))
 
@@ -107,7 +107,7 @@ class Action:
         return np.array([self.steer, self.accel, self.brake], dtype=np.float64)
 
     @classmethod
-    def from_array(cls, a) -> "Action":
+    def from_array(cls, a) -> Action:
         a = np.asarray(a, dtype=np.float64).reshape(3)
         return cls(float(a[0]), float(a[1]), float(a[2]))
 

@@ -25,11 +25,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 # --- the project's code: every import of it, in one place -------------------------------------------------------
-from core.worlds.highway import INACTIVE, INDICATORS  # noqa: E402  (the highway's declaration)
 from controller.highway.chen import ChenController, ChenParams  # noqa: E402
-from sim.track import VERGE_WIDTH, track_from_spec  # noqa: E402
+from core.worlds.highway import INACTIVE, INDICATORS  # noqa: E402  (the highway's declaration)
 from sim.highway.truth import affordances  # noqa: E402
 from sim.highway.vehicle import VehicleState, step_vehicle  # noqa: E402
+from sim.track import VERGE_WIDTH, track_from_spec  # noqa: E402
 
 OUT = ROOT / "docs" / "img"
 DPI = 100
@@ -162,7 +162,7 @@ def panel_at_host(ax, track, s: Scene, v):
     ds_grid = np.arange(-half, half + 1e-9, 0.01)
     act = np.array([systems(indicators(track, float(x), 0.0, ())) for x in ds_grid])
     rows = ((IN_LANE, "in-lane\nactive", -9.6), (ON_MARKING, "on-marking\nactive", -11.2))
-    for row, (col, label, y) in enumerate(rows):
+    for row, (col, _label, y) in enumerate(rows):
         on = act[:, row]
         edges = np.flatnonzero(np.diff(np.r_[0, on.astype(int), 0]))
         for a, b in zip(edges[::2], edges[1::2]):
@@ -363,8 +363,8 @@ def draw_steering_curve() -> None:
     for key in ((True, False), (True, True), (False, True)):
         ax.fill_between([], [], color=shades[key][0], label=shades[key][1])
     for x in (2.5, -2.5):
-        ax.text(x + math.copysign(0.45, x), -0.35 if x > 0 else 0.4, "next lane's\nin-lane band:\nkeeps that\nlane", fontsize=8.5,
-                ha="center", va="center")
+        ax.text(x + math.copysign(0.45, x), -0.35 if x > 0 else 0.4, "next lane's\nin-lane band:\nkeeps that\nlane",
+                fontsize=8.5, ha="center", va="center")
     for j, x in enumerate(track.markings):
         if abs(x - centre) < 3:
             ax.axvline(x - centre, color="black", lw=1.2, ls="--")

@@ -32,7 +32,7 @@ from sim.sidewalk.topdown import TopDown  # noqa: E402
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # noqa: E402
 
 OUT = ROOT / "docs" / "img"
-I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
+IX = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
 
 
 def save(name: str, rgb: np.ndarray) -> None:
@@ -84,16 +84,16 @@ def modes() -> None:
         w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode=mode, render=False))
         layout = w.layout
         _, rec = drive(w, 50.0)
-        along = (rec[:, I["s"]] - layout.start_s) % layout.path.length
+        along = (rec[:, IX["s"]] - layout.start_s) % layout.path.length
         keep = along < span
-        top.plot(along[keep], rec[keep, I["d"]], color=colours[mode], lw=1.8, label=mode)
+        top.plot(along[keep], rec[keep, IX["d"]], color=colours[mode], lw=1.8, label=mode)
         t = np.arange(len(rec)) * w.dt
-        speed.plot(t, rec[:, I["speed"]], color=colours[mode], lw=1.4, label=mode)
+        speed.plot(t, rec[:, IX["speed"]], color=colours[mode], lw=1.4, label=mode)
         if mode == "follow":
-            speed.plot(t, rec[:, I["lead_speed"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
-            top.plot(along[keep], rec[keep, I["lead_d"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
+            speed.plot(t, rec[:, IX["lead_speed"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
+            top.plot(along[keep], rec[keep, IX["lead_d"]], color=colours[mode], lw=0.9, ls=":", label="lead car")
         if mode == "furtive":
-            bordered = np.minimum(rec[:, I["border_left"]], rec[:, I["border_right"]]) < 5
+            bordered = np.minimum(rec[:, IX["border_left"]], rec[:, IX["border_right"]]) < 5
             speed.fill_between(t, 0, 4.0, where=~bordered, color="tab:green", alpha=0.1, lw=0,
                                label="furtive: no border beside it")
     hw = layout.path.half_width
@@ -135,7 +135,7 @@ def stereo() -> None:
     row = int(st.camera("left").horizon_row())
     distances = np.array([1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0])
     measured, crops = [], []
-    from tests.sidewalk.helpers import world   # the stereo test's stadium set-up
+    from tests.sidewalk.helpers import world  # the stereo test's stadium set-up
     for dist in distances:
         frames = []
         for items in ([("post", 10.0 + 0.1 + dist, 0.0, 0.0)], []):
@@ -185,12 +185,12 @@ def correction() -> None:
     t = np.arange(1, len(rec) + 1) * w.dt
     hw = w.path.half_width
     fig, ax = plt.subplots(figsize=(11, 3.4))
-    ax.fill_between(t, -hw, hw, where=rec[:, I["correcting"]] > 0, color="orange", alpha=0.35, lw=0,
+    ax.fill_between(t, -hw, hw, where=rec[:, IX["correcting"]] > 0, color="orange", alpha=0.35, lw=0,
                     label="the expert corrects")
-    ax.plot(t, rec[:, I["d"]], color="tab:blue", lw=1.2, label="lateral offset d")
+    ax.plot(t, rec[:, IX["d"]], color="tab:blue", lw=1.2, label="lateral offset d")
     ax.axhline(hw, color="0.4", lw=0.8)
     ax.axhline(-hw, color="0.4", lw=0.8)
-    share = rec[:, I["correcting"]].mean()
+    share = rec[:, IX["correcting"]].mean()
     ax.set_title(f"the poor driver on the park path under the correction rule: autonomy {100 * (1 - share):.1f} %, "
                  "no collision, never off the path")
     ax.set_xlabel("t [s]")
@@ -204,6 +204,7 @@ def correction() -> None:
 
 def moment() -> None:
     import subprocess
+
     from perception.datasets import FrameDataset
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "120",

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivestudio.numbers import count, finite, positive, seed
 from drivestudio.commands.common import add_device_option, check_device, run_dir
+from drivestudio.numbers import count, finite, positive, seed
 
 
 def register(sub) -> None:
@@ -36,9 +36,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output_dir
-
-    from drivestudio.worlds.sidewalk import autonomy
     from drivestudio.commands.common import check_checkpoint_path, load_predictor_for
+    from drivestudio.worlds.sidewalk import autonomy
 
     check_device(args.device)
     check_checkpoint_path(args.model)

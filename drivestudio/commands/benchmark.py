@@ -33,16 +33,16 @@ import argparse
 import os
 import sys
 
-from drivestudio.numbers import count
 from drivestudio.commands.common import add_device_option, check_device, run_dir
+from drivestudio.numbers import count
 
 
 def register(sub) -> None:
     p = sub.add_parser("benchmark", help="drive fixed routes with every model and rank them by driving score",
                        description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", action="append", metavar="M",
-                   help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B; repeat for more rows "
-                        "(default: the oracle alone; the oracle row is always added as the upper bound)")
+                   help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B; repeat for "
+                        "more rows (default: the oracle alone; the oracle row is always added as the upper bound)")
     p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,
@@ -60,11 +60,10 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output_dir
-
-    from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
-    from drivestudio.worlds.highway.benchmark.score import csv_text, markdown, routes_csv_text
     from drivestudio.errors import UsageError
     from drivestudio.outputs import write_json, write_text
+    from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
+    from drivestudio.worlds.highway.benchmark.score import csv_text, markdown, routes_csv_text
 
     if args.out is not None:
         check_output_dir(args.out)          # before any work

@@ -58,7 +58,6 @@ def run(args) -> int:
     from dataclasses import replace
 
     from core.files import make_dir
-
     from drivestudio.cli import main
     from drivestudio.outputs import write_text
 

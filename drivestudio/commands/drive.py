@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import argparse
 
+from drivestudio.commands.common import add_device_option, add_world_options, check_device, plugin_for, run_dir
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
-from drivestudio.commands.common import add_device_option, add_world_options, check_device, plugin_for, run_dir
 
 
 def register(sub) -> None:
@@ -38,7 +38,6 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output
-
     from drivestudio import drive_session
 
     check_device(args.device)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drivestudio.numbers import count
 from drivestudio.commands.common import add_device_option, check_device
+from drivestudio.numbers import count
 
 
 def register(sub) -> None:
@@ -33,8 +33,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.evaluate import evaluate
     from core.files import check_output_dir
+    from perception.evaluate import evaluate
 
     check_device(args.device)
     check_output_dir(args.out)

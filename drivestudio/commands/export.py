@@ -16,11 +16,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.export import export_onnx
     from core.files import check_output
-
-    from drivestudio.errors import RunError
     from drivestudio.commands.common import check_checkpoint_path
+    from drivestudio.errors import RunError
+    from perception.export import export_onnx
 
     check_checkpoint_path(args.model)
     check_output(args.onnx, (".onnx",), "ONNX file")

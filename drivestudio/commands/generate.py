@@ -5,8 +5,8 @@ import os
 import sys
 import time
 
-from drivestudio.numbers import count, non_negative
 from drivestudio.commands.common import add_world_options, plugin_for
+from drivestudio.numbers import count, non_negative
 
 
 def register(sub) -> None:
@@ -35,14 +35,14 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output_dir
-
     from drivestudio.generate import GenerateConfig, episode_length, generate
 
     plugin = plugin_for(args, "generate")
     check_output_dir(args.out, "dataset folder")
     options = plugin.generate_options(args)   # a bad track or mode fails here, in one line, before any work
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=args.renderer,
-                         encoding=args.encoding, quality=args.quality, episode_frames=episode_length(args.frames, args.episode_frames),
+                         encoding=args.encoding, quality=args.quality,
+                         episode_frames=episode_length(args.frames, args.episode_frames),
                          warmup=5.0 if args.warmup is None else args.warmup, options=options)
     t0 = time.perf_counter()
     try:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from drivestudio.commands.common import add_device_option, check_device
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, seed
-from drivestudio.commands.common import add_device_option, check_device
 
 
 def register(sub) -> None:
@@ -38,12 +38,11 @@ def run(args) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from perception.datasets import FrameDataset
     from core.files import check_output, check_output_dir
-    from perception.shards import DatasetError
-
     from drivestudio import worlds
     from drivestudio.outputs import VideoWriter, write_png
+    from perception.datasets import FrameDataset
+    from perception.shards import DatasetError
 
     check_device(args.device)
     if args.video:

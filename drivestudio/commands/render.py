@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivestudio.errors import UsageError
 from drivestudio.commands.common import add_world_options, plugin_for
+from drivestudio.errors import UsageError
 
 
 def register(sub) -> None:
@@ -28,7 +28,6 @@ def camera_paths(out: Path, cameras) -> dict:
 
 def run(args) -> int:
     from core.files import check_output
-
     from drivestudio.outputs import write_json, write_png
 
     plugin = plugin_for(args, "render")

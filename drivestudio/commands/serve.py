@@ -1,8 +1,8 @@
 """drivestudio serve --shm NAME: the world side of the shared-memory loop (TORCS's role), for any world."""
 from __future__ import annotations
 
-from drivestudio.numbers import positive
 from drivestudio.commands.common import add_world_options, plugin_for, run_dir
+from drivestudio.numbers import positive
 
 
 def register(sub) -> None:
@@ -26,9 +26,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output
-    from shm_bridge.segment import validate_name
-
     from drivestudio.drive_session import run_world_side
+    from shm_bridge.segment import validate_name
     validate_name(args.shm)
     plugin = plugin_for(args, "serve")
     if args.record:

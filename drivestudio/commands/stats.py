@@ -18,11 +18,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.dataset_stats import histograms, summarize, table
     from core.files import check_output_dir
-    from perception.shards import Dataset
-
     from drivestudio.outputs import write_json, write_text
+    from perception.dataset_stats import histograms, summarize, table
+    from perception.shards import Dataset
 
     ds = Dataset(Path(args.data))
     out = check_output_dir(Path(args.out) if args.out else Path(args.data) / "stats")

@@ -1,10 +1,9 @@
 """drivestudio train --data DIR --model NAME --out CKPT: fit a perception model of the dataset's world."""
 from __future__ import annotations
 
+from drivestudio.commands.common import add_device_option, check_device
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
-from drivestudio.commands.common import add_device_option, check_device
-
 
 FAMILIES = "alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), z2color (Z2Color: MultiNet and its MTL baseline)"
 

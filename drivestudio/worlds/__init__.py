@@ -13,10 +13,9 @@ import pkgutil
 from dataclasses import dataclass, field
 
 from core.declaration import WorldDeclaration
-
 from drivestudio.errors import UsageError
 
-_REGISTERED: dict[str, "Plugin"] = {}
+_REGISTERED: dict[str, Plugin] = {}
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from core.worlds.highway import (EDGE_MARKING, GAP_MAX, IN_LANE_SPAN, INDEX, NEIGHBOUR_LANE, ON_MARKING_M,
-                                      PAPER_INDICATORS, lane_centres, markings)
+from core.worlds.highway import (
+    EDGE_MARKING,
+    GAP_MAX,
+    IN_LANE_SPAN,
+    INDEX,
+    NEIGHBOUR_LANE,
+    ON_MARKING_M,
+    PAPER_INDICATORS,
+    lane_centres,
+    markings,
+)
 
 PX_PER_M = 12                  # DeepDriving's scale, both directions
 CANVAS = (320, 660)            # width, height of the top-down view [px]
@@ -58,8 +67,8 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
 
     The 13 indicators are relative to the lane or marking the car is on; which one it is follows from which
     neighbours exist (an inactive LL/RR or L/R), from a predicted lanes_left when the model has one, and
-    otherwise is ambiguous (Liu and Wang, section 6.5): then the lane or marking nearest `hint_d` is taken and the overlay
-    says so.
+    otherwise is ambiguous (Liu and Wang, section 6.5): then the lane or marking nearest `hint_d` is taken and the
+    overlay says so.
     """
     est = np.asarray(est, dtype=np.float64)
     m, c = markings(lanes, lane_width), lane_centres(lanes, lane_width)

@@ -44,11 +44,11 @@ with _quiet():
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
 
-from sim.camera import CameraConfig
-from sim.highway.errors import RendererError
-from sim.highway.car_models import PART_COLOURS, PAINTS, car_models
-from sim.highway.mesh import MeshData
-from sim.scene import Chunk, Look
+from sim.camera import CameraConfig  # noqa: E402  (below pybullet's quietened import, which must come first)
+from sim.highway.car_models import PAINTS, PART_COLOURS, car_models  # noqa: E402
+from sim.highway.errors import RendererError  # noqa: E402
+from sim.highway.mesh import MeshData  # noqa: E402
+from sim.scene import Chunk, Look  # noqa: E402
 
 RENDERERS = ("tiny", "egl")
 CAR_PARTS = ("paint", "glass", "tyres", "taillights", "headlights")  # base first, then links

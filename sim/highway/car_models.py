@@ -7,7 +7,7 @@ paint per car. Footprints are shared with the collision test and SUMO's vehicle 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import trimesh
@@ -92,7 +92,7 @@ def _make(name, length, width, height, nose, tail, belt, cabin, clearance=0.22, 
     return CarModel(name, length, width, height, {k: MeshData.from_trimesh(v) for k, v in parts.items()})
 
 
-@lru_cache(maxsize=None)
+@cache
 def car_models() -> tuple[CarModel, ...]:
     return (
         _make("sedan", 4.6, 1.82, 1.45, nose=0.25, tail=0.1, belt=0.95, cabin=(-1.35, 0.95, -0.85, 0.15)),

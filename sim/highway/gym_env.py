@@ -12,7 +12,6 @@ import gymnasium as gym
 import numpy as np
 
 from core.worlds.highway import FRAME, Action
-
 from sim.camera import CameraConfig
 from sim.highway.world import Observation, World, WorldConfig
 

@@ -15,16 +15,16 @@ import numpy as np
 from sim.camera import CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
-from sim.track import Track
 from sim.highway.traffic import CarStates
+from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 
 class Renderer:
-    def __init__(self, track: Track, seed: int, camera: CameraConfig = CameraConfig(), renderer: str = "tiny"):
+    def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny"):
         from sim.highway.bullet_scene import BulletScene  # pybullet loads only when frames are wanted
-        self.camera = camera
+        self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)
         chunks = build_scenery(track, seed)
         self._centres = np.array([c.centre for c in chunks]).reshape(-1, 2)

@@ -14,10 +14,10 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sim.track import MAX_LANES, Track, TrackError, load_track
 from core.inputs import InputError, check_keys, number, read_json, show, show_path
 from sim.highway.truth import EDGE_OUTSIDE
 from sim.highway.vehicle import VehicleState
+from sim.track import MAX_LANES, Track, TrackError, load_track
 
 # --- limits of a scenario (docs/scenarios.md, "Limits"); a scenario file is also bounded by read_json's
 # MAX_JSON_BYTES and MAX_JSON_DEPTH, and its track by the track limits (docs/tracks.md)

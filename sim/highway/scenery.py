@@ -8,7 +8,6 @@ PyBullet. Open grass and sky are a backdrop, not geometry.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh

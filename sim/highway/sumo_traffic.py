@@ -11,14 +11,13 @@ libsumo holds one simulation per process; a second SumoTraffic while one is open
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from sim.highway.car_models import car_models
 from sim.highway.errors import TrafficError
 from sim.highway.sumo_network import SumoNetwork, network_for
-from sim.track import Track
 from sim.highway.traffic import CarStates, assign_looks
+from sim.track import Track
 
 MAX_CARS = 300
 MIN_SPACING = 20.0        # [m] of lane per car: denser traffic cannot be inserted
@@ -46,7 +45,7 @@ def _load_libsumo():
 
 
 class SumoTraffic:
-    _open: "SumoTraffic | None" = None
+    _open: SumoTraffic | None = None
     _started = False
 
     def __init__(self, track: Track, n_cars: int, seed: int = 0, dt: float = 0.1, ego: np.ndarray | None = None,
@@ -108,7 +107,7 @@ class SumoTraffic:
             ls.route.add(f"loop{i}", self._loop_from(i))
         models = car_models()
         for m, model in enumerate(models):
-            for st, (name, accel, decel, tau, sigma, _, _) in enumerate(DRIVER_STYLES):
+            for name, accel, decel, tau, sigma, _, _ in DRIVER_STYLES:
                 t = f"m{m}{name}"
                 ls.vehicletype.copy("DEFAULT_VEHTYPE", t)
                 ls.vehicletype.setLength(t, model.length)

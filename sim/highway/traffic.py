@@ -27,7 +27,7 @@ class CarStates:
     paints: np.ndarray  # index into PAINTS
 
     @classmethod
-    def empty(cls) -> "CarStates":
+    def empty(cls) -> CarStates:
         z = np.zeros(0)
         return cls(z, z, z, z, z, z, z, np.zeros(0, int), np.zeros(0, int))
 

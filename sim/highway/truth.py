@@ -10,9 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.worlds.highway import (GAP_INACTIVE, GAP_MAX, HIGHWAY, INACTIVE, INDEX, INDICATORS,
-                                      indicators_to_dict)
-
+from core.worlds.highway import GAP_INACTIVE, GAP_MAX, HIGHWAY, INACTIVE, INDEX, INDICATORS, indicators_to_dict
 from sim.track import Track, wrap_angle
 
 IN_LANE_MARGIN = 0.5           # [m] in-lane system: |d - c_k| <= w/2 - margin
@@ -138,7 +136,8 @@ def ground_truth(track: Track, ego: np.ndarray, ego_heading: float, speed: float
 # the truth record after the 14 indicators, in the declaration's order (checked at import)
 _RECORD_TAIL = ("lanes_left", "lanes", "lane_width", "speed", "in_lane", "on_marking", "x", "y", "yaw", "s", "d",
                 "collision", "off_road")
-assert HIGHWAY.truth_names == INDICATORS + _RECORD_TAIL, "sim/highway/truth.py packs the highway's truth record by position"
+assert HIGHWAY.truth_names == INDICATORS + _RECORD_TAIL, \
+    "sim/highway/truth.py packs the highway's truth record by position"
 
 
 def truth_record(truth: GroundTruth, collision: bool, off_road: bool) -> np.ndarray:

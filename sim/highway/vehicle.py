@@ -9,7 +9,6 @@ import math
 from dataclasses import dataclass
 
 from core.worlds.highway import STEER_LOCK_RAD, Action
-
 from sim.bicycle import bicycle_move
 from sim.track import Track
 

@@ -11,14 +11,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from core.worlds.highway import HIGHWAY, Action
-
 from sim.camera import CameraConfig
 from sim.collision import overlaps
 from sim.highway.scenario import Scenario
-from sim.track import Track, load_track
 from sim.highway.traffic import CarStates, ScriptedTraffic
 from sim.highway.truth import GroundTruth, ground_truth, truth_record
 from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
+from sim.track import Track, load_track
 
 LOST_MARGIN = 6.0  # [m] beyond the road edge the host car is lost and the episode ends
 

@@ -11,11 +11,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from core.worlds.sidewalk import (CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, TOP_SPEED,
-                                       WHEELBASE)
-
-from sim.track.track import Track
+from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, TOP_SPEED, WHEELBASE
 from sim.bicycle import bicycle_move
+from sim.track.track import Track
 
 
 @dataclass(frozen=True)

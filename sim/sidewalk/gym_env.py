@@ -13,7 +13,6 @@ import gymnasium as gym
 import numpy as np
 
 from core.worlds.sidewalk import SIDEWALK
-
 from sim.sidewalk.stereo import StereoConfig
 from sim.sidewalk.world import Observation, SidewalkConfig, SidewalkWorld, check_mode
 

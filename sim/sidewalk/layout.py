@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.inputs import read_json
-
 from sim.sidewalk.car import CAR
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.paths import SidewalkPath

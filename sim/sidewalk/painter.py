@@ -22,7 +22,6 @@ import numpy as np
 
 from sim.camera import CameraConfig
 from sim.ground_painter import clip_near
-
 from sim.sidewalk.shapes import Piece
 
 SUBPIXEL_BITS = 4

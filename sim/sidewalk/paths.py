@@ -18,20 +18,19 @@ from __future__ import annotations
 
 import math
 import numbers
-from functools import partial
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path as FilePath
 
 import numpy as np
 
 from assets import ASSETS_DIR
-from sim.track.procedural import close_loop
-from sim.track.track import Track
 from core import inputs
 from core.inputs import fmt_number, number, read_json, show
-from sim.track.trackfile import chain_segments
-
 from sim.sidewalk.errors import PathError
+from sim.track.procedural import close_loop
+from sim.track.track import Track
+from sim.track.trackfile import chain_segments
 
 PATHS_DIR = ASSETS_DIR / "paths"
 STYLES = ("sidewalk", "park", "forest")
@@ -128,7 +127,8 @@ def _check_segments(specs, width: float, where: str) -> None:
                 raise PathError(f"{at}: 'turn' must be 'left' or 'right', got {show(seg.get('turn'))}")
             total += radius * math.radians(angle)
     if not LENGTH_RANGE[0] <= total <= LENGTH_RANGE[1]:
-        raise PathError(f"{where}: the segments add up to {total:.1f} m; a path loop is {fmt_number(LENGTH_RANGE[0])} to "
+        raise PathError(f"{where}: the segments add up to {total:.1f} m; a path loop is "
+                        f"{fmt_number(LENGTH_RANGE[0])} to "
                         f"{fmt_number(LENGTH_RANGE[1])} m long")
 
 

@@ -13,12 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sim.scene import Chunk, road_samples
-from sim.track.track import Track
-
 from sim.sidewalk import shapes
 from sim.sidewalk.layout import Layout, Obstacle
 from sim.sidewalk.look import SidewalkLook
 from sim.sidewalk.shapes import Piece
+from sim.track.track import Track
 
 CHUNK_LENGTH = 8.0        # [m] of path per chunk
 KERB = (0.12, 0.04)       # [m] kerb top and kerb face widths (sidewalk style), beyond the path's edge

@@ -18,13 +18,13 @@ class Piece:
     normals: np.ndarray    # (F, 3)
     material: str
     shades: np.ndarray | None = None   # (F,) per-face brightness factor (two-tone bushes); None: 1
-    far: "Piece | None" = None         # a simpler stand-in painted from afar (sim/sidewalk/painter.py)
+    far: Piece | None = None         # a simpler stand-in painted from afar (sim/sidewalk/painter.py)
 
     @property
     def centre(self) -> np.ndarray:
         return self.faces.reshape(-1, 3).mean(axis=0)
 
-    def moved(self, x: float, y: float, yaw: float) -> "Piece":
+    def moved(self, x: float, y: float, yaw: float) -> Piece:
         c, s = math.cos(yaw), math.sin(yaw)
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         return Piece(self.faces @ rot.T + (x, y, 0.0), self.normals @ rot.T, self.material, self.shades,

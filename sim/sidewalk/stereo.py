@@ -21,10 +21,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from sim.camera import CameraConfig
-
+from sim.sidewalk.ground import StereoGroundPainter
 from sim.sidewalk.layout import Layout
 from sim.sidewalk.look import SidewalkLook, make_look
-from sim.sidewalk.ground import StereoGroundPainter
 from sim.sidewalk.painter import PieceSet, StereoObjectPainter, face_colours
 from sim.sidewalk.scenery import DETAIL, GROUND, GROUND_BASE, build_scenery, lead_pieces
 from sim.sidewalk.shapes import concat

@@ -11,9 +11,7 @@ import math
 import numpy as np
 
 from core.worlds.sidewalk import SIDEWALK
-
 from sim.collision import overlaps
-
 from sim.sidewalk.car import CAR, CarParams, CarState
 from sim.sidewalk.layout import BORDER_CAP, Layout
 from sim.sidewalk.lead import LeadState

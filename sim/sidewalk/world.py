@@ -17,9 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
-
 from sim.collision import overlaps
-
 from sim.sidewalk.car import CAR, CarState, step_car
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.layout import Layout, build_layout

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.worlds.highway import lane_centres, markings
-
 from sim.track.segments import Segment, wrap_angle
 
 VERGE_WIDTH = 2.0  # [m] shoulder beside each edge; the on-marking system covers it (docs/affordances.md)

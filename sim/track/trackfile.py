@@ -23,7 +23,6 @@ import numpy as np
 from core import inputs
 from core.inputs import InputError, fmt_number, show
 from core.worlds.highway import MAX_LANES  # the highway declaration owns the lane limits
-
 from sim.track.segments import Arc, Segment, Straight
 from sim.track.track import VERGE_WIDTH, Track
 
@@ -88,7 +87,8 @@ def check_segment_specs(seg_specs) -> float:
                 raise TrackError(f"{where}: 'turn' must be 'left' or 'right', got {show(turn)}")
             total += radius * math.radians(angle_deg)
     if total > MAX_TRACK_LENGTH:
-        raise TrackError(f"the segments add up to {total:.0f} m; a track may be at most {fmt_number(MAX_TRACK_LENGTH)} m "
+        raise TrackError(f"the segments add up to {total:.0f} m; a track may be at most "
+                         f"{fmt_number(MAX_TRACK_LENGTH)} m "
                          f"long")
     return total
 

@@ -6,10 +6,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controller.highway import ChenController
-from sim.track import Track
 from sim.highway.traffic import ScriptedTraffic
 from sim.highway.truth import affordances
 from sim.highway.vehicle import VehicleState, step_vehicle
+from sim.track import Track
 
 DT = 0.1  # [s] the controller's 10 Hz frame
 

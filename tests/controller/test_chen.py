@@ -12,11 +12,10 @@ import pytest
 
 from controller.highway import ChenController, ChenParams
 from core.worlds.highway import INACTIVE, INDICATORS, STEER_LOCK_RAD, Action
-from sim.track import load_track
 from sim.highway.traffic import ScriptedTraffic
 from sim.highway.truth import affordances
 from sim.highway.vehicle import VehicleState
-
+from sim.track import load_track
 from tests.controller.drive_helpers import collided, drive
 
 LOCK = 0.541052   # [rad] the doc's steering gain divisor

@@ -7,8 +7,8 @@ import sys
 
 import numpy as np
 
-from perception.shards import Dataset
 from core.worlds.highway import INDICATORS
+from perception.shards import Dataset
 
 IMAGES = "d5262fd20cc70ecee9d35ccb6eba99cd5d6693e1c9608774220799b62f949a5a"
 LABELS = "ae58514b58a12c42ffd2828ab3d9671a905ab6b6bd58880b4155b1378152fce7"

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
+from core.worlds.highway import HIGHWAY, PAPER_INDICATORS, label_set
 from perception.datasets import FrameDataset, FrameStream
 from perception.shards import DatasetError
-from core.worlds.highway import HIGHWAY, PAPER_INDICATORS, label_set
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
+from core import worlds
 from drivestudio.worlds.sidewalk.autonomy import percentage_autonomy
 from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 from perception.shards import Dataset
-from core import worlds
 
 REPO = Path(__file__).resolve().parents[2]
 SIDEWALK = worlds.get("sidewalk")

@@ -184,6 +184,7 @@ def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
     validations loses little, and the same command continues."""
     import signal
     import time
+
     import torch
     env = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}
     data = tmp_path / "data"

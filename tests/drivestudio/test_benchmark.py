@@ -14,14 +14,21 @@ import numpy as np
 import pytest
 import torch
 
-from drivestudio.worlds.highway.benchmark import DEFAULT_SUITE, ModelSpec, RunOptions, SuiteError, driving_score, load_suite
+from core.worlds.highway import HIGHWAY, NORMALISATION
+from drivestudio.errors import UsageError
+from drivestudio.worlds.highway.benchmark import (
+    DEFAULT_SUITE,
+    ModelSpec,
+    RunOptions,
+    SuiteError,
+    driving_score,
+    load_suite,
+)
 from drivestudio.worlds.highway.benchmark.models import parse_model
 from drivestudio.worlds.highway.benchmark.route import RouteMetrics, run_route
 from drivestudio.worlds.highway.benchmark.suite import parse_suite
-from drivestudio.errors import UsageError
 from perception.checkpoint import save_checkpoint
 from perception.models import build
-from core.worlds.highway import HIGHWAY, NORMALISATION
 
 ROUTE_A = {"name": "a", "track": "procedural:11", "lanes": 3, "cars": 20, "seed": 3, "start_lane": 1,
            "seconds": 10}

@@ -36,7 +36,8 @@ def test_every_link_of_the_report_exists(demo):
     assert len(links) > 20
     for link in links:
         assert (demo / link).exists(), link
-    for video in ("highway/oracle-drive.mp4", "sidewalk/expert-furtive.mp4", "sidewalk/autonomy-multinet/autonomy-0.mp4"):
+    for video in ("highway/oracle-drive.mp4", "sidewalk/expert-furtive.mp4",
+                  "sidewalk/autonomy-multinet/autonomy-0.mp4"):
         assert (demo / video).stat().st_size > 10_000
 
 

@@ -5,8 +5,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from drivestudio.worlds.highway.plugin import ChenDriver, ESTIMATE
 from core.worlds.highway import HIGHWAY, INDICATORS
+from drivestudio.worlds.highway.plugin import ESTIMATE, ChenDriver
 
 
 class Scripted:

@@ -6,11 +6,22 @@ import cv2
 import numpy as np
 import pytest
 
-from perception.highway.overlay import (CANVAS, GREEN, HOST_Y, PX_PER_M, PURPLE, RED, YELLOW, compose, draw_topdown,
-                                estimate_host, mean_normalised_error)
 from core.worlds.highway import INDEX
-from sim.track import load_track
+from perception.highway.overlay import (
+    CANVAS,
+    GREEN,
+    HOST_Y,
+    PURPLE,
+    PX_PER_M,
+    RED,
+    YELLOW,
+    compose,
+    draw_topdown,
+    estimate_host,
+    mean_normalised_error,
+)
 from sim.highway.truth import affordances
+from sim.track import load_track
 
 
 def centroid(img, colour):

@@ -12,7 +12,6 @@ import pytest
 
 from perception.datasets import FrameDataset
 from perception.shards import Dataset
-
 from tests.shm_bridge.processes import REPO
 
 ENV = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}

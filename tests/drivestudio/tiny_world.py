@@ -19,9 +19,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from drivestudio.worlds import Episode, Plugin as BasePlugin
-from perception import models
 from core.declaration import Camera, Control, Label, Moment, Quantity, WorldDeclaration
+from drivestudio.worlds import Episode
+from drivestudio.worlds import Plugin as BasePlugin
+from perception import models
 
 H, W = 12, 20          # [px] each camera's image
 DISPARITY = 3          # [px] the right camera sees the stripe this far to the left

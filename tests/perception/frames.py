@@ -15,14 +15,14 @@ from pathlib import Path
 FRAMES, EPISODE_FRAMES = 120, 12
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def workdir() -> Path:
     path = Path(tempfile.mkdtemp(prefix="drivestudio-perception-"))
     atexit.register(shutil.rmtree, path, ignore_errors=True)
     return path
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def dataset() -> Path:
     from drivestudio.cli import main
 
@@ -42,7 +42,7 @@ def tiny_config(model: str, out: Path, **kw):
     return TrainConfig(**defaults)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def alexnet_checkpoint() -> tuple[Path, dict]:
     """An AlexNet trained for 8 iterations of 4 frames, and its training record."""
     from perception.train import train
@@ -52,7 +52,7 @@ def alexnet_checkpoint() -> tuple[Path, dict]:
     return out, record
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gist_checkpoint() -> tuple[Path, dict]:
     from perception.train import train
 
@@ -61,7 +61,7 @@ def gist_checkpoint() -> tuple[Path, dict]:
     return out, record
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gist15_checkpoint() -> Path:
     """A GIST model with 15 outputs: the paper's 13, fast and lanes_left."""
     from perception.train import train

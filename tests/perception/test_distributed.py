@@ -15,7 +15,6 @@ from perception.datasets import FrameStream
 from perception.predictor import load_predictor
 from perception.shards import Dataset
 from perception.train import curve_paths
-
 from tests.perception.frames import dataset
 
 REPO = Path(__file__).resolve().parents[2]

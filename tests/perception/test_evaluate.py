@@ -6,12 +6,11 @@ import json
 import numpy as np
 import pytest
 
+from core.worlds.highway import PAPER_INDICATORS
 from drivestudio.cli import main
 from perception.datasets import FrameDataset
 from perception.evaluate import TABLE3, evaluate
 from perception.predictor import load_predictor
-from core.worlds.highway import PAPER_INDICATORS
-
 from tests.perception.frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
 
 
@@ -52,7 +51,7 @@ def test_table3_csv_is_the_mae_of_each_indicator(report):
 
 def test_regime_and_lane_breakdowns_partition_the_frames(report):
     test_frames = len(FrameDataset(dataset(), "test"))
-    for name, key in (("mae_by_regime.csv", "regime"), ("mae_by_lanes.csv", "lanes")):
+    for name in ("mae_by_regime.csv", "mae_by_lanes.csv"):
         rows = [r for r in csv.DictReader((report / name).open()) if r["model"] == "AlexNet"]
         assert sum(int(r["frames"]) for r in rows) == test_frames, name
     regimes = {r["regime"] for r in csv.DictReader((report / "mae_by_regime.csv").open())}

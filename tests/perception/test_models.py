@@ -3,9 +3,9 @@ that depend on the frame only."""
 import pytest
 import torch
 
+from core.worlds.highway import HIGHWAY, label_set
 from perception.gist import GistDescriptor, gabor_bank
 from perception.models import IMAGENET_MEAN, build, describe, make_spec
-from core.worlds.highway import HIGHWAY, label_set
 
 LABEL_SETS = [label_set(), label_set(fast=True), label_set(fast=True, lanes_left=True)]
 
@@ -16,13 +16,13 @@ def frames():
     return torch.randint(0, 256, (2, 3, 210, 280), dtype=torch.uint8, generator=g)
 
 
-@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda names: f"{len(names)}")
 def test_alexnet_outputs_one_value_per_label(frames, labels):
     with torch.no_grad():
         assert build("alexnet", HIGHWAY, labels)(frames).shape == (2, len(labels))
 
 
-@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda names: f"{len(names)}")
 def test_gist_outputs_one_value_per_label(frames, labels):
     with torch.no_grad():
         assert build("gist", HIGHWAY, labels)(frames).shape == (2, len(labels))
@@ -38,7 +38,7 @@ def test_alexnet_is_five_convs_then_4096_4096_256_n_without_dropout_or_sigmoid()
     assert torch.nn.Dropout not in kinds and torch.nn.Sigmoid not in kinds
 
 
-@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda l: f"{len(l)}")
+@pytest.mark.parametrize("labels", LABEL_SETS, ids=lambda names: f"{len(names)}")
 def test_vgg16_frozen_outputs_one_value_per_label_and_trains_only_the_head(frames, labels):
     model = build("vgg16", HIGHWAY, labels, frozen=True, batch_norm=False)
     head = [m for m in model.net.regressor if isinstance(m, torch.nn.Linear)]

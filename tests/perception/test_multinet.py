@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import torch
 
-from perception.models import Regressor, make_spec
-from perception.multinet import (balanced_batches, summarise_trials, t95, train_loss, validation_loss)
-from perception.z2color import Z2Color
 from core import worlds
+from perception.models import Regressor, make_spec
+from perception.multinet import balanced_batches, summarise_trials, t95, train_loss, validation_loss
+from perception.z2color import Z2Color
 
 SIDEWALK = worlds.get("sidewalk")
 

@@ -4,12 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from perception.models import build
 from core.worlds.highway import HIGHWAY, INACTIVE, INDICATORS, NORMALISATION, label_set
+from perception.models import build
+from tests.perception.frames import dataset
 
 normalise, denormalise = HIGHWAY.normalise, HIGHWAY.denormalise
-
-from tests.perception.frames import dataset
 
 
 def test_label_sets_are_13_14_15():

@@ -3,10 +3,9 @@ them into the 14 indicators in canonical order."""
 import numpy as np
 import pytest
 
+from core.worlds.highway import HIGHWAY, INDICATORS, label_set
 from perception.datasets import FrameDataset
 from perception.predictor import load_predictor
-from core.worlds.highway import HIGHWAY, INDICATORS, label_set
-
 from tests.perception.frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint
 
 

@@ -4,12 +4,11 @@ import csv
 import pytest
 import torch
 
+from core.worlds.highway import label_set
 from perception.checkpoint import load_checkpoint
 from perception.datasets import FrameDataset
 from perception.models import family
 from perception.train import TrainConfig, curve_paths, euclidean_loss, train
-from core.worlds.highway import label_set
-
 from tests.perception.frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
 
 

@@ -7,13 +7,10 @@ import time
 
 import numpy as np
 
-from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
 from core.worlds.highway import HIGHWAY, Action
-
-from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
-
+from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
 from tests.shm_bridge.processes import spawn
-
+from tests.shm_bridge.records import TRUTH_LEN, same, small
 
 
 def truth_for(seq: int) -> np.ndarray:

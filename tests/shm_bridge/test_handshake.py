@@ -12,11 +12,17 @@ import time
 import numpy as np
 import pytest
 
-from shm_bridge import layout
-from shm_bridge.endpoints import (ActionMsg, BridgeError, BridgeTimeout, DriverEndpoint, PeerGone, ProtocolMismatch,
-                                  WorldEndpoint)
 from core.worlds.highway import HIGHWAY, Action
-
+from shm_bridge import layout
+from shm_bridge.endpoints import (
+    ActionMsg,
+    BridgeError,
+    BridgeTimeout,
+    DriverEndpoint,
+    PeerGone,
+    ProtocolMismatch,
+    WorldEndpoint,
+)
 from tests.shm_bridge.processes import REPO
 from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
 
@@ -198,7 +204,8 @@ def test_a_version_1_driver_is_refused_in_one_line(name, tmp_path):
             "else None\n")
     with WorldEndpoint(name, small(2, 2)):
         r = subprocess.run([sys.executable, "-c", code, name], capture_output=True, text=True, timeout=20)
-    assert r.returncode == 1 and r.stderr.strip() == f"shared memory '{name}' has protocol version 2, this driver speaks 1"
+    assert r.returncode == 1
+    assert r.stderr.strip() == f"shared memory '{name}' has protocol version 2, this driver speaks 1"
 
 
 def test_a_driver_checks_the_header_against_what_it_needs(name):

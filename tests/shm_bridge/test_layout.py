@@ -12,10 +12,9 @@ import numpy as np
 import pytest
 
 from core import worlds
-from shm_bridge import layout
-from shm_bridge.layout import (ACTION_FIELDS, CAMERA_FIELDS, CONTROL_FIELDS, NAME_FIELDS, SLOT_FIELDS, Layout,
-                               layout_for)
 from core.worlds.highway import HIGHWAY, INDICATORS
+from shm_bridge import layout
+from shm_bridge.layout import ACTION_FIELDS, CAMERA_FIELDS, CONTROL_FIELDS, NAME_FIELDS, SLOT_FIELDS, Layout, layout_for
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "shm-protocol.md"
 STRUCTS = (("ds_control", CONTROL_FIELDS, layout.FIXED_SIZE), ("ds_camera", CAMERA_FIELDS, layout.CAMERA_ENTRY),

@@ -10,13 +10,11 @@ import sys
 import numpy as np
 import pytest
 
+from core.worlds.highway import HIGHWAY, Action
 from shm_bridge import layout
 from shm_bridge.endpoints import DriverEndpoint, WorldEndpoint
-from core.worlds.highway import HIGHWAY, Action
-
-from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
-
 from tests.shm_bridge.processes import REPO, spawn
+from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same
 
 N_FRAMES = 1000
 

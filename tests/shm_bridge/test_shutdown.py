@@ -11,13 +11,11 @@ import time
 import numpy as np
 import pytest
 
-from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEndpoint
 from core.signals import exit_on_sigterm
 from core.worlds.highway import HIGHWAY, Action
-
-from tests.shm_bridge.records import ESTIMATE_LEN, TRUTH_LEN, same, small
-
+from shm_bridge.endpoints import BridgeError, DriverEndpoint, PeerGone, WorldEndpoint
 from tests.shm_bridge.processes import spawn
+from tests.shm_bridge.records import TRUTH_LEN
 
 FRAME = np.zeros((210, 280, 3), dtype=np.uint8)
 TRUTH = np.zeros(TRUTH_LEN)
@@ -234,10 +232,9 @@ def test_a_sigterm_whose_exception_a_finaliser_swallowed_still_ends_the_loop():
             thing = Thing()
             weakref.finalize(thing, lambda: os.kill(os.getpid(), signal.SIGTERM))
             del thing              # the handler runs inside the finaliser: its exception is printed and dropped
-            steps = 0
-            for steps in range(1000):
+            for _ in range(1000):
                 check()
-            pytest.fail(f"ran {steps} steps after SIGTERM")
+            pytest.fail("ran 1000 steps after SIGTERM")
     assert caught.value.code == 128 + signal.SIGTERM
     check()                        # outside the block nothing is pending any more
 

@@ -8,10 +8,9 @@ from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, SIDEWALK
 from sim.sidewalk.car import CarState
 from sim.sidewalk.layout import OBSTACLE_SIZES
 from sim.sidewalk.truth import GAP_CAP
-
 from tests.sidewalk.helpers import STRAIGHT, world
 
-I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
+IX = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
 
 
 def drive(w, steer, motor, seconds):
@@ -42,7 +41,7 @@ def test_steer_and_motor_follow_multinets_conventions():
 def test_the_record_holds_the_command_the_car_is_under():
     w = world()
     obs = w.step(np.array([0.3, 0.7]))
-    assert obs.record[I["steer"]] == pytest.approx(0.3) and obs.record[I["motor"]] == pytest.approx(0.7)
+    assert obs.record[IX["steer"]] == pytest.approx(0.3) and obs.record[IX["motor"]] == pytest.approx(0.7)
     assert obs.t == pytest.approx(1 / 30)
 
 
@@ -52,20 +51,20 @@ def test_obstacle_fields_are_exact():
     w = world(obstacles=[(kind, 20.0, -0.5, 0.0)], borders=((), ()))
     w.car = CarState(s=10.0, d=0.2)
     r = w.observe().record
-    assert r[I["obstacle_gap"]] == pytest.approx((20.0 - length / 2) - (10.0 + CAR_LENGTH / 2))
-    assert r[I["obstacle_d"]] == pytest.approx(-0.5) and r[I["obstacle_width"]] == pytest.approx(width)
-    assert not r[I["obstacle_near"]]
+    assert r[IX["obstacle_gap"]] == pytest.approx((20.0 - length / 2) - (10.0 + CAR_LENGTH / 2))
+    assert r[IX["obstacle_d"]] == pytest.approx(-0.5) and r[IX["obstacle_width"]] == pytest.approx(width)
+    assert not r[IX["obstacle_near"]]
     w.car = CarState(s=20.0 - length / 2 - CAR_LENGTH / 2 - 2.0, d=0.2)   # 2 m before it
     r = w.observe().record
-    assert r[I["obstacle_gap"]] == pytest.approx(2.0) and r[I["obstacle_near"]] and not r[I["collision"]]
+    assert r[IX["obstacle_gap"]] == pytest.approx(2.0) and r[IX["obstacle_near"]] and not r[IX["collision"]]
     w.car = CarState(s=20.0, d=0.2)                                        # alongside, clear of it
     r = w.observe().record
-    assert r[I["obstacle_gap"]] < 0 and not r[I["collision"]]
+    assert r[IX["obstacle_gap"]] < 0 and not r[IX["collision"]]
     w.car = CarState(s=20.0, d=-0.5 + width / 2 + CAR_WIDTH / 2 - 0.01)    # 1 cm into it
-    assert w.observe().record[I["collision"]]
+    assert w.observe().record[IX["collision"]]
     w.car = CarState(s=20.0 + length / 2 + CAR_LENGTH / 2 + 0.01, d=-0.5)  # just past it: the next one is none
     r = w.observe().record
-    assert r[I["obstacle_gap"]] == GAP_CAP and r[I["obstacle_width"]] == 0.0
+    assert r[IX["obstacle_gap"]] == GAP_CAP and r[IX["obstacle_width"]] == 0.0
 
 
 def test_border_clearance_and_contact_are_exact():
@@ -73,16 +72,16 @@ def test_border_clearance_and_contact_are_exact():
     w = world(borders=(((5.0, 40.0, face),), ((30.0, 50.0, -1.3),)))
     w.car = CarState(s=20.0, d=0.3)
     r = w.observe().record
-    assert r[I["border_left"]] == pytest.approx(face - 0.3 - CAR_WIDTH / 2)
-    assert r[I["border_right"]] == 5.0                                      # none beside the car on the right
+    assert r[IX["border_left"]] == pytest.approx(face - 0.3 - CAR_WIDTH / 2)
+    assert r[IX["border_right"]] == 5.0                                      # none beside the car on the right
     w.car = CarState(s=20.0, d=0.3, heading=0.2)                            # turned: the front corner reaches out
     reach = 0.3 + CAR_LENGTH / 2 * math.sin(0.2) + CAR_WIDTH / 2 * math.cos(0.2)
-    assert w.observe().record[I["border_left"]] == pytest.approx(face - reach, abs=1e-9)
+    assert w.observe().record[IX["border_left"]] == pytest.approx(face - reach, abs=1e-9)
     w.car = CarState(s=35.0, d=-0.2)
-    assert w.observe().record[I["border_right"]] == pytest.approx(1.3 - 0.2 - CAR_WIDTH / 2)
+    assert w.observe().record[IX["border_right"]] == pytest.approx(1.3 - 0.2 - CAR_WIDTH / 2)
     w.car = CarState(s=20.0, d=face - CAR_WIDTH / 2 + 0.01)
     r = w.observe().record
-    assert r[I["border_left"]] < 0 and r[I["collision"]] and r[I["off_path"]]
+    assert r[IX["border_left"]] < 0 and r[IX["collision"]] and r[IX["off_path"]]
 
 
 def test_path_fields_are_exact():

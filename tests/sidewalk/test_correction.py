@@ -6,7 +6,6 @@ import pytest
 from controller.sidewalk import CorrectionRule, PoorDriver, SidewalkExpert, SidewalkMetrics
 from drivestudio.worlds.sidewalk.plugin import Supervisor
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
-
 from tests.sidewalk.helpers import record
 
 SAME = ((0.5, 0.6), (0.5, 0.6))   # driver and expert agree

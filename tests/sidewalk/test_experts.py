@@ -6,7 +6,7 @@ from controller.sidewalk import SidewalkExpert, SidewalkMetrics
 from core.worlds.sidewalk import SIDEWALK
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 
-I = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
+IX = {n: SIDEWALK.index(n) for n in SIDEWALK.truth_names}
 
 
 def run(mode: str, seconds: float, path="park", seed: int = 3, obstacles=4.0):
@@ -37,40 +37,41 @@ def test_every_mode_drives_cleanly(drives):
 def test_direct_cruises_and_steers_round_obstacles(drives):
     rep, rec = drives["direct"]
     assert rep["mean_speed_mps"] > 2.3
-    beside = rec[:, I["obstacle_gap"]] < 0.0
+    beside = rec[:, IX["obstacle_gap"]] < 0.0
     assert beside.sum() > 20
     # alongside an obstacle its body keeps at least 10 cm clear of it (centre to edge: half its width more)
-    gap = np.abs(rec[beside, I["d"]] - rec[beside, I["obstacle_d"]]) - rec[beside, I["obstacle_width"]] / 2
+    gap = np.abs(rec[beside, IX["d"]] - rec[beside, IX["obstacle_d"]]) - rec[beside, IX["obstacle_width"]] / 2
     assert (gap > 0.1 + 0.1).all()
-    swerve = np.abs(rec[beside, I["d"]]).max()
+    swerve = np.abs(rec[beside, IX["d"]]).max()
     assert swerve > 0.3                                              # it left the centre line to get by
 
 
 def test_follow_keeps_an_even_distance_and_modulates_speed(drives):
     rep, rec = drives["follow"]
     assert rep["mean_lead_gap_m"] == pytest.approx(1.2, abs=0.2) and rep["lead_gap_std_m"] < 0.35
-    speed = rec[:, I["speed"]]
+    speed = rec[:, IX["speed"]]
     assert speed.std() > 0.4                                      # its speed varies with the lead car's
-    assert np.corrcoef(speed, rec[:, I["lead_speed"]])[0, 1] > 0.8
+    assert np.corrcoef(speed, rec[:, IX["lead_speed"]])[0, 1] > 0.8
 
 
 def test_furtive_creeps_beside_borders_and_hurries_where_there_are_none(drives):
     rep, rec = drives["furtive"]
     _, direct = drives["direct"]
-    bordered = np.minimum(rec[:, I["border_left"]], rec[:, I["border_right"]]) < 5.0
+    bordered = np.minimum(rec[:, IX["border_left"]], rec[:, IX["border_right"]]) < 5.0
     open_ = ~bordered
     assert bordered.any() and open_.any()
-    assert rec[bordered, I["speed"]].mean() < 1.2 < 2.5 < rec[open_ & (rec[:, I["obstacle_gap"]] > 4), I["speed"]].max()
-    nearer = lambda r: np.minimum(r[:, I["border_left"]], r[:, I["border_right"]])   # noqa: E731
-    d_bordered = np.minimum(direct[:, I["border_left"]], direct[:, I["border_right"]]) < 5.0
+    free = open_ & (rec[:, IX["obstacle_gap"]] > 4)
+    assert rec[bordered, IX["speed"]].mean() < 1.2 < 2.5 < rec[free, IX["speed"]].max()
+    nearer = lambda r: np.minimum(r[:, IX["border_left"]], r[:, IX["border_right"]])   # noqa: E731
+    d_bordered = np.minimum(direct[:, IX["border_left"]], direct[:, IX["border_right"]]) < 5.0
     assert nearer(rec)[bordered].mean() < nearer(direct)[d_bordered].mean() - 0.3   # much closer than direct
     assert rep["mean_speed_mps"] < drives["direct"][0]["mean_speed_mps"] - 0.8
 
 
 def test_the_same_place_three_ways(drives):
     """From the same start, the three modes are three different trajectories."""
-    d = {mode: rec[:300, I["d"]] for mode, (_, rec) in drives.items()}
-    s = {mode: rec[:300, I["speed"]] for mode, (_, rec) in drives.items()}
+    d = {mode: rec[:300, IX["d"]] for mode, (_, rec) in drives.items()}
+    s = {mode: rec[:300, IX["speed"]] for mode, (_, rec) in drives.items()}
     assert np.abs(d["furtive"]).mean() > np.abs(d["direct"]).mean() + 0.3
     assert abs(s["follow"].mean() - s["direct"].mean()) > 0.5
 

@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
+from core.worlds.sidewalk import MODES
 from perception.datasets import FrameDataset
 from perception.shards import Dataset, image_column
-from core.worlds.sidewalk import MODES
 
 GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "90",
             "--episode-frames", "30", "--width", "168", "--height", "94", "--paths", "park,procedural:3",

@@ -6,9 +6,16 @@ import numpy as np
 import pytest
 
 from sim.sidewalk.errors import PathError
-from sim.sidewalk.paths import (LENGTH_RANGE, PROCEDURAL_LENGTH, WIDTH_RANGE, load_path, min_radius, path_from_spec,
-                                preset_names, procedural_spec)
-
+from sim.sidewalk.paths import (
+    LENGTH_RANGE,
+    PROCEDURAL_LENGTH,
+    WIDTH_RANGE,
+    load_path,
+    min_radius,
+    path_from_spec,
+    preset_names,
+    procedural_spec,
+)
 from tests.sidewalk.helpers import stadium
 
 

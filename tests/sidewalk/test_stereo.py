@@ -7,7 +7,6 @@ import pytest
 
 from sim.sidewalk.car import CarState
 from sim.sidewalk.stereo import BASELINE, EYE_FORWARD, FOV_DEG, PITCH_DEG, SIZE, StereoConfig
-
 from tests.sidewalk.helpers import world
 
 

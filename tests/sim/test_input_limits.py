@@ -16,11 +16,10 @@ import pytest
 
 import core.inputs as inputs
 import sim.track.trackfile as trackfile
+from core.inputs import MAX_JSON_BYTES, MAX_JSON_DEPTH, InputError, parse_json_text, read_json
 from sim.highway.scenario import MAX_CARS, MAX_SEED, MAX_SPEED, ScenarioError, load_scenario, scenario_from_dict
 from sim.track import TrackError, load_track, preset_names, track_from_spec, write_track
-from core.inputs import MAX_JSON_BYTES, MAX_JSON_DEPTH, InputError, parse_json_text, read_json
-from sim.track.trackfile import (MAX_ANGLE_DEG, MAX_ARC_RADIUS, MAX_SEGMENTS, MAX_STRAIGHT_LENGTH,
-                                 MAX_TRACK_LENGTH)
+from sim.track.trackfile import MAX_ANGLE_DEG, MAX_ARC_RADIUS, MAX_SEGMENTS, MAX_STRAIGHT_LENGTH, MAX_TRACK_LENGTH
 
 ROOT = Path(__file__).resolve().parents[2]
 

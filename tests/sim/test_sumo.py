@@ -8,8 +8,8 @@ from core.worlds.highway import Action
 from sim.collision import overlaps
 from sim.highway.errors import TrafficError
 from sim.highway.sumo_network import network_for
-from sim.track import load_track
 from sim.highway.world import World, WorldConfig
+from sim.track import load_track
 
 
 @pytest.fixture(autouse=True)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from core.worlds.highway import INACTIVE, INDICATORS, indicators_to_dict
-from sim.track import load_track
 from sim.highway.truth import affordances, ground_truth
+from sim.track import load_track
 
 # oval: straight 500 m from s = 0, then a 150 m radius half circle (s 500..971.2), straight, half circle
 S_STRAIGHT = 100.0
@@ -151,7 +151,7 @@ def test_on_marking_one_lane_edges(tracks):
     assert_on_marking_inactive(ind(tracks[1], 0.9))
 
 
-# --- overlap ------------------------------------------------------------------------------------------------------------
+# --- overlap ----------------------------------------------------------------------------------------------------------
 def test_overlap_both_systems_active(tracks):
     d = 2.6  # left lane (c_0 = 4, |d - c| = 1.4) and 0.6 m from m_1 = 2
     v = ind(tracks[3], d)
@@ -180,7 +180,7 @@ def test_overlap_band_width(tracks):
     assert sum(both(tracks[2], float(d)) for d in ds) * 0.001 == pytest.approx(0.7, abs=0.005)
 
 
-# --- gaps ------------------------------------------------------------------------------------------------------------------
+# --- gaps -------------------------------------------------------------------------------------------------------------
 def test_gap_is_centre_to_centre_along_the_centreline(tracks):
     v = ind(tracks[3], 0.0, cars=[(S_STRAIGHT + 23.5, 0.5)])
     assert v["dist_MM"] == pytest.approx(23.5)
@@ -234,7 +234,7 @@ def test_wrap_around_at_the_seam(tracks):
     assert v["dist_MM"] == 60
 
 
-# --- fast ------------------------------------------------------------------------------------------------------------------
+# --- fast -------------------------------------------------------------------------------------------------------------
 def test_fast_on_a_long_straight_ahead(tracks):
     assert ind(tracks[3], 0.0, s=100.0)["fast"] == 1.0     # 400 m of straight ahead
     assert ind(tracks[3], 0.0, s=439.0)["fast"] == 1.0     # 61 m ahead
@@ -262,7 +262,7 @@ def test_fast_continues_across_the_seam():
     assert ind(tr, 0.0, s=tr.length - 20.0)["fast"] == 0.0   # 50 m
 
 
-# --- extras --------------------------------------------------------------------------------------------------------------
+# --- extras -----------------------------------------------------------------------------------------------------------
 def test_ground_truth_extras(tracks):
     tr = tracks[3]
     x, y, h = tr.pose(S_STRAIGHT, -4.0)

@@ -6,8 +6,8 @@ import pytest
 
 from core.worlds.highway import STEER_LOCK_RAD, Action
 from sim.collision import overlaps
-from sim.track import load_track
 from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
+from sim.track import load_track
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""Wiring for the highway's overlays: from its observations or a dataset's records to perception.highway.overlay.compose."""
+"""Wiring for the highway's overlays: from its observations or a dataset's records to
+perception.highway.overlay.compose."""
 from __future__ import annotations
 
 from functools import lru_cache

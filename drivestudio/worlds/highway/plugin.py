@@ -7,7 +7,6 @@ import time
 import numpy as np
 
 from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
-
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import Episode, Plugin
@@ -197,7 +196,8 @@ class Plugin(Plugin):
     def config(self, args, render: bool, **extra):
         from sim.camera import CameraConfig
         from sim.highway.world import WorldConfig
-        camera = CameraConfig(width=getattr(args, "width", None) or FRAME[1], height=getattr(args, "height", None) or FRAME[0],
+        camera = CameraConfig(width=getattr(args, "width", None) or FRAME[1],
+                              height=getattr(args, "height", None) or FRAME[0],
                               fov_deg=getattr(args, "fov", None) or 60.0)
         return WorldConfig(track=args.track or "oval", lanes=args.lanes, seed=args.seed,
                            cars=DEFAULT_CARS if args.cars is None else args.cars, renderer=args.renderer,
@@ -322,7 +322,8 @@ class Plugin(Plugin):
             cars = int(rng.integers(lo, hi + 1))
             ep_seed = int(rng.integers(2**31 - 1))
             episodes.append(Episode(k, min(episode_frames, frames - k * episode_frames), ep_seed,
-                                    {"track": tracks[(k // len(lanes)) % len(tracks)], "lanes": int(lanes[k % len(lanes)]),
+                                    {"track": tracks[(k // len(lanes)) % len(tracks)],
+                                     "lanes": int(lanes[k % len(lanes)]),
                                      "cars": cars}))
         return episodes
 

@@ -48,14 +48,12 @@ def drive_round(model: str, mode: str, seconds: float, out: Path, k: int, path: 
                 obstacles=HELD_OUT_OBSTACLES, seed: int = 0, video: bool = True, device: str = "cpu",
                 log=print) -> RoundResult:
     """One autonomy run: the model drives, the expert corrects; the run's steps become dataset out/corrections-k."""
-    import numpy as np
-
-    from perception.shards import SPLIT_RULE, ShardInfo, ShardWriter, shard_name, write_manifest
 
     from drivestudio import worlds
     from drivestudio.bridge_loop import supervised
     from drivestudio.generate import _software
     from drivestudio.loop import in_process, run_loop
+    from perception.shards import SPLIT_RULE, ShardInfo, ShardWriter, shard_name, write_manifest
 
     plugin = worlds.get("sidewalk")
     args = SimpleNamespace(path=path, path_width=None, seed=seed, mode=mode, obstacles=str(obstacles), width=None,
@@ -115,8 +113,6 @@ def run(model: str, mode: str, seconds: float, out: Path, rounds: int = 1, epoch
     the original data plus every round's corrections); returns the autonomy of every round."""
     from perception.checkpoint import load_checkpoint
     from perception.train import config_from, train
-
-    from drivestudio.outputs import write_json, write_text
 
     results: list[RoundResult] = []
     current = str(model)

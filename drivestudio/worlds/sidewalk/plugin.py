@@ -10,7 +10,6 @@ import time
 import numpy as np
 
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
-
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import Episode, Plugin
@@ -124,9 +123,8 @@ class Recorder:
     """drive --record: per step, both cameras and a top-down view, with a line of what is happening (30 fps)."""
 
     def __init__(self, path, world, label: str):
-        from sim.sidewalk.topdown import TopDown
-
         from drivestudio.outputs import VideoWriter
+        from sim.sidewalk.topdown import TopDown
         self.writer = VideoWriter(path, fps=round(1 / world.dt))
         self.world, self.label = world, label
         h = world.declaration.camera("left").height

@@ -134,8 +134,8 @@ def mid_training_verdict(multi: list[dict], mtl: dict) -> tuple[int, int]:
 
 
 def write_report(out, multi, mtl, autonomy, sizes, fig7, fig8, settings, timings, seconds) -> Path:
-    rows = ["| epoch | MultiNet (all modes) | MTL mean of 3 | MTL direct | MTL follow | MTL furtive | MultiNet, furtive "
-            "moments |", "|---:|---:|---:|---:|---:|---:|---:|"]
+    rows = ["| epoch | MultiNet (all modes) | MTL mean of 3 | MTL direct | MTL follow | MTL furtive "
+            "| MultiNet, furtive moments |", "|---:|---:|---:|---:|---:|---:|---:|"]
 
     def fmt(r, key):
         v, c = r.get(f"{key}_mean"), r.get(f"{key}_ci95")
@@ -201,7 +201,8 @@ Step timings [s]: {json.dumps(timings)}
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m drivestudio.worlds.sidewalk.study", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m drivestudio.worlds.sidewalk.study",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="out/study")
     ap.add_argument("--steps", type=int, default=4000, help="sidewalk steps to record (default 4000)")
     ap.add_argument("--epochs", type=int, default=8, help="epochs per trial (default 8)")

@@ -2,7 +2,8 @@
 
 A route keeps a ring buffer of its last CLIP_BEFORE seconds of StepRecords. When the host car starts touching
 another car, or its centre starts being beyond a road edge, the buffer (and the next CLIP_AFTER seconds) becomes an
-mp4: each frame is the box overlay of truth against estimate (drivestudio/worlds/highway/overlays.py, docs/overlays.md) over a
+mp4: each frame is the box overlay of truth against estimate (drivestudio/worlds/highway/overlays.py,
+docs/overlays.md) over a
 text panel with the Chen controller's state and command. The indicator whose error, divided by its error-bar scale
 (perception/highway/overlay.py ERROR_SCALE: 0.2 rad, 2 m for the markings, 20 m for the gaps; one lane for lanes_left),
 was largest on average over the seconds before the event is named in the panel and in the leaderboard.
@@ -22,7 +23,6 @@ import cv2
 import numpy as np
 
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS
-
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 

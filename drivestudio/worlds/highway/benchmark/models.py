@@ -54,7 +54,7 @@ class ModelSpec:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict) -> "ModelSpec":
+    def from_dict(cls, d: dict) -> ModelSpec:
         return cls(**{**d, "outputs": tuple(d.get("outputs", ()))})
 
 
@@ -95,10 +95,9 @@ def check_model(text: str) -> ModelSpec:
     path, filters = parse_model(text)
     if path == ORACLE:
         return ModelSpec(text, None)
+    from drivestudio.commands.common import check_checkpoint_path
     from perception.checkpoint import load_checkpoint
     from perception.models import check_spec, describe
-
-    from drivestudio.commands.common import check_checkpoint_path
     check_checkpoint_path(path)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]

@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 
 from core.worlds.highway import lane_centres
-
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 
@@ -142,9 +141,8 @@ class RouteWorld:
 
 def world_for(route: Route, renderer: str = "tiny"):
     """The route's world, built as `drive` builds it (the highway plugin's defaults) at the route's start lane."""
-    from sim.highway.world import World
-
     from drivestudio import worlds
+    from sim.highway.world import World
     ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                             cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None)
     return World(worlds.get("highway").config(ns, render=True, start_lane=route.start_lane))
@@ -183,8 +181,8 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
               progress=None) -> dict:
     """Drive `route` with `model`; returns the route's metrics, how it ended and its clips."""
     from drivestudio.loop import in_process, run_loop
-    from drivestudio.worlds.highway.plugin import HighwayMetrics
     from drivestudio.worlds.highway.benchmark.clips import ClipRecorder
+    from drivestudio.worlds.highway.plugin import HighwayMetrics
 
     world = world_for(route, opts.renderer)
     t0 = time.perf_counter()
@@ -227,12 +225,11 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
 def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, seconds: float, metrics, on_step):
     """The world here, the driver in a `drivestudio drive --shm` process, in lock-step (drive without
     --in-process)."""
-    from shm_bridge.endpoints import WorldEndpoint
-
     from drivestudio.bridge_loop import ShmExchange
     from drivestudio.drive_session import _wait_for_driver
     from drivestudio.errors import RunError
     from drivestudio.loop import run_loop
+    from shm_bridge.endpoints import WorldEndpoint
 
     name = f"{SHM_PREFIX}{os.getpid()}-b{next(_runs)}"
     log = tempfile.TemporaryFile()

@@ -76,7 +76,6 @@ def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: 
     from tqdm import tqdm
 
     from core.signals import exit_on_sigterm
-
     from drivestudio.worlds.highway.benchmark.score import leaderboard
     jobs = jobs_for(suite, models, opts, out)
     results: list[dict] = []

@@ -108,7 +108,8 @@ def leaderboard(suite, models, results: list[dict]) -> dict:
     entries = []
     for m in models:
         rows = [route_row(by[(m.key, r.name)], by.get((oracle.key, r.name))) for r in suite.routes]
-        entries.append({"model": m.label, "spec": m.text, "family": m.family, "smoothing": m.smoothing, "gap_hold": m.gap_hold,
+        entries.append({"model": m.label, "spec": m.text, "family": m.family, "smoothing": m.smoothing,
+                        "gap_hold": m.gap_hold,
                         "checkpoint": m.path, "overall": overall(rows), "routes": rows})
     top = entries[0]["overall"]["driving_score"]
     for e in entries:

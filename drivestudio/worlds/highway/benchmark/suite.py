@@ -17,11 +17,10 @@ import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from sim.track import MAX_LANES, TrackError, load_track
 from assets import ASSETS_DIR
 from core.inputs import check_keys, number, read_bytes, read_json, show, show_path
-
 from drivestudio.errors import UsageError
+from sim.track import MAX_LANES, TrackError, load_track
 
 SUITES_DIR = ASSETS_DIR / "suites"
 DEFAULT_SUITE = SUITES_DIR / "default.json"
@@ -71,7 +70,7 @@ class Suite:
     def seconds(self) -> float:
         return sum(r.seconds for r in self.routes)
 
-    def select(self, names: list[str]) -> "Suite":
+    def select(self, names: list[str]) -> Suite:
         """The suite cut down to the named routes, in the suite's order."""
         known = {r.name for r in self.routes}
         unknown = [n for n in names if n not in known]
