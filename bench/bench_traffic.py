@@ -13,7 +13,8 @@ import json
 from pathlib import Path
 
 from drivestudio.loop import in_process, run_loop
-from drivestudio.worlds.highway.plugin import ChenDriver, HighwayMetrics
+from drivestudio.worlds.highway.drivers import ChenDriver
+from drivestudio.worlds.highway.metrics import HighwayMetrics
 from sim.highway.world import World, WorldConfig
 
 

@@ -1,32 +1,95 @@
-"""The one loop of docs/architecture.md, and its two transports, for any declared world.
+"""The one loop of docs/architecture.md, its two transports, and the contracts every world and driver keeps.
 
     world.step(action) -> observation -> [transport] -> driver: perception(frames) -> controller -> action
 
-`run_loop` is the world side and the only place a world is stepped by a driver. A transport is a function
-`exchange(observation) -> (action, estimate)`: `in_process(driver)` calls the driver directly (dataset
-generation, tests, Gymnasium users); the shared-memory transport (drivestudio/bridge_loop.py) hands the frame to a
-driver in another process, as TORCS and Caffe did.
+`run_loop` is the world side and the only place a world is stepped by a driver. A transport is an `Exchange`:
+`in_process(driver)` calls the driver directly (dataset generation, tests, Gymnasium users); the shared-memory
+transport (drivestudio/bridge_loop.py) hands the frame to a driver in another process, as TORCS and Caffe did.
 
-What the loop needs of a world: `dt` [s], `step(action, render) -> observation`, `observe(render)`, `timings`
-(seconds per stage) and, for when_lost="recover", `recover()`. Of an observation: `frames` (one image per camera,
-or None when not rendered), `record` (the truth record, declaration order), `t` and `end` (None, or why the
-episode cannot go on). Of a driver: `act(percept) -> (action, estimate)`, where a percept has the observation's
-`frames`, `record` and `t` (a bridge FrameMsg has them too), and `name`.
+The contracts are typing Protocols, so that a type checker holds both worlds (sim/highway/world.py,
+sim/sidewalk/world.py), every driver and both transports to them: a method one world lacks is an error before it
+is a crash.
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
+from core.declaration import WorldDeclaration
 from core.signals import check as check_signals
 
-Exchange = Callable[[object], tuple[np.ndarray, np.ndarray]]
+
+class Percept(Protocol):
+    """What a driver sees of one step: an Observation, or the bridge's FrameMsg on the driver's side."""
+
+    @property
+    def frames(self) -> tuple: ...           # one uint8 RGB image per camera of the declaration (None: not rendered)
+
+    @property
+    def record(self) -> np.ndarray: ...      # the truth record, float64, in the declaration's order
+
+    @property
+    def t(self) -> float: ...                # [s] simulated time
 
 
-def in_process(driver) -> Exchange:
+class Observation(Percept, Protocol):
+    """One step of a world as the loop sees it."""
+
+    @property
+    def end(self) -> str | None: ...         # why the episode cannot go on (the host car is lost), or None
+
+
+class World(Protocol):
+    """A declared world the loop can step (sim.highway.world.World, sim.sidewalk.world.SidewalkWorld)."""
+
+    declaration: WorldDeclaration
+    dt: float                                # [s] one step
+    timings: dict[str, float]                # seconds spent per stage (render, physics, traffic, truth, ...)
+
+    def observe(self, render: bool | None = None) -> Observation: ...
+
+    def step(self, action, render: bool | None = None) -> Observation: ...
+
+    def recover(self) -> None:
+        """Put a lost host car back on the road (when_lost="recover")."""
+
+    def close(self) -> None: ...
+
+
+class Driver(Protocol):
+    """Perception and control: a percept in, (action, estimate) out. The estimate has one value per name of the
+    declaration's `estimate_names` (NaN where the driver has none)."""
+
+    name: str
+    timings: dict[str, float]
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+class Metrics(Protocol):
+    """A world's closed-loop metrics (controller/*/metrics.py through the world's plugin)."""
+
+    wall_time: float
+
+    def observe(self, obs: Observation) -> None: ...
+
+    def add_time(self, stage: str, seconds: float) -> None: ...
+
+    def report(self) -> dict: ...
+
+    def table(self) -> str: ...
+
+
+# what the world side applies of a driver's command: (obs, action, driver_mode) -> (applied action, operation)
+Supervisor = Callable[[Observation, np.ndarray, str], tuple[np.ndarray, str]]
+Exchange = Callable[[Observation], tuple[np.ndarray, np.ndarray]]
+
+
+def in_process(driver: Driver) -> Exchange:
     """The fast path: the driver runs in the world's process."""
     return driver.act
 
@@ -35,13 +98,14 @@ def in_process(driver) -> Exchange:
 class StepRecord:
     """What one step of the loop saw and did, for recorders and overlays."""
 
-    obs: object
+    obs: Observation
     action: np.ndarray
     estimate: np.ndarray
 
 
-def run_loop(world, exchange: Exchange, seconds: float, render: bool = True, metrics=None, realtime: bool = False,
-             on_step: Callable[[StepRecord], None] | None = None, when_lost: str = "stop"):
+def run_loop(world: World, exchange: Exchange, seconds: float, render: bool = True, metrics: Metrics | None = None,
+             realtime: bool = False, on_step: Callable[[StepRecord], None] | None = None,
+             when_lost: str = "stop") -> Observation:
     """Drive `world` for `seconds` of simulated time (inf: until interrupted); returns the last observation.
 
     realtime paces the loop to wall-clock time; otherwise it runs as fast as it can. on_step sees every

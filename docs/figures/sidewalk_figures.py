@@ -172,7 +172,7 @@ def stereo() -> None:
 
 
 def correction() -> None:
-    from drivestudio.worlds.sidewalk.plugin import Supervisor
+    from drivestudio.worlds.sidewalk.drivers import Supervisor
     w = SidewalkWorld(SidewalkConfig(path="park", seed=2, render=False))
     poor, sup = PoorDriver(seed=4), Supervisor(w, "correctional")
     obs = w.observe(False)
@@ -237,7 +237,7 @@ def moment() -> None:
 
 
 def video() -> None:
-    from drivestudio.worlds.sidewalk.plugin import compose
+    from drivestudio.worlds.sidewalk.video import compose
     w = SidewalkWorld(SidewalkConfig(path="park", seed=3, mode="follow", render=False))
     obs, _ = drive(w, 12.0)
     obs = w.observe(True)

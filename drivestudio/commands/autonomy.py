@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivestudio.commands.common import add_device_option, check_device, run_dir
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.numbers import count, finite, positive, seed
 
 
@@ -36,7 +37,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output_dir
-    from drivestudio.commands.common import check_checkpoint_path, load_predictor_for
+    from drivestudio.checkpoints import check_checkpoint_path, load_predictor_for
     from drivestudio.worlds.sidewalk import autonomy
 
     check_device(args.device)

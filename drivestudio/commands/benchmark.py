@@ -33,7 +33,8 @@ import argparse
 import os
 import sys
 
-from drivestudio.commands.common import add_device_option, check_device, run_dir
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.numbers import count
 
 

@@ -21,16 +21,19 @@ def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool
                        help=f"seed of the scene and the traffic (default {seed_default})")
     if renderer:
         g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
+    options = worlds.WorldOptions(p, verb)
     for plugin in worlds.all_plugins():
-        plugin.add_options(p, verb)
+        plugin.add_options(options)
+    p.set_defaults(world_options=options)
 
 
-def plugin_for(args, verb: str):
-    """The selected world's plugin; options of another world are refused in one line."""
+def plugin_for(args) -> worlds.Plugin:
+    """The selected world's plugin; options that only another world has are refused in one line."""
     plugin = worlds.get(args.world)
+    options: worlds.WorldOptions = args.world_options
     for other in worlds.all_plugins():
         if other.name != plugin.name:
-            given = [f for f in other.options_given(args, verb) if f not in plugin._flags.get(verb, {})]
+            given = [f for f in options.given(other.name, args) if not options.owns(plugin.name, f)]
             if given:
                 raise UsageError(f"{', '.join(given)} belong{'s' if len(given) == 1 else ''} to the {other.name} "
                                  f"world, not to --world {plugin.name}")
@@ -49,35 +52,7 @@ def device_type(text: str) -> str:
     return text
 
 
-def check_device(name: str) -> str:
-    """The device name, or UsageError when it names a GPU this machine does not have."""
-    if name.startswith("cuda") or name == "mps":
-        import torch
-        if name.startswith("cuda") and not torch.cuda.is_available():
-            raise UsageError(f"--device {name}: no CUDA device is available here")
-        if name.startswith("cuda:") and int(name[5:]) >= torch.cuda.device_count():
-            raise UsageError(f"--device {name}: this machine has {torch.cuda.device_count()} CUDA device(s)")
-        if name == "mps" and not torch.backends.mps.is_available():
-            raise UsageError("--device mps: no Apple GPU is available here")
-    return name
-
-
 def run_dir(out: str | None, prefix: str) -> Path:
     """The output folder (checked before any work, then created): --out, or runs/PREFIX-TIME."""
     from core.files import make_dir
     return make_dir(Path(out) if out is not None else Path("runs") / f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}")
-
-
-def check_checkpoint_path(model: str) -> Path:
-    path = Path(model)
-    if not path.is_file():
-        raise UsageError(f"--model must be a world's driver (oracle, expert) or a checkpoint file; no such file: "
-                         f"{model}")
-    return path
-
-
-def load_predictor_for(model: str, world: str, device: str = "cpu"):
-    """The predictor of a checkpoint, which must be a model of `world`."""
-    check_checkpoint_path(model)
-    from perception.predictor import load_predictor
-    return load_predictor(model, device=check_device(device), world=world)

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from drivestudio.commands.common import add_device_option, add_world_options, check_device, plugin_for, run_dir
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
 
@@ -48,13 +49,13 @@ def run(args) -> int:
         from shm_bridge.segment import validate_name
         validate_name(args.shm)
         return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
-    plugin = plugin_for(args, "drive")
+    plugin = plugin_for(args)
     args.model = args.model or plugin.expert_names[0]
     if args.record:
         check_output(args.record, (".mp4",), "video")
     out = run_dir(args.out, "drive")
     if args.model not in plugin.expert_names:
-        from drivestudio.commands.common import check_checkpoint_path
+        from drivestudio.checkpoints import check_checkpoint_path
         check_checkpoint_path(args.model)
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drivestudio.commands.common import add_device_option, check_device
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option
 from drivestudio.numbers import count
 
 
@@ -39,7 +40,7 @@ def run(args) -> int:
     check_device(args.device)
     check_output_dir(args.out)
     for path in args.model:
-        from drivestudio.commands.common import check_checkpoint_path
+        from drivestudio.checkpoints import check_checkpoint_path
         check_checkpoint_path(path)
 
     from drivestudio.outputs import write_json, write_png, write_text

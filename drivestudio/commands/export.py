@@ -17,7 +17,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output
-    from drivestudio.commands.common import check_checkpoint_path
+    from drivestudio.checkpoints import check_checkpoint_path
     from drivestudio.errors import RunError
     from perception.export import export_onnx
 

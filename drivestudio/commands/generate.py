@@ -37,7 +37,7 @@ def run(args) -> int:
     from core.files import check_output_dir
     from drivestudio.generate import GenerateConfig, episode_length, generate
 
-    plugin = plugin_for(args, "generate")
+    plugin = plugin_for(args)
     check_output_dir(args.out, "dataset folder")
     options = plugin.generate_options(args)   # a bad track or mode fails here, in one line, before any work
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=args.renderer,

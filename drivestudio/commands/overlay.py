@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from drivestudio.commands.common import add_device_option, check_device
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, seed
 
@@ -56,7 +57,7 @@ def run(args) -> int:
     split = None if args.split == "all" else args.split
     predictor = None
     if args.model != "oracle":
-        from drivestudio.commands.common import load_predictor_for
+        from drivestudio.checkpoints import load_predictor_for
         from perception.shards import Dataset
         predictor = load_predictor_for(args.model, Dataset(Path(args.data)).world, args.device)
     try:

@@ -30,7 +30,7 @@ def run(args) -> int:
     from core.files import check_output
     from drivestudio.outputs import write_json, write_png
 
-    plugin = plugin_for(args, "render")
+    plugin = plugin_for(args)
     out = check_output(args.out, (".png",), "frame")
     if args.truth:
         check_output(args.truth, (".json",), "truth file")

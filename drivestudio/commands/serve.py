@@ -29,7 +29,7 @@ def run(args) -> int:
     from drivestudio.drive_session import run_world_side
     from shm_bridge.segment import validate_name
     validate_name(args.shm)
-    plugin = plugin_for(args, "serve")
+    plugin = plugin_for(args)
     if args.record:
         check_output(args.record, (".mp4",), "video")
     return run_world_side(args, plugin, run_dir(args.out, "serve"))

@@ -1,7 +1,8 @@
 """drivestudio train --data DIR --model NAME --out CKPT: fit a perception model of the dataset's world."""
 from __future__ import annotations
 
-from drivestudio.commands.common import add_device_option, check_device
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
 

@@ -129,7 +129,7 @@ class World:
     def __exit__(self, *exc):
         self.close()
 
-    def recover_ego(self) -> None:
+    def recover(self) -> None:
         """Put a lost host car back on the nearest lane centre, along the road, at no more than 10 m/s."""
         k = self.track.lane_of(self.ego.d)
         self.ego = VehicleState(s=self.ego.s, d=float(self.track.lane_centres[k]), heading=0.0,

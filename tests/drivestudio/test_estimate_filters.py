@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.worlds.highway import HIGHWAY, INDICATORS
-from drivestudio.worlds.highway.plugin import ESTIMATE, ChenDriver
+from drivestudio.worlds.highway.drivers import ESTIMATE, ChenDriver
 
 
 class Scripted:

@@ -135,14 +135,10 @@ class Plugin(BasePlugin):
     declaration = TINY
     expert_names = ("expert",)
 
-    def __init__(self):
-        self._flags = {}
-
-    def add_options(self, parser, verb: str) -> None:
-        if verb in ("generate", "drive", "serve"):
-            g = parser.add_argument_group("corridor world (--world corridor)")
-            action = g.add_argument("--start-offset", type=float, default=None, help="offset at the start [m]")
-            self._flags.setdefault(verb, {})["--start-offset"] = action.dest
+    def add_options(self, options) -> None:
+        if options.verb in ("generate", "drive", "serve"):
+            g = options.group("corridor world (--world corridor)")
+            options.add(self.name, g, "--start-offset", type=float, help="offset at the start [m]")
 
     def world(self, args, render: bool):
         return Corridor(getattr(args, "start_offset", None) or 0.0, getattr(args, "seed", 0))

@@ -39,7 +39,7 @@ def test_outputs_are_denormalised_indicators(frame):
 
 
 def test_the_chen_driver_places_outputs_into_the_estimate_record(frame):
-    from drivestudio.worlds.highway.plugin import ChenDriver
+    from drivestudio.worlds.highway.drivers import ChenDriver
     predict = load_predictor(gist15_checkpoint())
     everything = predict.named(frame)
     assert set(everything) == set(INDICATORS) | {"lanes_left"}
@@ -69,7 +69,7 @@ def test_bad_frames_are_refused():
 
 
 def test_the_closed_loop_driver_accepts_it(frame):
-    from drivestudio.worlds.highway.plugin import ChenDriver
+    from drivestudio.worlds.highway.drivers import ChenDriver
 
     driver = ChenDriver(load_predictor(gist_checkpoint()[0]))
     action, estimate = driver.act(_percept(frame))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from controller.sidewalk import CorrectionRule, PoorDriver, SidewalkExpert, SidewalkMetrics
-from drivestudio.worlds.sidewalk.plugin import Supervisor
+from drivestudio.worlds.sidewalk.drivers import Supervisor
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 from tests.sidewalk.helpers import record
 

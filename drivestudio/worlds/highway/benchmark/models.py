@@ -95,7 +95,7 @@ def check_model(text: str) -> ModelSpec:
     path, filters = parse_model(text)
     if path == ORACLE:
         return ModelSpec(text, None)
-    from drivestudio.commands.common import check_checkpoint_path
+    from drivestudio.checkpoints import check_checkpoint_path
     from perception.checkpoint import load_checkpoint
     from perception.models import check_spec, describe
     check_checkpoint_path(path)

@@ -155,12 +155,12 @@ _PREDICTORS: dict = {}
 def driver_for(model: ModelSpec, device: str):
     """The driver `drive --model` makes: the Chen controller on the truth (oracle) or on a checkpoint's
     estimates, smoothed as the model asks. A worker keeps each checkpoint's predictor for its next routes."""
-    from drivestudio.worlds.highway.plugin import ChenDriver
+    from drivestudio.worlds.highway.drivers import ChenDriver
     if model.path is None:
         return ChenDriver(None)
     key = (model.path, device)
     if key not in _PREDICTORS:
-        from drivestudio.commands.common import load_predictor_for
+        from drivestudio.checkpoints import load_predictor_for
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
     return ChenDriver(_PREDICTORS[key], **model.filters())
 
@@ -182,7 +182,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
     """Drive `route` with `model`; returns the route's metrics, how it ended and its clips."""
     from drivestudio.loop import in_process, run_loop
     from drivestudio.worlds.highway.benchmark.clips import ClipRecorder
-    from drivestudio.worlds.highway.plugin import HighwayMetrics
+    from drivestudio.worlds.highway.metrics import HighwayMetrics
 
     world = world_for(route, opts.renderer)
     t0 = time.perf_counter()

@@ -1,0 +1,36 @@
+"""A model checkpoint as the application opens it: the device it runs on and its predictor, refused in one line
+(exit status 2) when the file is missing or the device is not here. Worlds and verbs both use it, so it lives
+below drivestudio/commands/."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from drivestudio.errors import UsageError
+
+
+def check_device(name: str) -> str:
+    """The device name, or UsageError when it names a GPU this machine does not have."""
+    if name.startswith("cuda") or name == "mps":
+        import torch  # lazy: torch takes seconds to import, and most verbs never need a GPU check
+        if name.startswith("cuda") and not torch.cuda.is_available():
+            raise UsageError(f"--device {name}: no CUDA device is available here")
+        if name.startswith("cuda:") and int(name[5:]) >= torch.cuda.device_count():
+            raise UsageError(f"--device {name}: this machine has {torch.cuda.device_count()} CUDA device(s)")
+        if name == "mps" and not torch.backends.mps.is_available():
+            raise UsageError("--device mps: no Apple GPU is available here")
+    return name
+
+
+def check_checkpoint_path(model: str) -> Path:
+    path = Path(model)
+    if not path.is_file():
+        raise UsageError(f"--model must be a world's driver (oracle, expert) or a checkpoint file; no such file: "
+                         f"{model}")
+    return path
+
+
+def load_predictor_for(model: str, world: str, device: str = "cpu"):
+    """The predictor of a checkpoint, which must be a model of `world`."""
+    check_checkpoint_path(model)
+    from perception.predictor import load_predictor  # lazy: torch
+    return load_predictor(model, device=check_device(device), world=world)

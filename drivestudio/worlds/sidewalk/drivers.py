@@ -1,0 +1,90 @@
+"""The sidewalk's drivers and its supervisor: the experts of the three behavioural modes, a deliberately poor
+driver, the operation modes the world side applies (expert, autonomous, correctional under the correction rule),
+and the in-process correctional driver of dataset episodes."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from controller.sidewalk import CorrectionRule, SidewalkExpert
+from controller.sidewalk import PoorDriver as Poor
+from core.worlds.sidewalk import SIDEWALK
+from drivestudio.loop import Percept
+
+_NO_ESTIMATE = np.full(len(SIDEWALK.estimate_names), np.nan)
+
+
+class ExpertDriver:
+    """The expert of the record's behavioural mode (controller/sidewalk/experts.py), on the truth record only."""
+
+    name = "expert"
+
+    def __init__(self):
+        self.expert = SidewalkExpert()
+        self.timings = {"control": 0.0}
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
+        t0 = time.perf_counter()
+        action = self.expert.action(percept.record)
+        self.timings["control"] += time.perf_counter() - t0
+        return action, _NO_ESTIMATE
+
+
+class PoorDriver:
+    """A deliberately poor driver (controller/sidewalk/poor.py), to exercise correctional operation."""
+
+    name = "poor"
+
+    def __init__(self, seed: int = 0):
+        self.driver = Poor(seed)
+        self.timings = {"control": 0.0}
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
+        t0 = time.perf_counter()
+        action = np.array(self.driver.act(percept.record))
+        self.timings["control"] += time.perf_counter() - t0
+        return action, _NO_ESTIMATE
+
+
+class Supervisor:
+    """What the world side applies under each operation mode: expert (the expert's command; also whenever the
+    bridge's driver_mode is "manual"), autonomous (the driver's), correctional (the driver's, until the
+    correction rule of controller/sidewalk/correction.py hands over to the expert, and back). The world's record
+    carries the operation mode of every command applied."""
+
+    def __init__(self, world, operation: str):
+        self.world, self.operation = world, operation
+        self.expert, self.rule = SidewalkExpert(), CorrectionRule(dt=world.dt)
+
+    def __call__(self, obs, action, driver_mode: str = "network"):
+        expert = self.expert.action(obs.record)
+        if driver_mode == "manual" or self.operation == "expert":
+            name, applied = "expert", expert
+        elif self.operation == "autonomous":
+            name, applied = "autonomous", np.asarray(action, dtype=np.float64)
+        else:
+            driver = self.world.declaration.clip_action(action)
+            correcting = self.rule.update(obs.record, tuple(driver), tuple(expert))
+            name, applied = ("correctional", expert) if correcting else ("autonomous", driver)
+        self.world.set_operation(name)
+        return applied, name
+
+
+class CorrectionalDriver:
+    """In-process correctional operation for dataset episodes: the poor driver drives, the supervisor's rule lets
+    the expert take over; the command returned is the one applied."""
+
+    name = "poor+expert"
+
+    def __init__(self, world, seed: int):
+        self.poor = PoorDriver(seed)
+        self.supervisor = Supervisor(world, "correctional")
+        self.timings = {"control": 0.0}
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
+        t0 = time.perf_counter()
+        action, _ = self.poor.act(percept)
+        applied, _ = self.supervisor(percept, action)
+        self.timings["control"] += time.perf_counter() - t0
+        return applied, _NO_ESTIMATE
