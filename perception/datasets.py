@@ -201,7 +201,7 @@ class FrameStream(torch.utils.data.IterableDataset):
             raise ValueError(f"rank {rank} is not in a world of {world_size}")
         self.rank, self.world_size = rank, world_size
         self.context = tuple(context)
-        missing = self.data.has_columns(self.context)
+        missing = self.data.missing_columns(self.context)
         if missing:
             raise DatasetError(f"the {self.data.world} dataset {self.data.root} has no column {', '.join(missing)}")
         self.shards = self.data.select(split)

@@ -414,7 +414,7 @@ class Dataset:
                 raise DatasetError(f"shard {path} is damaged: {size} bytes, the manifest says {shard.size}")
         return ShardReader(path, self.declaration, self.version)
 
-    def has_columns(self, names) -> list[str]:
+    def missing_columns(self, names) -> list[str]:
         """Which of `names` this dataset lacks."""
         have = set(label_columns(self.declaration))
         return [n for n in names if n not in have]
@@ -422,7 +422,7 @@ class Dataset:
     def labels(self, split: str | None = None, columns=None) -> dict[str, np.ndarray]:
         """Label columns of every step of a split as numpy arrays (list columns as object arrays)."""
         columns = label_columns(self.declaration) if columns is None else tuple(columns)
-        missing = self.has_columns(columns)
+        missing = self.missing_columns(columns)
         if missing:
             raise DatasetError(f"the {self.world} dataset {self.root} has no column {', '.join(missing)}")
         tables = [self.reader(s).labels(columns) for s in self.select(split)]

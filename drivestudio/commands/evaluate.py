@@ -6,9 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drivestudio.checkpoints import check_device
+from core.files import check_output_dir
+from drivestudio import worlds
+from drivestudio.checkpoints import check_checkpoint_path, check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.numbers import count
+from drivestudio.outputs import write_json, write_png, write_text
 
 
 def register(sub) -> None:
@@ -34,19 +37,16 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from perception.evaluate import evaluate
+    from perception.evaluate import evaluate  # lazy: torch
+    from perception.shards import Dataset
 
     check_device(args.device)
     check_output_dir(args.out)
     for path in args.model:
-        from drivestudio.checkpoints import check_checkpoint_path
         check_checkpoint_path(path)
-
-    from drivestudio.outputs import write_json, write_png, write_text
-
+    layout = worlds.get(Dataset(Path(args.data)).world).evaluation_layout()
     ev = evaluate(args.data, args.model, split=args.split, device=args.device, batch_size=args.batch_size,
-                  workers=args.workers, latency_frames=args.latency_frames)
+                  workers=args.workers, latency_frames=args.latency_frames, layout=layout)
     out = Path(args.out)
     for name, content in ev.files.items():
         if isinstance(content, np.ndarray):

@@ -3,6 +3,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from core.files import check_output_dir
+from drivestudio import worlds
+from drivestudio.outputs import write_json, write_text
+
 
 def register(sub) -> None:
     p = sub.add_parser("stats", help="summarise a dataset's coverage and plot per-label histograms",
@@ -18,18 +22,16 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from drivestudio.outputs import write_json, write_text
-    from perception.dataset_stats import histograms, summarize, table
-    from perception.shards import Dataset
+    from perception.shards import Dataset  # lazy: pyarrow and OpenCV load only when a dataset is read
 
     ds = Dataset(Path(args.data))
     out = check_output_dir(Path(args.out) if args.out else Path(args.data) / "stats")
-    summary, values = summarize(ds, None if args.split == "all" else args.split)
-    text = table(summary)
+    coverage = worlds.get(ds.world).coverage()
+    summary, values = coverage.summarize(ds, None if args.split == "all" else args.split)
+    text = coverage.table(summary)
     write_json(out / "stats.json", summary)
     write_text(out / "stats.md", text + "\n")
-    pngs = histograms(values, out, ds.declaration)
+    pngs = coverage.histograms(values, out, ds.declaration)
     print(text)
     print(f"\nwrote {out / 'stats.json'} and {len(pngs)} histogram PNGs in {out}/")
     return 0

@@ -17,6 +17,8 @@ from drivestudio.checkpoints import load_predictor_for
 from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Metrics, StepRecord, Supervisor, World
+from perception.dataset_stats import AnyWorld, Coverage
+from perception.mae_report import ReportLayout
 
 
 class WorldOptions:
@@ -118,6 +120,15 @@ class Plugin:
     def driver_args(self, args) -> list[str]:
         """Options the driver process of `drive` needs besides --shm, --model and --device."""
         return []
+
+    # --- reports -------------------------------------------------------------------------------------------------
+    def evaluation_layout(self) -> ReportLayout:
+        """How `evaluate` lays out the MAE report of this world's models (default: one column per output)."""
+        return ReportLayout()
+
+    def coverage(self) -> Coverage:
+        """What `stats` reports of this world's datasets (default: label spread, modes, flags)."""
+        return AnyWorld()
 
     # --- datasets ------------------------------------------------------------------------------------------------
     def declaration_for(self, options: dict) -> WorldDeclaration:

@@ -9,7 +9,8 @@ import pytest
 from core.worlds.highway import PAPER_INDICATORS
 from drivestudio.cli import main
 from perception.datasets import FrameDataset
-from perception.evaluate import TABLE3, evaluate
+from perception.evaluate import evaluate
+from perception.highway.table3 import TABLE3, Table3Layout
 from perception.predictor import load_predictor
 from tests.perception.frames import alexnet_checkpoint, dataset, gist15_checkpoint, gist_checkpoint, workdir
 
@@ -68,7 +69,7 @@ def test_bar_chart_speed_and_json_are_written(report):
 
 
 def test_models_with_extra_outputs_get_extra_columns():
-    ev = evaluate(dataset(), [gist15_checkpoint(), gist_checkpoint()[0]], latency_frames=2)
+    ev = evaluate(dataset(), [gist15_checkpoint(), gist_checkpoint()[0]], latency_frames=2, layout=Table3Layout())
     assert "| fast | lanes_left |" in ev.markdown
     rows = list(csv.reader(ev.files["mae.csv"].splitlines()))
     assert rows[0][-2:] == ["fast", "lanes_left"] and rows[2][-2:] == ["", ""]

@@ -11,6 +11,8 @@ from drivestudio.worlds.base import Episode, Plugin, WorldOptions
 from drivestudio.worlds.highway.drivers import ChenDriver, ExpertDriver
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.video import OverlayRecorder
+from perception.highway.stats import HighwayCoverage
+from perception.highway.table3 import Table3Layout
 
 DEFAULT_CARS = 12
 START_SPEED = 15.0          # [m/s]
@@ -130,6 +132,12 @@ class Plugin(Plugin):
         if est is None:
             return 0.0
         return mean_normalised_error(np.array([record[n] for n in INDICATORS], dtype=np.float64), est)
+
+    def evaluation_layout(self) -> Table3Layout:
+        return Table3Layout()
+
+    def coverage(self) -> HighwayCoverage:
+        return HighwayCoverage()
 
     def needs_frames(self, args) -> bool:
         return args.model not in self.expert_names or bool(getattr(args, "record", None))
