@@ -22,7 +22,7 @@ import torch
 from core import worlds
 from core.worlds.highway import label_set
 from perception.models import build, family
-from perception.train import euclidean_loss
+from perception.training import euclidean_loss
 
 H, W = 210, 280
 MODELS = {"alexnet": ("alexnet", {}), "vgg16": ("vgg16", {"frozen": True}),

@@ -17,7 +17,7 @@ class RunError(RuntimeError):
 # importing torch)
 _INPUT = (("core.inputs", "InputError"), ("sim.highway.errors", "RendererError"),
           ("sim.highway.errors", "TrafficError"), ("perception.shards", "DatasetError"),
-          ("perception.checkpoint", "CheckpointError"), ("perception.train", "TrainingError"),
+          ("perception.checkpoint", "CheckpointError"), ("perception.training", "TrainingError"),
           ("core.files", "OutputError"), ("core.declaration", "DeclarationError"),
           ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)

@@ -268,7 +268,7 @@ def write_curves(out, history: list[dict], modes: list[str], title: str) -> None
 
 def train_multinet(cfg, log=print) -> dict:
     """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
-    from perception.train import open_data, resolve_device
+    from perception.training import open_data, resolve_device
 
     roots = [r for r in str(cfg.data).split(",") if r]
     cfg_data = roots[0]

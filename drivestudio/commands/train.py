@@ -86,7 +86,8 @@ def run(args) -> int:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
 
-    from perception.train import config_from, train
+    from perception.train import train
+    from perception.training import config_from
 
     train(config_from(**vars(args)))
     return 0

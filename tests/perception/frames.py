@@ -34,7 +34,7 @@ def dataset() -> Path:
 
 
 def tiny_config(model: str, out: Path, **kw):
-    from perception.train import TrainConfig
+    from perception.training import TrainConfig
 
     defaults = dict(data=str(dataset()), model=model, out=str(out), iterations=8, batch_size=4, workers=0,
                     val_every=4, val_frames=20, log_every=2, shuffle_buffer=64)

@@ -1,5 +1,5 @@
 """Training on several processes: `torchrun --nproc_per_node 2 -m drivestudio train` on the CPU (gloo) trains and
-checkpoints like the single-process run (perception/train.py, docs/scaling.md). The corridor world of
+checkpoints like the single-process run (perception/train_sgd.py, docs/scaling.md). The corridor world of
 tests/drivestudio/tiny_world.py and its tiny model keep it to seconds."""
 import os
 import subprocess
@@ -11,10 +11,10 @@ import pytest
 import torch
 
 from perception.checkpoint import load_checkpoint
+from perception.curves import curve_paths
 from perception.datasets import FrameStream
 from perception.predictor import load_predictor
 from perception.shards import Dataset
-from perception.train import curve_paths
 from tests.perception.frames import dataset
 
 REPO = Path(__file__).resolve().parents[2]

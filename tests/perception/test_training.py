@@ -6,9 +6,11 @@ import torch
 
 from core.worlds.highway import label_set
 from perception.checkpoint import load_checkpoint
+from perception.curves import curve_paths
 from perception.datasets import FrameDataset
 from perception.models import family
-from perception.train import TrainConfig, curve_paths, euclidean_loss, train
+from perception.train import train
+from perception.training import TrainConfig, euclidean_loss
 from tests.perception.frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
 
 

@@ -112,7 +112,8 @@ def run(model: str, mode: str, seconds: float, out: Path, rounds: int = 1, epoch
     """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
     the original data plus every round's corrections); returns the autonomy of every round."""
     from perception.checkpoint import load_checkpoint
-    from perception.train import config_from, train
+    from perception.train import train
+    from perception.training import config_from
 
     results: list[RoundResult] = []
     current = str(model)

@@ -1,0 +1,382 @@
+"""The SGD trainer of the regressors (AlexNet, VGG-16, any family whose trainer is "sgd"): one readable loop in
+the manner of nanoGPT's train.py, configured by perception/training.py's TrainConfig.
+
+The checkpoint at `out` is written atomically at every validation, every `checkpoint_every` seconds, at the end
+and on Ctrl-C or SIGTERM; running the same training again continues from it (same data order, same optimiser
+state). Loss curves go beside it as `<out>.loss.csv` and `<out>.loss.png`.
+
+Several processes (torchrun, perception/distributed.py): each rank trains a DistributedDataParallel copy of the
+model on a disjoint part of the training episodes every epoch (the same shuffled order everywhere, FrameStream's
+rank split) with batches of `batch_size`: the effective batch is world_size x batch_size. The ranks run the same
+number of iterations; the logged loss is the mean over ranks; rank 0 alone validates and writes the checkpoint
+and curves (in the same format as a single process) while the others wait. docs/scaling.md.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from core.declaration import WorldDeclaration
+from core.signals import Terminated, exit_on_sigterm
+from core.signals import check as check_signals
+from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from perception.curves import curve_paths, write_curves
+from perception.datasets import FrameStream
+from perception.distributed import Distributed
+from perception.models import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    Regressor,
+    check_spec,
+    describe,
+    family,
+    load_trunk,
+    make_spec,
+)
+from perception.shards import Dataset, DatasetError
+from perception.training import (
+    TrainConfig,
+    TrainingError,
+    data_summary,
+    euclidean_loss,
+    input_statistics,
+    load_frames,
+    validate,
+)
+
+OPTIMIZERS = ("sgd", "adam", "adadelta")
+
+
+@dataclass
+class Plan:
+    """What this run does, from the config, the family's paper defaults and the checkpoint it continues."""
+
+    iterations: int
+    batch_size: int
+    lr: float
+    optimizer: str
+    spec: dict
+    ckpt: dict | None       # the checkpoint at `out` this run continues, or None
+
+
+def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, stream: FrameStream,
+             dist: Distributed, log) -> Plan:
+    """The run's numbers and the model spec; a checkpoint at `out` is checked against the options first."""
+    paper = family(cfg.model).defaults
+    batch_size = cfg.batch_size or paper["batch_size"]
+    if len(stream) < batch_size * dist.world_size:
+        raise DatasetError(f"the training split of {cfg.data} has {len(stream)} frames, fewer than one batch "
+                           f"of {batch_size}" + (f" for each of {dist.world_size} processes" if dist.active else ""))
+    if dist.active and len(stream.shards) < dist.world_size:
+        raise DatasetError(f"the training split of {cfg.data} has {len(stream.shards)} episodes, fewer than the "
+                           f"{dist.world_size} processes that share them")
+    if cfg.epochs is not None:
+        iterations = max(1, math.ceil(cfg.epochs * len(stream) / (batch_size * dist.world_size)))
+    else:
+        iterations = cfg.iterations if cfg.iterations is not None else paper["iterations"]
+    lr = cfg.lr if cfg.lr is not None else paper["lr"]
+    optimizer = cfg.optimizer or paper.get("optimizer", "sgd")
+    out = Path(cfg.out)
+    if not out.exists():
+        return Plan(iterations, batch_size, lr, optimizer, new_spec(cfg, decl, labels, dist, log), None)
+    ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
+    check_spec(ckpt["spec"], str(out))
+    if "optimizer" not in ckpt:
+        raise CheckpointError(f"{out} holds no training state to continue from")
+    check_continuation(cfg, ckpt, optimizer)
+    old = ckpt["train"]["config"]
+    if old.get("lr") != lr or old.get("batch_size") != batch_size:
+        log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
+            f"batch {old.get('batch_size')}); the settings of this run are ignored")
+        lr, batch_size = old.get("lr", lr), old.get("batch_size", batch_size)
+    return Plan(iterations, batch_size, lr, optimizer, ckpt["spec"], ckpt)
+
+
+def check_continuation(cfg: TrainConfig, ckpt: dict, optimizer: str) -> None:
+    """A checkpoint is continued only with the options it was trained with."""
+    out, o = cfg.out, ckpt["spec"]["options"]
+    if cfg.model == "vgg16" and o.get("frozen") == cfg.unfreeze:
+        raise CheckpointError(f"{out} was trained {'without' if o.get('frozen') else 'with'} --unfreeze; use "
+                              "the same options to continue it, or another --out")
+    if cfg.model == "vgg16" and bool(o.get("batch_norm")) != cfg.batch_norm:
+        raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
+                              "use the same options to continue it, or another --out")
+    old = ckpt["train"]["config"]
+    if old.get("optimizer") != optimizer:
+        raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
+                              "optimiser to continue it, or another --out")
+
+
+def new_spec(cfg: TrainConfig, decl: WorldDeclaration, labels, dist: Distributed, log) -> dict:
+    """The spec of a new model: its input statistics (ImageNet's with ImageNet weights, else the data's)."""
+    if cfg.weights:  # ImageNet weights expect ImageNet's input statistics
+        mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
+    else:
+        log("computing the per-channel input mean and deviation of the training frames ...")
+        mean, std = dist.share(input_statistics(cfg.data, labels) if dist.main else None)
+        weights = None
+    options: dict = {"weights": weights}
+    if cfg.model == "vgg16":
+        options.update(frozen=not cfg.unfreeze, batch_norm=cfg.batch_norm)
+    return make_spec(cfg.model, decl, labels, mean=mean, std=std, **options)
+
+
+def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regressor:
+    """The model: the checkpoint's weights, a trunk of ImageNet weights, or a fresh initialisation."""
+    model = Regressor(plan.spec)
+    if plan.ckpt is not None:
+        model.load_state_dict(plan.ckpt["state_dict"])
+    elif cfg.weights:
+        n = load_trunk(model, cfg.weights)
+        log(f"{cfg.model} trunk: {n} tensors of ImageNet weights from {cfg.weights}")
+    elif cfg.model == "vgg16":
+        log("VGG-16 trunk: no --weights given, so the convolutional layers start from RANDOM initialisation "
+            "(nothing is downloaded; pass --weights vgg16-397923af.pth for the paper's ImageNet start)"
+            + ("; they stay frozen, so only the head learns" if not cfg.unfreeze else ""))
+    model.to(device)
+    model.train()
+    return model
+
+
+def make_optimizer(name: str, params, lr: float, cfg: TrainConfig) -> torch.optim.Optimizer:
+    if name == "sgd":
+        return torch.optim.SGD(params, lr=lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    if name == "adam":
+        return torch.optim.Adam(params, lr=lr, weight_decay=cfg.weight_decay)
+    if name == "adadelta":
+        return torch.optim.Adadelta(params, lr=lr, weight_decay=cfg.weight_decay)
+    raise TrainingError(f"unknown optimizer '{name}' ({', '.join(OPTIMIZERS)})")
+
+
+def _one_thread(_worker_id: int) -> None:  # decoding workers leave the cores to the training process
+    torch.set_num_threads(1)
+
+
+class SGDRun:
+    """One training run: the model, its optimiser and schedule, the state a checkpoint carries, and the loop."""
+
+    def __init__(self, cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, device: torch.device,
+                 dist: Distributed, log):
+        self.cfg, self.data, self.labels, self.device, self.dist, self.log = cfg, data, labels, device, dist, log
+        self.out = Path(cfg.out)
+        torch.manual_seed(cfg.seed)
+        self.stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
+                                  buffer=min(cfg.shuffle_buffer, data.frames("train")), rank=dist.rank,
+                                  world_size=dist.world_size)
+        self.plan = plan = plan_run(cfg, data, decl, labels, self.stream, dist, log)
+        self.model = build_model(cfg, plan, device, log)
+        self.net: torch.nn.Module = self.model   # what the steps call: the model or its DistributedDataParallel
+        if dist.active:
+            self.net = torch.nn.parallel.DistributedDataParallel(
+                self.model, device_ids=[device.index] if device.type == "cuda" else None)
+        self.params = [p for p in self.model.parameters() if p.requires_grad]
+        self.opt = make_optimizer(plan.optimizer, self.params, plan.lr, cfg)
+        self.sched = torch.optim.lr_scheduler.StepLR(self.opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
+        self.amp_dtype = None
+        if cfg.amp and device.type == "cuda":
+            self.amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
+        self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp_dtype == torch.float16)
+        self.state: dict = {"iteration": 0, "epoch": 0, "step_in_epoch": 0, "history": [], "seconds": 0.0}
+        self.val: tuple | None = None
+
+    # --- state -------------------------------------------------------------------------------------------------
+    def restore(self) -> bool:
+        """Continue the checkpoint's optimiser, schedule and RNG; False when it has trained enough already."""
+        ckpt, out = self.plan.ckpt, self.out
+        if ckpt is None:
+            return True
+        self.opt.load_state_dict(ckpt["optimizer"])
+        self.sched.load_state_dict(ckpt["scheduler"])
+        if "scaler" in ckpt and self.scaler.is_enabled():
+            self.scaler.load_state_dict(ckpt["scaler"])
+        if "rng" in ckpt:
+            torch.set_rng_state(ckpt["rng"])
+        self.state.update({k: ckpt["train"][k] for k in self.state})
+        if ckpt["train"].get("world_size", 1) != self.dist.world_size:
+            self.log(f"note: {out} was trained by {ckpt['train'].get('world_size', 1)} process(es), this run has "
+                     f"{self.dist.world_size}: the data order from here on differs from an uninterrupted run")
+        if ckpt["data"]["frames"] != data_summary(self.data)["frames"]:
+            self.log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
+                     f"continuing on {self.cfg.data} with {data_summary(self.data)['frames']}")
+        if self.state["iteration"] >= self.plan.iterations:
+            self.log(f"{out} has already trained {self.state['iteration']} of {self.plan.iterations} iterations: "
+                     "nothing to do (raise --iterations to train further)")
+            return False
+        self.log(f"continuing {out} from iteration {self.state['iteration']} of {self.plan.iterations}")
+        return True
+
+    def load_validation(self) -> None:
+        if self.data.frames("val") and self.dist.main:   # rank 0 validates
+            self.val = load_frames(self.cfg.data, "val", self.labels, self.cfg.val_frames)
+        elif not self.data.frames("val"):
+            self.log(f"note: {self.cfg.data} has no validation split (episodes 8, 18, ...); training without "
+                     "validation")
+
+    def save(self, final: bool = False) -> None:
+        if not self.dist.main:
+            return
+        cfg, plan = self.cfg, self.plan
+        config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
+        config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer)
+        payload = {"spec": plan.spec, "state_dict": self.model.state_dict(), "optimizer": self.opt.state_dict(),
+                   "scheduler": self.sched.state_dict(), "rng": torch.get_rng_state(),
+                   "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
+                   "data": data_summary(self.data)}
+        if self.dist.active:
+            payload["train"]["world_size"] = self.dist.world_size
+        if self.scaler.is_enabled():
+            payload["scaler"] = self.scaler.state_dict()
+        save_checkpoint(self.out, payload)
+        title = f"{describe(plan.spec)} on {self.data.root.name}: {plan.optimizer}, lr {plan.lr:g}, " \
+                f"batch {plan.batch_size}"
+        write_curves(self.out, self.state["history"], title=title)
+
+    def validate_into(self, row: dict) -> None:
+        if self.val is None:
+            return
+        v = validate(self.model, *self.val, self.device)
+        row["val_loss"] = v["val_loss"]
+        row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
+        shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
+        tqdm.write(f"iteration {self.state['iteration']}: train loss {row.get('train_loss', float('nan')):.4f}, "
+                   f"val loss {v['val_loss']:.4f}, val MAE {shown}", file=sys.stderr)
+
+    # --- the loop ----------------------------------------------------------------------------------------------
+    def announce(self) -> None:
+        cfg, plan, dist = self.cfg, self.plan, self.dist
+        self.log(f"training {describe(plan.spec)} ({sum(p.numel() for p in self.params):,} trainable parameters) "
+                 f"on {len(self.stream)} frames of {cfg.data} on {self.device}: {plan.iterations} iterations of "
+                 f"{plan.batch_size}, {plan.optimizer} lr {plan.lr:g} x{cfg.lr_gamma} every {cfg.lr_step}"
+                 + (f", {self.amp_dtype}" if self.amp_dtype else "")
+                 + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {plan.batch_size} samples "
+                    f"each per iteration, {plan.batch_size * dist.world_size} in all" if dist.active else ""))
+
+    def loader(self) -> torch.utils.data.DataLoader:
+        kw: dict = dict(batch_size=self.plan.batch_size, num_workers=self.cfg.workers, drop_last=True,
+                        pin_memory=self.device.type == "cuda")
+        if self.cfg.workers:
+            kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
+        return torch.utils.data.DataLoader(self.stream, **kw)
+
+    def step(self, x, m, y) -> tuple[float, bool | None]:
+        """One optimiser step on a batch: (the loss, mean over ranks; with several ranks, whether any is due to
+        save, agreed before backward)."""
+        dev = self.device
+        x, m, y = x.to(dev, non_blocking=True), m.to(dev, non_blocking=True), y.to(dev, non_blocking=True)
+        with torch.autocast(dev.type, dtype=self.amp_dtype or torch.float32, enabled=self.amp_dtype is not None):
+            pred = self.net(x, m)
+        loss = euclidean_loss(pred, y)
+        value, due = loss, None
+        if self.dist.active:   # the mean loss over ranks, and whether any rank is due to save, before backward
+            late = time.monotonic() - self.last_save > self.cfg.checkpoint_every
+            mean_loss, due_any = self.dist.mean([loss.item(), float(late)])
+            value, due = torch.tensor(mean_loss), due_any > 0
+        if not torch.isfinite(value):
+            raise TrainingError(f"the loss diverged ({value.item()}) at iteration {self.state['iteration']}; "
+                                f"lower --lr (now {self.plan.lr:g}) or use --optimizer adam")
+        self.opt.zero_grad(set_to_none=True)
+        self.scaler.scale(loss).backward()
+        self.scaler.step(self.opt)
+        self.scaler.update()
+        self.sched.step()
+        return value.item(), due
+
+    def after_step(self, step: int, loss: float, due: bool | None) -> None:
+        """Count the iteration (step: its index in the epoch); log a row of the curve, validate and save when due."""
+        st, it_max = self.state, self.plan.iterations
+        st["iteration"] += 1
+        st["step_in_epoch"] = step + 1
+        it = st["iteration"]
+        self.losses.append(loss)
+        self.bar.update(1)
+        if it % self.cfg.log_every == 0 or it == it_max or it % self.cfg.val_every == 0:
+            row = self.curve_row(it)
+            if it % self.cfg.val_every == 0 or it == it_max:
+                if self.dist.main:
+                    self.validate_into(row)
+                st["history"].append(row)
+                self.save(final=it == it_max)
+                self.dist.barrier()   # the other ranks wait for rank 0's validation and checkpoint
+                self.last_save = time.monotonic()
+                self.t_row = time.perf_counter()  # validation and saving are not training time
+            else:
+                st["history"].append(row)
+        if due is None:   # one process: due when the last save is older than checkpoint_every
+            due = time.monotonic() - self.last_save > self.cfg.checkpoint_every
+        if due and it < it_max:
+            st["seconds"] = time.perf_counter() - self.t_start
+            self.save()   # a kill between validations loses at most checkpoint_every seconds
+            self.dist.barrier()
+            self.last_save = time.monotonic()
+
+    def curve_row(self, it: int) -> dict:
+        now = time.perf_counter()
+        self.state["seconds"] = now - self.t_start
+        per_it = self.plan.batch_size * self.dist.world_size
+        row = {"iteration": it, "epoch": round(it * per_it / len(self.stream), 3),
+               "train_loss": float(np.mean(self.losses)), "lr": self.opt.param_groups[0]["lr"],
+               "samples_per_s": round(len(self.losses) * per_it / max(now - self.t_row, 1e-9), 2),
+               "elapsed_s": round(self.state["seconds"], 1)}
+        self.losses, self.t_row = [], now
+        self.bar.set_postfix(loss=f"{row['train_loss']:.4f}", lr=f"{row['lr']:.2g}",
+                             fps=f"{row['samples_per_s']:.0f}", refresh=False)
+        return row
+
+    def epoch(self, loader) -> None:
+        """The batches of one epoch (from where a checkpoint left it), until the iterations are done."""
+        st, dist = self.state, self.dist
+        self.stream.set_epoch(st["epoch"])
+        skip = st["step_in_epoch"]
+        # several processes step together: an epoch ends for all at the fewest batches any rank has
+        steps = dist.minimum(self.stream.batches(self.plan.batch_size, self.cfg.workers)) if dist.active else None
+        if steps == 0:
+            raise DatasetError(f"a process has no whole batch of {self.plan.batch_size} in epoch {st['epoch']}: too "
+                               f"few training episodes of {self.cfg.data} for {dist.world_size} processes and "
+                               f"{max(self.cfg.workers, 1)} loader workers each")
+        for step, (x, m, y) in enumerate(loader):
+            check_signals()
+            if steps is not None and step >= steps:
+                break
+            if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
+                continue
+            self.after_step(step, *self.step(x, m, y))
+            if st["iteration"] >= self.plan.iterations:
+                return
+        st["epoch"] += 1
+        st["step_in_epoch"] = 0
+
+    def run(self) -> dict:
+        if not self.restore():
+            return self.plan.ckpt["train"] if self.plan.ckpt else self.state
+        self.load_validation()
+        self.announce()
+        loader = self.loader()
+        self.bar = tqdm(total=self.plan.iterations, initial=self.state["iteration"], unit="it", dynamic_ncols=True,
+                        file=sys.stderr, mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=self.cfg.model,
+                        disable=not self.dist.main)
+        self.losses: list[float] = []
+        self.t_row = time.perf_counter()
+        self.t_start = time.perf_counter() - self.state["seconds"]
+        self.last_save = time.monotonic()
+        try:
+            with exit_on_sigterm(poll=True):
+                while self.state["iteration"] < self.plan.iterations:
+                    self.epoch(loader)
+        except (KeyboardInterrupt, Terminated):
+            self.bar.close()
+            self.state["seconds"] = time.perf_counter() - self.t_start
+            self.save()   # rank 0 only: the replicas are equal after every step
+            self.log(f"interrupted: saved {self.out} at iteration {self.state['iteration']}; run the same command "
+                     "to continue")
+            raise
+        self.bar.close()
+        self.log(f"saved {self.out} ({self.state['iteration']} iterations, {self.state['seconds'] / 60:.1f} min); "
+                 f"loss curves in {', '.join(str(p) for p in curve_paths(self.out))}")
+        return {**self.state, "finished": True}
