@@ -18,6 +18,8 @@ from pathlib import Path
 import torch
 
 from core.files import atomic_write
+from core.signals import deferred
+from core.worlds.highway import HIGHWAY, PAPER_INDICATORS
 
 FORMAT = "drivestudio-perception"
 VERSION = 2
@@ -30,7 +32,6 @@ class CheckpointError(ValueError):
 
 def save_checkpoint(path, payload: dict) -> None:
     """Write atomically; a SIGTERM or Ctrl-C during the write takes effect once it is complete."""
-    from core.signals import deferred
     with deferred():
         atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
 
@@ -62,7 +63,6 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
             not {"name", "labels", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
-    from perception.models import upgrade_spec
     spec = ckpt["spec"] = upgrade_spec(spec)
     if world is not None and spec["world"] != world:
         raise CheckpointError(f"{path} is a model of the {spec['world']} world, not of the {world} world")
@@ -74,26 +74,22 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     return ckpt
 
 
+def upgrade_spec(spec: dict) -> dict:
+    """A spec of a version-1 checkpoint (highway only, 3-channel frames) in the current form."""
+    if "world" in spec:
+        return spec
+    spec = dict(spec)
+    inp = dict(spec["input"])
+    inp.update(channels=3, instants=[0], cameras=["front"], modes=[], scaling="standardise")
+    spec.update(world="highway", world_fingerprint=None, outputs=list(spec["labels"]), input=inp)
+    spec.setdefault("normalisation", HIGHWAY.normalisation(spec["labels"]))
+    return spec
+
+
 def describe_labels(labels) -> str:
     """"13 indicators (the paper's)", "14 indicators (the paper's 13 + fast)", ..."""
     labels = tuple(labels)
     extra = [n for n in labels[13:]]
-    from core.worlds.highway import PAPER_INDICATORS
     if labels[:13] == PAPER_INDICATORS:
         return f"{len(labels)} indicators (the paper's 13{''.join(' + ' + n for n in extra)})"
     return f"{len(labels)} labels ({', '.join(labels)})"
-
-
-def load_model(path, model: str | None = None, labels=None, device="cpu", world: str | None = None):
-    """The model of a checkpoint, in eval mode on `device`: (Regressor, checkpoint dict)."""
-    from perception.models import Regressor, check_spec
-
-    ckpt = load_checkpoint(path, model=model, labels=labels, world=world)
-    check_spec(ckpt["spec"], str(path))
-    net = Regressor(ckpt["spec"])
-    try:
-        net.load_state_dict(ckpt["state_dict"])
-    except RuntimeError as e:
-        raise CheckpointError(f"{path}: the weights do not fit its {ckpt['spec']['name']} model "
-                              f"({str(e).splitlines()[0]})") from None
-    return net.to(device).eval(), ckpt

@@ -18,10 +18,10 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from perception.checkpoint import CheckpointError, load_model
+from perception.checkpoint import CheckpointError
 from perception.datasets import FrameStream
 from perception.mae_report import Evaluation, ModelResult, ReportLayout
-from perception.models import describe
+from perception.models import describe, load_model
 from perception.predictor import Predictor
 from perception.shards import Dataset, DatasetError
 

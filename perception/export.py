@@ -16,7 +16,8 @@ import torch
 from torch import nn
 
 from core.files import atomic_write, temporary_for
-from perception.checkpoint import CheckpointError, load_model
+from perception.checkpoint import CheckpointError
+from perception.models import load_model
 
 OPSET = 17
 

@@ -31,7 +31,7 @@ from torch import nn
 
 from core import worlds
 from core.declaration import DeclarationError, WorldDeclaration
-from perception.checkpoint import CheckpointError
+from perception.checkpoint import CheckpointError, load_checkpoint, upgrade_spec
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -136,19 +136,6 @@ def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=No
                       "instants": list(decl.moment.instants), "cameras": list(decl.camera_names),
                       "modes": list(decl.modes), "scaling": fam.scaling, "mean": mean, "std": std},
             "normalisation": decl.normalisation(outputs)}
-
-
-def upgrade_spec(spec: dict) -> dict:
-    """A spec of a version-1 checkpoint (highway only, 3-channel frames) in the current form."""
-    if "world" in spec:
-        return spec
-    from core.worlds.highway import HIGHWAY
-    spec = dict(spec)
-    inp = dict(spec["input"])
-    inp.update(channels=3, instants=[0], cameras=["front"], modes=[], scaling="standardise")
-    spec.update(world="highway", world_fingerprint=None, outputs=list(spec["labels"]), input=inp)
-    spec.setdefault("normalisation", HIGHWAY.normalisation(spec["labels"]))
-    return spec
 
 
 def declaration_of(spec: dict) -> WorldDeclaration:
@@ -271,3 +258,16 @@ def load_trunk(model: Regressor, path: str) -> int:
                               "dict (its convolutional layers do not match)")
     model.net.features.load_state_dict(got)
     return len(got)
+
+
+def load_model(path, model: str | None = None, labels=None, device="cpu", world: str | None = None):
+    """The model of a checkpoint, in eval mode on `device`: (Regressor, checkpoint dict)."""
+    ckpt = load_checkpoint(path, model=model, labels=labels, world=world)
+    check_spec(ckpt["spec"], str(path))
+    net = Regressor(ckpt["spec"])
+    try:
+        net.load_state_dict(ckpt["state_dict"])
+    except RuntimeError as e:
+        raise CheckpointError(f"{path}: the weights do not fit its {ckpt['spec']['name']} model "
+                              f"({str(e).splitlines()[0]})") from None
+    return net.to(device).eval(), ckpt

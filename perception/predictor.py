@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from perception.checkpoint import load_model
-from perception.models import describe
+from perception.models import describe, load_model
 
 
 class Predictor:

@@ -6,8 +6,8 @@ import torch
 
 from core.worlds.highway import HIGHWAY, label_set
 from drivestudio.cli import main
-from perception.checkpoint import CheckpointError, load_checkpoint, load_model, save_checkpoint
-from perception.models import build, load_trunk
+from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from perception.models import build, load_model, load_trunk
 from perception.train import train
 from tests.perception.frames import dataset, gist_checkpoint, tiny_config
 
