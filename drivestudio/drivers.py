@@ -7,6 +7,7 @@ import numpy as np
 
 from core.declaration import WorldDeclaration, base_name
 from drivestudio.errors import UsageError
+from perception.history import History
 
 
 class DirectDriver:
@@ -30,7 +31,6 @@ class DirectDriver:
         self._pick = [last[n] for n in names]
         self._estimate_slot = [(i, decl.estimate_names.index(o)) for i, o in enumerate(predictor.outputs)
                                if o in decl.estimate_names]
-        from perception.predictor import History
         self.history = History(predictor.instants)
         self.previous: np.ndarray | None = None
         self.timings = {"perception": 0.0, "control": 0.0}

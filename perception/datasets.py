@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from core.declaration import Moment, WorldDeclaration, base_name, expand
+from perception.frame_cache import FrameCache
 from perception.shards import Dataset, DatasetError, ShardReader, decode_image, image_column
 
 
@@ -193,13 +194,14 @@ class FrameStream(torch.utils.data.IterableDataset):
 
     def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
                  shuffle: bool = True, seed: int = 0, buffer: int = 2048, moment: Moment | None = None,
-                 context: tuple[str, ...] = (), rank: int = 0, world_size: int = 1):
+                 context: tuple[str, ...] = (), rank: int = 0, world_size: int = 1, cache: FrameCache | None = None):
         self.data = Dataset(Path(root))
         self.spec = SampleSpec(self.data.declaration, targets, moment, normalised)
         self.shuffle, self.seed, self.buffer = shuffle, seed, buffer
         if not 0 <= rank < world_size:
             raise ValueError(f"rank {rank} is not in a world of {world_size}")
         self.rank, self.world_size = rank, world_size
+        self.cache = cache     # decoded frames (perception/frame_cache.py) instead of decoding every epoch
         self.context = tuple(context)
         missing = self.data.missing_columns(self.context)
         if missing:
@@ -253,6 +255,16 @@ class FrameStream(torch.utils.data.IterableDataset):
         context = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
                             for n in self.context], axis=1) if self.context else None
         starts = spec.starts(len(values))
+
+        def sample(step: int, images: list):
+            return (images, None if modes is None else int(modes[step]), spec.target_values(values, step),
+                    None if context is None else context[step])
+
+        if self.cache is not None:
+            cams = [self.cache.frames(self.shards[k], c.name) for c in spec.decl.cameras]
+            for step in starts:
+                yield sample(step, [cam[step + dt] for dt in spec.moment.instants for cam in cams])
+            return
         instants = spec.moment.instants
         keep = -spec.moment.earliest + 1     # steps of images a sample may reach back to
         window: list[list[bytes]] = []
@@ -264,9 +276,7 @@ class FrameStream(torch.utils.data.IterableDataset):
                 if len(window) > keep:
                     window.pop(0)
                 if step in starts:
-                    encoded = [img for dt in instants for img in window[len(window) - 1 + dt]]
-                    yield (encoded, None if modes is None else int(modes[step]),
-                           spec.target_values(values, step), None if context is None else context[step])
+                    yield sample(step, [img for dt in instants for img in window[len(window) - 1 + dt]])
                 step += 1
 
     def __iter__(self):
@@ -288,8 +298,9 @@ class FrameStream(torch.utils.data.IterableDataset):
         yield from self._emit(pool)
 
     def _emit(self, items):
-        for encoded, mode, raw, context in items:
-            sample = (_stack([decode_image(b) for b in encoded]), _mode_tensor(mode), self.spec.target_tensor(raw))
+        for images, mode, raw, context in items:   # images: encoded bytes, or decoded arrays from the cache
+            decoded = [decode_image(b) if isinstance(b, bytes) else b for b in images]
+            sample = (_stack(decoded), _mode_tensor(mode), self.spec.target_tensor(raw))
             if self.context:
                 yield (*sample, torch.from_numpy(np.asarray(context, dtype=np.float64)))
             else:

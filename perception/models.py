@@ -55,6 +55,7 @@ class Family:
     size(declaration) -> (height, width) the family wants its input at (None: the camera's own).
     trainer: "sgd" (iterations of SGD/Adam on the Euclidean loss), "closed-form" (GIST + ridge) or "multinet"
     (epochs of Adadelta, MultiNet's losses and trials). defaults: the trainer's settings for this family.
+    temporal: the family takes frames of earlier steps beside the current one (3 channels per instant).
     """
 
     name: str
@@ -66,10 +67,11 @@ class Family:
     size: Callable[[WorldDeclaration], tuple[int, int] | None] = lambda decl: None
     defaults: dict = field(default_factory=dict)
     describe: Callable[[dict], str] | None = None
+    temporal: bool = False     # reads several instants of a one-instant world (train --history K)
 
 
 _FAMILIES: dict[str, Family] = {}
-_BUILTIN = ("perception.alexnet", "perception.vgg", "perception.gist", "perception.z2color")
+_BUILTIN = ("perception.alexnet", "perception.vgg", "perception.gist", "perception.z2color", "perception.mobilenet")
 _loaded = False
 
 
@@ -115,15 +117,19 @@ def one_camera_now(decl: WorldDeclaration) -> str | None:
 
 
 def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=None, size=None,
-              **options) -> dict:
-    """The spec of a new model of family `name` for world `decl` learning `targets` (default: the world's)."""
+              instants: tuple[int, ...] | None = None, **options) -> dict:
+    """The spec of a new model of family `name` for world `decl` learning `targets` (default: the world's), reading
+    the frames of `instants` (default: the world's data moment; earlier steps only for a temporal family)."""
     fam = family(name)
     why = fam.fits(decl)
     if why is not None:
         raise CheckpointError(f"a {name} model cannot learn the {decl.name} world: {why}")
+    instants = tuple(decl.moment.instants if instants is None else instants)
+    if instants != tuple(decl.moment.instants) and not fam.temporal:
+        raise CheckpointError(f"a {name} model reads the {decl.name} world's instants {decl.moment.instants} only")
     targets = tuple(decl.targets if targets is None else targets)
     outputs = decl.outputs(targets)
-    channels = len(decl.moment.instants) * sum(c.channels for c in decl.cameras)
+    channels = len(instants) * sum(c.channels for c in decl.cameras)
     cam = decl.cameras[0]
     height, width = size or fam.size(decl) or (cam.height, cam.width)
     mean = [0.0] * channels if mean is None else [float(v) for v in mean]
@@ -133,7 +139,7 @@ def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=No
     return {"name": name, "world": decl.name, "world_fingerprint": decl.fingerprint(), "labels": list(targets),
             "outputs": list(outputs), "options": dict(options),
             "input": {"channels": channels, "height": int(height), "width": int(width),
-                      "instants": list(decl.moment.instants), "cameras": list(decl.camera_names),
+                      "instants": list(instants), "cameras": list(decl.camera_names),
                       "modes": list(decl.modes), "scaling": fam.scaling, "mean": mean, "std": std},
             "normalisation": decl.normalisation(outputs)}
 

@@ -30,6 +30,7 @@ from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpo
 from perception.curves import curve_paths, write_curves
 from perception.datasets import FrameStream
 from perception.distributed import Distributed
+from perception.frame_cache import FrameCache, prepare_cache
 from perception.models import (
     IMAGENET_MEAN,
     IMAGENET_STD,
@@ -46,6 +47,7 @@ from perception.training import (
     TrainingError,
     data_summary,
     euclidean_loss,
+    history_moment,
     input_statistics,
     load_frames,
     validate,
@@ -64,6 +66,7 @@ class Plan:
     optimizer: str
     spec: dict
     ckpt: dict | None       # the checkpoint at `out` this run continues, or None
+    init: dict | None = None   # the checkpoint a new run starts from (--init), or None
 
 
 def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, stream: FrameStream,
@@ -84,6 +87,9 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     lr = cfg.lr if cfg.lr is not None else paper["lr"]
     optimizer = cfg.optimizer or paper.get("optimizer", "sgd")
     out = Path(cfg.out)
+    if not out.exists() and cfg.init:
+        init = initial_checkpoint(cfg, decl, labels)
+        return Plan(iterations, batch_size, lr, optimizer, init["spec"], None, init)
     if not out.exists():
         return Plan(iterations, batch_size, lr, optimizer, new_spec(cfg, decl, labels, dist, log), None)
     ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
@@ -108,10 +114,24 @@ def check_continuation(cfg: TrainConfig, ckpt: dict, optimizer: str) -> None:
     if cfg.model == "vgg16" and bool(o.get("batch_norm")) != cfg.batch_norm:
         raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
                               "use the same options to continue it, or another --out")
+    if len(ckpt["spec"]["input"]["instants"]) - 1 != cfg.history:
+        raise CheckpointError(f"{out} reads {len(ckpt['spec']['input']['instants']) - 1} earlier frame(s); continue "
+                              "it with the same --history, or use another --out")
     old = ckpt["train"]["config"]
     if old.get("optimizer") != optimizer:
         raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
                               "optimiser to continue it, or another --out")
+
+
+def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict:
+    """The checkpoint a fine-tuning run starts from: the same family, world, targets and earlier frames; its input
+    statistics and weights are kept (a new optimiser and schedule start)."""
+    init = load_checkpoint(cfg.init, model=cfg.model, labels=labels, world=decl.name)
+    check_spec(init["spec"], str(cfg.init))
+    if len(init["spec"]["input"]["instants"]) - 1 != cfg.history:
+        raise CheckpointError(f"--init {cfg.init} reads {len(init['spec']['input']['instants']) - 1} earlier "
+                              f"frame(s), not --history {cfg.history}")
+    return init
 
 
 def new_spec(cfg: TrainConfig, decl: WorldDeclaration, labels, dist: Distributed, log) -> dict:
@@ -120,12 +140,14 @@ def new_spec(cfg: TrainConfig, decl: WorldDeclaration, labels, dist: Distributed
         mean, std, weights = IMAGENET_MEAN, IMAGENET_STD, "imagenet"
     else:
         log("computing the per-channel input mean and deviation of the training frames ...")
-        mean, std = dist.share(input_statistics(cfg.data, labels) if dist.main else None)
+        moment = history_moment(decl, cfg.history)
+        mean, std = dist.share(input_statistics(cfg.data, labels, moment=moment) if dist.main else None)
         weights = None
     options: dict = {"weights": weights}
     if cfg.model == "vgg16":
         options.update(frozen=not cfg.unfreeze, batch_norm=cfg.batch_norm)
-    return make_spec(cfg.model, decl, labels, mean=mean, std=std, **options)
+    instants = tuple(range(-cfg.history, 1)) if cfg.history else None
+    return make_spec(cfg.model, decl, labels, mean=mean, std=std, instants=instants, **options)
 
 
 def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regressor:
@@ -133,6 +155,9 @@ def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regr
     model = Regressor(plan.spec)
     if plan.ckpt is not None:
         model.load_state_dict(plan.ckpt["state_dict"])
+    elif plan.init is not None:
+        model.load_state_dict(plan.init["state_dict"])
+        log(f"{cfg.model}: starting from the weights of {cfg.init}")
     elif cfg.weights:
         n = load_trunk(model, cfg.weights)
         log(f"{cfg.model} trunk: {n} tensors of ImageNet weights from {cfg.weights}")
@@ -155,6 +180,14 @@ def make_optimizer(name: str, params, lr: float, cfg: TrainConfig) -> torch.opti
     raise TrainingError(f"unknown optimizer '{name}' ({', '.join(OPTIMIZERS)})")
 
 
+def frame_cache(data: Dataset, dist: Distributed, log) -> FrameCache:
+    """The training split's frames decoded once (rank 0 decodes; the other ranks wait and read)."""
+    if dist.main:
+        prepare_cache(data, data.select("train"), log=log)
+    dist.barrier()
+    return FrameCache(data)
+
+
 def _one_thread(_worker_id: int) -> None:  # decoding workers leave the cores to the training process
     torch.set_num_threads(1)
 
@@ -167,11 +200,15 @@ class SGDRun:
         self.cfg, self.data, self.labels, self.device, self.dist, self.log = cfg, data, labels, device, dist, log
         self.out = Path(cfg.out)
         torch.manual_seed(cfg.seed)
+        self.moment = history_moment(decl, cfg.history)
         self.stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
                                   buffer=min(cfg.shuffle_buffer, data.frames("train")), rank=dist.rank,
-                                  world_size=dist.world_size)
+                                  world_size=dist.world_size, moment=self.moment,
+                                  cache=frame_cache(data, dist, log) if cfg.cache else None)
         self.plan = plan = plan_run(cfg, data, decl, labels, self.stream, dist, log)
         self.model = build_model(cfg, plan, device, log)
+        if device.type == "cpu":   # oneDNN's convolutions are faster on channels-last weights and inputs
+            self.model.to(memory_format=torch.channels_last)
         self.net: torch.nn.Module = self.model   # what the steps call: the model or its DistributedDataParallel
         if dist.active:
             self.net = torch.nn.parallel.DistributedDataParallel(
@@ -214,7 +251,7 @@ class SGDRun:
 
     def load_validation(self) -> None:
         if self.data.frames("val") and self.dist.main:   # rank 0 validates
-            self.val = load_frames(self.cfg.data, "val", self.labels, self.cfg.val_frames)
+            self.val = load_frames(self.cfg.data, "val", self.labels, self.cfg.val_frames, moment=self.moment)
         elif not self.data.frames("val"):
             self.log(f"note: {self.cfg.data} has no validation split (episodes 8, 18, ...); training without "
                      "validation")
@@ -270,6 +307,8 @@ class SGDRun:
         save, agreed before backward)."""
         dev = self.device
         x, m, y = x.to(dev, non_blocking=True), m.to(dev, non_blocking=True), y.to(dev, non_blocking=True)
+        if dev.type == "cpu":
+            x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(dev.type, dtype=self.amp_dtype or torch.float32, enabled=self.amp_dtype is not None):
             pred = self.net(x, m)
         loss = euclidean_loss(pred, y)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from core.declaration import WorldDeclaration
+from core.declaration import Moment, WorldDeclaration
 from perception.datasets import FrameDataset
 from perception.models import Regressor, family, fitting
 from perception.shards import Dataset
@@ -57,7 +57,9 @@ class TrainConfig:
     modes: str | None = None          # Z2Color: behavioural modes to train on (comma-separated; None: all)
     mtl: str | None = None            # Z2Color: the MTL baseline on this one mode (no modal input)
     trials: int = 1                   # Z2Color: repeats with fresh seeds
-    init: str | None = None           # Z2Color: start from this checkpoint's weights (fine-tuning, DAgger rounds)
+    init: str | None = None           # start from this checkpoint's weights (fine-tuning, aggregation rounds)
+    history: int = 0                  # earlier frames read beside the current one (a temporal family)
+    cache: bool = True                # decode the training frames once into the dataset's frame cache
     seed: int = 0
 
     def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:
@@ -129,16 +131,24 @@ def spread(n: int, k: int) -> list[int]:
     return sorted(set(np.linspace(0, n - 1, num=min(n, k)).round().astype(int).tolist())) if n else []
 
 
-def load_frames(root, split: str, labels, limit: int, normalised: bool = True):
+def history_moment(decl: WorldDeclaration, history: int) -> Moment | None:
+    """The data moment of a model reading `history` earlier frames beside the current one (None: the world's)."""
+    if not history:
+        return None
+    return Moment(instants=tuple(range(-history, 1)), horizon=decl.moment.horizon)
+
+
+def load_frames(root, split: str, labels, limit: int, normalised: bool = True, moment: Moment | None = None):
     """Up to `limit` samples of a split, evenly spread over it, as (uint8 images, modes, targets) tensors."""
-    ds = FrameDataset(root, split, labels, normalised=normalised)
+    ds = FrameDataset(root, split, labels, normalised=normalised, moment=moment)
     items = [ds[i] for i in spread(len(ds), limit)]
     return tuple(torch.stack([item[k] for item in items]) for k in range(3))
 
 
-def input_statistics(root, labels, frames: int = 512) -> tuple[list[float], list[float]]:
+def input_statistics(root, labels, frames: int = 512,
+                     moment: Moment | None = None) -> tuple[list[float], list[float]]:
     """Per-channel mean and standard deviation of training samples in [0, 1] (Liu and Wang's mean file)."""
-    images, _, _ = load_frames(root, "train", labels, frames)
+    images, _, _ = load_frames(root, "train", labels, frames, moment=moment)
     x = images.float().div_(255).transpose(0, 1).reshape(images.shape[1], -1)
     return x.mean(1).tolist(), x.std(1).clamp_min(1e-3).tolist()
 

@@ -1,12 +1,15 @@
 """drivestudio train --data DIR --model NAME --out CKPT: fit a perception model of the dataset's world."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
 
-FAMILIES = "alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), z2color (Z2Color: MultiNet and its MTL baseline)"
+FAMILIES = ("alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), mobilenet (MobileNetV2 blocks, half resolution, "
+            "optionally with earlier frames), z2color (Z2Color: MultiNet and its MTL baseline)")
 
 
 def register(sub) -> None:
@@ -62,6 +65,13 @@ def register(sub) -> None:
                                                  "one mode's data")
     p.add_argument("--trials", type=count(1, 100), default=1,
                    help="z2color: repeat training with fresh seeds, for curves with confidence intervals (default 1)")
+    p.add_argument("--history", type=count(0, 2), default=0,
+                   help="mobilenet: also read the previous 1 or 2 frames (0.1 s apart) beside the current one "
+                        "(default 0)")
+    p.add_argument("--init", metavar="CKPT", help="start from this checkpoint's weights (same family, world and "
+                                                  "targets): fine-tuning, aggregation rounds")
+    p.add_argument("--no-cache", dest="cache", action="store_false",
+                   help="decode every frame every epoch instead of once into DATA/.frames (the frame cache)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")
     p.set_defaults(func=run)
 
@@ -81,8 +91,11 @@ def run(args) -> int:
         raise UsageError("--regressor goes with --model gist")
     if fam.trainer != "multinet" and (args.modes or args.mtl or args.trials != 1):
         raise UsageError("--modes, --mtl and --trials go with --model z2color")
+    if args.history and not fam.temporal:
+        raise UsageError(f"--history goes with a model that reads earlier frames (mobilenet), not {args.model}")
+    if args.init is not None and not Path(args.init).is_file():
+        raise UsageError(f"--init: no such file: {args.init}")
     if args.weights:
-        from pathlib import Path
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
 

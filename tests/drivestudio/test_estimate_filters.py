@@ -11,7 +11,7 @@ from drivestudio.worlds.highway.drivers import ESTIMATE, ChenDriver
 
 class Scripted:
     """A predictor that returns the given indicator vectors in turn (the filters' arithmetic, not a model's)."""
-    name, outputs = "scripted", tuple(INDICATORS[:13])
+    name, outputs, instants = "scripted", tuple(INDICATORS[:13]), (0,)
 
     def __init__(self, rows):
         self.rows = iter(rows)

@@ -10,6 +10,7 @@ from controller.highway import ChenController
 from controller.highway.expert import PerturbedExpert
 from core.worlds.highway import HIGHWAY, INDICATORS
 from drivestudio.loop import Percept
+from perception.history import History
 
 ESTIMATE = tuple(HIGHWAY.estimate_names)
 ESTIMATE_INDEX = {n: i for i, n in enumerate(ESTIMATE)}
@@ -30,6 +31,7 @@ class ChenDriver:
         self._slots = [] if predictor is None else [(i, ESTIMATE_INDEX[n]) for i, n in
                                                     enumerate(predictor.outputs) if n in ESTIMATE_INDEX]
         self._smoothed = self._held = None
+        self.history = History(predictor.instants if predictor is not None else (0,))   # a temporal model's frames
 
     @property
     def name(self) -> str:
@@ -42,7 +44,7 @@ class ChenDriver:
             est[:len(INDICATORS)] = percept.record[:len(INDICATORS)]
             est[ESTIMATE_INDEX["lanes_left"]] = percept.record[HIGHWAY.index("lanes_left")]
             return est
-        values = self.predictor(percept.frames[0])
+        values = self.predictor(self.history.push(percept.frames))
         est = np.full(len(ESTIMATE), np.nan)
         for i, j in self._slots:
             est[j] = values[i]
