@@ -27,7 +27,7 @@ from pathlib import Path
 from drivestudio import worlds
 from drivestudio.errors import RunError, UsageError
 from drivestudio.worker_pool import run_pool, serve
-from drivestudio.worlds import Episode
+from drivestudio.worlds import Episode, Plugin
 from perception.shards import (
     MANIFEST,
     SPLIT_RULE,
@@ -275,13 +275,14 @@ def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_d
 
 
 def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "local",
-             show_progress: bool = True, log=print) -> dict:
-    """Make (or continue) the dataset in `out`; returns its manifest."""
+             show_progress: bool = True, log=print, plugin: Plugin | None = None) -> dict:
+    """Make (or continue) the dataset in `out`; returns its manifest. `plugin`: the world's plugin, or one that
+    drives its episodes otherwise (data aggregation's); its workers load it by its module and class."""
     from tqdm import tqdm
 
     from core.files import make_dir
 
-    plugin = worlds.get(cfg.world)
+    plugin = plugin or worlds.get(cfg.world)
     ref = plugin_ref(plugin)
     out = make_dir(Path(out))
     lock = open(out / ".lock", "w")

@@ -62,9 +62,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from core.files import check_output_dir
     from drivestudio.errors import UsageError
-    from drivestudio.outputs import write_json, write_text
     from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
-    from drivestudio.worlds.highway.benchmark.score import csv_text, markdown, routes_csv_text
+    from drivestudio.worlds.highway.benchmark.report import write_board
 
     if args.out is not None:
         check_output_dir(args.out)          # before any work
@@ -84,11 +83,7 @@ def run(args) -> int:
           f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {workers} workers, "
           f"{'over shared memory' if args.shm else 'in process'}", file=sys.stderr)
     board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet)
-    write_json(out / "leaderboard.json", board)
-    write_text(out / "leaderboard.csv", csv_text(board))
-    write_text(out / "routes.csv", routes_csv_text(board))
-    text = markdown(board)
-    write_text(out / "leaderboard.md", text)
+    text = write_board(out, board)
     print(text.split("\n## Per route")[0].rstrip())
     clips = sum(e["overall"]["clips"] for e in board["models"])
     print(f"\n{board['run']['wall_time_s']:.0f} s with {board['run']['workers']} workers; {clips} clips; "

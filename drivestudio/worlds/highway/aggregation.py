@@ -1,0 +1,257 @@
+"""Closed-loop data aggregation with exact labels (DAgger: Ross, Gordon and Bagnell, AISTATS 2011) for the
+highway's direct perception (docs/aggregation.md).
+
+A network trained on the expert's frames meets, once it drives, states the expert never visits (a car closer
+ahead, the host astride a marking, a little off its lane centre); it was never taught to read them. The simulator
+knows the exact indicators of every state, so the states a learned driver visits can be labelled for free. Round i
+(1..K):
+
+1. **drive**: episodes of generate's highway plan (training tracks only: never a benchmark route) are driven by
+   the mixture of the expert and the current model: at every step the expert's command is applied with
+   probability beta_i = beta x decay^(i-1), the model's (the Chen controller on its estimates) otherwise; every
+   visited frame is recorded with its exact labels, in the dataset format (drivestudio/generate.py's workers);
+2. **merge**: the expert dataset (its splits as they were) and every round's frames so far (all training) become
+   one dataset (perception/merge.py);
+3. **fine-tune**: the model of round i-1 is trained on the merged set (`train --init`), a new optimiser and
+   schedule, `iterations` more.
+
+At the end one benchmark drives every round's model (and the oracle) on the held-out suite: each round's score.
+Everything is resumable: a round's data, merge and model are each continued or skipped when done
+(`aggregation.json` says where the run is), and the same seed gives the same rounds.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from core.files import check_output_dir, make_dir
+from core.worlds.highway import HIGHWAY
+from drivestudio.checkpoints import load_predictor_for
+from drivestudio.errors import UsageError
+from drivestudio.generate import GenerateConfig, generate
+from drivestudio.loop import Percept
+from drivestudio.outputs import write_json, write_text
+from drivestudio.worlds.base import Episode
+from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
+from drivestudio.worlds.highway.benchmark.report import write_board
+from drivestudio.worlds.highway.benchmark.suite import SUITES_DIR
+from drivestudio.worlds.highway.drivers import ChenDriver
+from drivestudio.worlds.highway.plugin import Plugin as HighwayPlugin
+from perception.checkpoint import load_checkpoint
+from perception.merge import Source, merge
+from perception.shards import MANIFEST, Dataset
+from perception.train import train
+from perception.training import TrainConfig
+
+STATE = "aggregation.json"
+
+
+@dataclass(frozen=True)
+class AggregationConfig:
+    data: str                       # the expert dataset the model was trained on (round 0)
+    model: str                      # the model of round 0 (a highway checkpoint)
+    out: str                        # the run's folder
+    rounds: int = 3
+    frames: int = 4000              # visited frames recorded per round
+    beta: float = 0.5               # the expert's share of round 1 ...
+    decay: float = 0.5              # ... times this per round
+    iterations: int = 2000          # fine-tuning iterations per round
+    batch_size: int | None = None   # None: the family's
+    lr: float | None = None         # None: the family's
+    episode_frames: int = 200
+    cars: tuple[int, int] = (12, 40)
+    seed: int = 0
+    workers: int = 2
+    device: str = "cpu"
+    benchmark: str | None = "default"   # the suite every round's model drives at the end (None: none)
+
+    def beta_of(self, round_: int) -> float:
+        return self.beta * self.decay ** (round_ - 1)
+
+
+# --- driving: the expert and the model, mixed step by step ----------------------------------------------------
+class MixedDriver:
+    """DAgger's mixture policy: both drivers see every percept (so that each keeps its own state), and the expert's
+    command is applied with probability beta, the learner's otherwise. `label` says whose it was."""
+
+    name = "expert+learner"
+
+    def __init__(self, expert, learner, beta: float, seed: int):
+        self.expert, self.learner, self.beta = expert, learner, beta
+        self.rng = np.random.default_rng([seed, 0xDA6])
+        self.label = "expert"
+        self.timings: dict[str, float] = {}
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
+        expert_action, expert_estimate = self.expert.act(percept)
+        if percept.frames[0] is None:   # the warm-up before recording renders nothing: the expert drives it
+            self.label = self.expert.label
+            return expert_action, expert_estimate
+        action, estimate = self.learner.act(percept)
+        if self.rng.uniform() < self.beta:
+            action, self.label = expert_action, self.expert.label
+        else:
+            self.label = "learner"
+        for driver in (self.expert, self.learner):
+            for stage, s in driver.timings.items():
+                self.timings[stage] = self.timings.get(stage, 0.0) + s
+            driver.timings = dict.fromkeys(driver.timings, 0.0)
+        return action, estimate
+
+
+@functools.cache
+def _predictor(path: str, device: str):
+    """A worker loads each round's model once, and runs it on one thread (the parallelism is the episodes')."""
+    torch.set_num_threads(1)
+    return load_predictor_for(path, "highway", device)
+
+
+class AggregationPlugin(HighwayPlugin):
+    """The highway's generation plan, driven by the mixture of its expert and a model (options "learner", "beta",
+    "device"); the `perturbation` column says who drove each step ("learner", or the expert's label)."""
+
+    def episode(self, ep: Episode, options: dict, renderer: str):
+        world, expert, columns = super().episode(ep, options, renderer)
+        learner = ChenDriver(_predictor(options["learner"], options.get("device", "cpu")))
+        driver = MixedDriver(expert, learner, float(options["beta"]), ep.seed)
+
+        def labelled(obs) -> dict:
+            return {**columns(obs), "perturbation": driver.label}
+        return world, driver, labelled
+
+
+# --- the rounds -------------------------------------------------------------------------------------------------
+def benchmark_tracks() -> set[tuple[str, int]]:
+    """(track, lanes) of every route of the shipped suites: aggregation never drives them."""
+    return {(r.track_ref or r.track, r.lanes) for path in sorted(SUITES_DIR.glob("*.json"))
+            for r in load_suite(path).routes}
+
+
+def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
+    """generate's highway options for a round: the default training plan (seed cfg.seed * 100 + round, so that
+    every round drives new traffic on new procedural tracks), denser traffic, and the learner."""
+    plugin = HighwayPlugin()
+    seed = cfg.seed * 100 + round_
+    options = {"tracks": [], "procedural": 3, "lanes": [1, 2, 3], "cars": list(cfg.cars),
+               "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0}
+    held_out = benchmark_tracks()
+    tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in options["lanes"])]
+    return {**options, "tracks": tracks, "learner": str(learner.resolve()), "beta": cfg.beta_of(round_),
+            "device": cfg.device}
+
+
+class Aggregation:
+    """One aggregation run in its folder; `run()` does (or continues) every round, then the benchmark."""
+
+    def __init__(self, cfg: AggregationConfig, log=print):
+        self.cfg, self.log = cfg, log
+        self.out = make_dir(check_output_dir(cfg.out, "aggregation folder"))
+        self.state = self._load_state()
+
+    def _load_state(self) -> dict:
+        path = self.out / STATE
+        config = json.loads(json.dumps(asdict(self.cfg)))
+        if not path.exists():
+            return {"config": config, "rounds": [], "complete": False}
+        state = json.loads(path.read_text())
+        keep = {k: v for k, v in config.items() if k not in ("rounds", "workers", "benchmark")}
+        old = {k: v for k, v in state.get("config", {}).items() if k not in ("rounds", "workers", "benchmark")}
+        if old != keep:
+            diff = sorted(k for k in set(old) | set(keep) if old.get(k) != keep.get(k))
+            raise UsageError(f"{self.out} holds an aggregation run made with other options ({', '.join(diff)} "
+                             "differ); give the same options to continue it, or a new --out")
+        state["config"] = config
+        return state
+
+    def _save(self) -> None:
+        write_json(self.out / STATE, self.state)
+
+    def model_of(self, round_: int) -> Path:
+        return Path(self.cfg.model) if round_ == 0 else self.out / f"round-{round_}" / "model.pt"
+
+    def run(self) -> dict:
+        for r in range(1, self.cfg.rounds + 1):
+            if r <= len(self.state["rounds"]) and self.state["rounds"][r - 1].get("done"):
+                continue
+            self.do_round(r)
+        if self.cfg.benchmark:
+            self.state["benchmark"] = self.benchmark()
+        self.state["complete"] = True
+        self._save()
+        write_text(self.out / "aggregation.md", report(self.state))
+        return self.state
+
+    def do_round(self, r: int) -> None:
+        cfg, folder = self.cfg, make_dir(self.out / f"round-{r}")
+        t0 = time.perf_counter()
+        beta = cfg.beta_of(r)
+        self.log(f"round {r} of {cfg.rounds}: driving {cfg.frames} frames, the expert's share {beta:.3f}")
+        gen = GenerateConfig(world="highway", frames=cfg.frames, seed=cfg.seed * 100 + r,
+                             episode_frames=cfg.episode_frames, options=drive_options(cfg, r, self.model_of(r - 1)))
+        manifest = generate(folder / "data", gen, workers=cfg.workers, plugin=AggregationPlugin())
+        shares = learner_share(folder / "data")
+        merged = folder / "merged"
+        if not (merged / MANIFEST).exists():
+            merge(merged, [Source(Path(cfg.data))] + [Source(self.out / f"round-{k}" / "data", train_only=True)
+                                                       for k in range(1, r + 1)], log=self.log)
+        record = self.finetune(r, merged)
+        entry = {"round": r, "beta": beta, "frames": manifest["frames"], "learner_share": shares,
+                 "merged_frames": Dataset(merged).frames(), "model": str(self.model_of(r)),
+                 "val_loss": record.get("val_loss"), "val_mae": record.get("val_mae"),
+                 "seconds": round(time.perf_counter() - t0, 1), "done": True}
+        self.state["rounds"][r - 1:] = [entry]
+        self._save()
+
+    def finetune(self, r: int, merged: Path) -> dict:
+        start = load_checkpoint(self.model_of(r - 1), world="highway")
+        spec = start["spec"]
+        cfg = self.cfg
+        train(TrainConfig(data=str(merged), model=spec["name"], out=str(self.model_of(r)),
+                          init=str(self.model_of(r - 1)), targets=",".join(spec["labels"]), iterations=cfg.iterations,
+                          batch_size=cfg.batch_size, lr=cfg.lr, history=len(spec["input"]["instants"]) - 1,
+                          device=cfg.device, seed=cfg.seed + r, workers=0), log=self.log)
+        history = load_checkpoint(self.model_of(r), world="highway")["train"]["history"]
+        last = next((h for h in reversed(history) if h.get("val_loss") is not None), {})
+        return {"val_loss": last.get("val_loss"),
+                "val_mae": {k[len("val_mae_"):]: v for k, v in last.items() if k.startswith("val_mae_")}}
+
+    def benchmark(self) -> dict:
+        suite = load_suite(None if self.cfg.benchmark == "default" else self.cfg.benchmark)
+        models = check_models(["oracle"] + [str(self.model_of(r)) for r in range(self.cfg.rounds + 1)])
+        out = make_dir(self.out / "benchmark")
+        board = run_benchmark(suite, models, RunOptions(device=self.cfg.device), out, self.cfg.workers)
+        write_board(out, board)
+        return {"suite": suite.name, "rows": [{"model": e["spec"], **{k: e["overall"][k] for k in
+                                               ("driving_score", "score_vs_oracle", "collisions", "off_road_events",
+                                                "collisions_per_km", "distance_km")}} for e in board["models"]]}
+
+
+def learner_share(data: Path) -> float:
+    """The share of a round's recorded steps on which the model's command was applied."""
+    d = Dataset(data)
+    labels = d.labels(None, ["perturbation"])["perturbation"]
+    return round(float(np.mean(labels == "learner")), 4) if len(labels) else 0.0
+
+
+def report(state: dict) -> str:
+    """aggregation.md: one row per round, then the benchmark's rows."""
+    rows = ["# Data aggregation", "", "| round | expert share | frames | learner drove | merged frames | val loss | "
+            "minutes |", "|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in state["rounds"]:
+        loss = f"{r['val_loss']:.4f}" if r.get("val_loss") is not None else "-"
+        rows.append(f"| {r['round']} | {r['beta']:.3f} | {r['frames']} | {r['learner_share']:.1%} | "
+                    f"{r['merged_frames']} | {loss} | {r['seconds'] / 60:.1f} |")
+    bench = state.get("benchmark")
+    if bench:
+        rows += ["", f"## Benchmark, suite '{bench['suite']}'", "", "| model | driving score | vs oracle | "
+                 "collisions | collisions/100 km | off-road | km |", "|---|---:|---:|---:|---:|---:|---:|"]
+        for b in bench["rows"]:
+            rows.append(f"| {b['model']} | {b['driving_score']:.1%} | {b['score_vs_oracle']:.1%} | {b['collisions']} | "
+                        f"{b['collisions_per_km'] * 100:.1f} | {b['off_road_events']} | {b['distance_km']:.1f} |")
+    return "\n".join(rows) + "\n"
