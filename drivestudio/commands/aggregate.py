@@ -25,7 +25,7 @@ def register(sub) -> None:
     p.add_argument("--model", required=True, metavar="CKPT", help="the model to start from (a highway checkpoint)")
     p.add_argument("--out", required=True, help="the run's folder (rounds, merged datasets, models, benchmark)")
     p.add_argument("--rounds", type=count(1, 50), default=3, help="aggregation rounds (default 3)")
-    p.add_argument("--frames", type=count(100, 10**7), default=4000, help="frames driven per round (default 4000)")
+    p.add_argument("--frames", type=count(20, 10**7), default=4000, help="frames driven per round (default 4000)")
     p.add_argument("--beta", type=finite(0.0, 1.0), default=0.5,
                    help="the expert's share of the steps in round 1 (default 0.5)")
     p.add_argument("--decay", type=finite(0.0, 1.0), default=0.5,
