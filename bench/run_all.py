@@ -111,6 +111,12 @@ def rows_perception(j: dict) -> list[tuple]:
              "reported") for r in j["models"]]
 
 
+def rows_training(j: dict) -> list[tuple]:
+    return [(f"training {r['family']}, {r['configuration']}, real frames ({j['frames']}), data loading included",
+             f"**{_f(r['samples_per_s'])} samples/s** ({r['vs_before']:.2f}x before)",
+             ">= 1.5x before (AlexNet)" if r["family"] == "alexnet" else "reported") for r in j["rows"]]
+
+
 def rows_stereo(j: dict) -> list[tuple]:
     b = j["breakdown_ms_per_step"]
     out = [("sidewalk generation, 336x188 x 2 cameras PNG, 2 workers (end to end)",
@@ -194,6 +200,8 @@ BENCHES = [
     Bench("dataset", "bench_dataset.py", ["--frames", "4000"], ["--frames", "200"], rows_dataset, temp_out=True),
     Bench("perception", "bench_perception.py", ["--steps", "3"], ["--steps", "1", "--models", "alexnet,gist"],
           rows_perception),
+    Bench("training", "bench_training.py", ["--frames", "600", "--rounds", "2"],
+          ["--frames", "60", "--rounds", "1", "--families", "mobilenet"], rows_training),
     Bench("stereo", "bench_stereo.py", ["--frames", "3000", "--seconds", "30", "--minutes", "3"],
           ["--frames", "200", "--seconds", "3", "--minutes", "0.2"], rows_stereo, temp_out=True),
     Bench("benchmark", "bench_benchmark.py", ["--routes", "p21-1l,p9-1l", "--workers", "2"],

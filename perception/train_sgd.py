@@ -207,7 +207,8 @@ class SGDRun:
                                   cache=frame_cache(data, dist, log) if cfg.cache else None)
         self.plan = plan = plan_run(cfg, data, decl, labels, self.stream, dist, log)
         self.model = build_model(cfg, plan, device, log)
-        if device.type == "cpu":   # oneDNN's convolutions are faster on channels-last weights and inputs
+        self.channels_last = cfg.channels_last and device.type == "cpu"
+        if self.channels_last:   # oneDNN's convolutions are faster on channels-last weights and inputs
             self.model.to(memory_format=torch.channels_last)
         self.net: torch.nn.Module = self.model   # what the steps call: the model or its DistributedDataParallel
         if dist.active:
@@ -307,7 +308,7 @@ class SGDRun:
         save, agreed before backward)."""
         dev = self.device
         x, m, y = x.to(dev, non_blocking=True), m.to(dev, non_blocking=True), y.to(dev, non_blocking=True)
-        if dev.type == "cpu":
+        if self.channels_last:
             x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(dev.type, dtype=self.amp_dtype or torch.float32, enabled=self.amp_dtype is not None):
             pred = self.net(x, m)

@@ -60,6 +60,7 @@ class TrainConfig:
     init: str | None = None           # start from this checkpoint's weights (fine-tuning, aggregation rounds)
     history: int = 0                  # earlier frames read beside the current one (a temporal family)
     cache: bool = True                # decode the training frames once into the dataset's frame cache
+    channels_last: bool = True        # CPU: channels-last weights and inputs (oneDNN's faster convolutions)
     seed: int = 0
 
     def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:

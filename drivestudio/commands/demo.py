@@ -19,9 +19,9 @@ class Size:
     oracle_seconds: int = 60
     frames: int = 2000          # highway dataset
     episode_frames: int = 60    # 34 episodes: the test split (episodes 9, 19, 29) holds 1, 2 and 3 lanes
-    iterations: int = 150       # AlexNet
+    iterations: int = 600       # MobileNet
     overlays: int = 6
-    alexnet_seconds: int = 30
+    deep_seconds: int = 30
     expert_seconds: int = 20    # each sidewalk expert mode's video
     moments: int = 1800         # sidewalk steps
     sw_episode_frames: int = 150
@@ -31,15 +31,15 @@ class Size:
 
 FULL = Size()
 QUICK = Size(warmup=5, oracle_seconds=10, frames=300, episode_frames=10, iterations=10, overlays=3,
-             alexnet_seconds=5, expert_seconds=4, moments=360, sw_episode_frames=40, epochs=1, autonomy_seconds=4)
+             deep_seconds=5, expert_seconds=4, moments=360, sw_episode_frames=40, epochs=1, autonomy_seconds=4)
 
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the whole pipeline of both worlds at small scale on built-in defaults",
                        description="Highway: frames of three tracks with SUMO traffic; the oracle driving over shared "
                                    "memory (with a video); a small dataset whose test split holds 1, 2 and 3 lanes; "
-                                   "the GIST baseline and a short AlexNet; their per-indicator MAE as Liu and Wang's "
-                                   "Table 3; overlays of the worst frames; the AlexNet driving. Sidewalk: stereo "
+                                   "the GIST baseline and a MobileNet; their per-indicator MAE as Liu and Wang's "
+                                   "Table 3; overlays of the worst frames; the MobileNet driving. Sidewalk: stereo "
                                    "frames; a video of each expert mode; a small data-moment set; a short MultiNet and "
                                    "an MTL net; the autonomy of each in direct mode. Ends with REPORT.md (the two "
                                    "headline tables and links to every plot, overlay and video); the commands it ran "
@@ -50,7 +50,7 @@ def register(sub) -> None:
     p.add_argument("--frames", type=count(200, 10**6), default=None,
                    help=f"frames in the highway dataset (default {FULL.frames}; quick {QUICK.frames})")
     p.add_argument("--iterations", type=count(1, 10**6), default=None,
-                   help=f"AlexNet training iterations (default {FULL.iterations}; quick {QUICK.iterations})")
+                   help=f"MobileNet training iterations (default {FULL.iterations}; quick {QUICK.iterations})")
     p.set_defaults(func=run)
 
 
@@ -98,17 +98,17 @@ def run(args) -> int:
          size.frames, "--episode-frames", size.episode_frames, "--quiet")
     step("highway: what the dataset covers", "stats", data, "--out", hw / "stats")
     step("highway: the GIST baseline", "train", "--data", data, "--model", "gist", "--out", models / "gist.pt")
-    step(f"highway: a short AlexNet ({size.iterations} iterations; Liu and Wang train 10,000: see docs/results.md)",
-         "train", "--data", data, "--model", "alexnet", "--out", models / "alexnet.pt", "--iterations",
-         size.iterations, "--optimizer", "adam", "--lr", "1e-4", "--val-every", max(5, size.iterations // 3),
-         "--val-frames", 200, "--device", "cpu")
+    step(f"highway: a MobileNet ({size.iterations} iterations of 32 frames; docs/aggregation.md)",
+         "train", "--data", data, "--model", "mobilenet", "--out", models / "mobilenet.pt", "--iterations",
+         size.iterations, "--val-every", max(5, size.iterations // 3), "--val-frames", 200, "--workers", 0,
+         "--device", "cpu")
     step("highway: per-indicator MAE, as Liu and Wang's Table 3", "evaluate", "--data", data, "--model",
-         models / "gist.pt", "--model", models / "alexnet.pt", "--out", hw / "evaluate", "--latency-frames", 10)
-    step("highway: box overlays of the AlexNet's worst test frames", "overlay", "--data", data, "--model",
-         models / "alexnet.pt", "--select", "worst", "-n", size.overlays, "--out", hw / "overlays")
-    step(f"highway: the AlexNet drives {size.alexnet_seconds} s closed loop", "drive", "--model",
-         models / "alexnet.pt", "--track", "oval", "--lanes", 3, "--cars", 12, "--seconds", size.alexnet_seconds,
-         "--record", hw / "alexnet-drive.mp4", "--out", hw / "alexnet-drive")
+         models / "gist.pt", "--model", models / "mobilenet.pt", "--out", hw / "evaluate", "--latency-frames", 10)
+    step("highway: box overlays of the MobileNet's worst test frames", "overlay", "--data", data, "--model",
+         models / "mobilenet.pt", "--select", "worst", "-n", size.overlays, "--out", hw / "overlays")
+    step(f"highway: the MobileNet drives {size.deep_seconds} s closed loop", "drive", "--model",
+         models / "mobilenet.pt", "--track", "oval", "--lanes", 3, "--cars", 12, "--seconds", size.deep_seconds,
+         "--record", hw / "mobilenet-drive.mp4", "--out", hw / "mobilenet-drive")
 
     # --- the sidewalk --------------------------------------------------------------------------------------------
     sdata, smodels = sw / "data", sw / "models"
@@ -189,7 +189,7 @@ def write_report(out: Path, seconds: float, quick: bool) -> Path:
 {_table_mae(hw)}
 
 MAE in metres (angle in radians) on the demo's test episodes, beside Liu and Wang's Table 3 (10,000 TORCS frames: a
-reference, not a like-for-like comparison). The demo's AlexNet trains for minutes, the paper's for hours. Full
+reference, not a like-for-like comparison). The demo's MobileNet trains for minutes, the paper's AlexNet for hours. Full
 report: [mae.md](highway/evaluate/mae.md), [mae.png](highway/evaluate/mae.png), by regime and lane count in
 [evaluate/](highway/evaluate/).
 
@@ -209,8 +209,8 @@ Highway
         ("distance_m", "mean_speed_mps", "collisions", "off_road_events", "overtakes", "loop_rate_hz"))}
 - the dataset: [stats](highway/stats/stats.md), [histograms](highway/stats/histograms.png)
 - training curves: {links(hw / "models", "*.png")}
-- overlays of the AlexNet's worst test frames: {links(hw / "overlays", "*.png")}
-- the AlexNet driving: [video](highway/alexnet-drive.mp4); {metrics(hw / "alexnet-drive",
+- overlays of the MobileNet's worst test frames: {links(hw / "overlays", "*.png")}
+- the MobileNet driving: [video](highway/mobilenet-drive.mp4); {metrics(hw / "mobilenet-drive",
         ("distance_m", "mean_speed_mps", "collisions", "off_road_events", "loop_rate_hz"))}
 
 Sidewalk

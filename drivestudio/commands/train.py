@@ -70,6 +70,9 @@ def register(sub) -> None:
                         "(default 0)")
     p.add_argument("--init", metavar="CKPT", help="start from this checkpoint's weights (same family, world and "
                                                   "targets): fine-tuning, aggregation rounds")
+    p.add_argument("--no-channels-last", dest="channels_last", action="store_false",
+                   help="keep weights and inputs contiguous on the CPU (channels-last is faster with oneDNN; for "
+                        "comparison)")
     p.add_argument("--no-cache", dest="cache", action="store_false",
                    help="decode every frame every epoch instead of once into DATA/.frames (the frame cache)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")

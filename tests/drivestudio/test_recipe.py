@@ -1,0 +1,24 @@
+"""`drivestudio recipe --quick`: from nothing to a leaderboard of every aggregation round beside the oracle, through
+the verbs a user would run (generate, train, aggregate with its benchmark), on a one-route suite."""
+import json
+import subprocess
+import sys
+
+
+def test_the_recipe_goes_from_nothing_to_the_leaderboard(tmp_path):
+    suite = tmp_path / "tiny.json"
+    suite.write_text(json.dumps({"name": "tiny", "routes": [{"name": "oval-1l", "track": "oval", "lanes": 1,
+                                                             "cars": 0, "seed": 1, "seconds": 5}]}))
+    out = tmp_path / "recipe"
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "recipe", "--quick", "--out", str(out), "--suite",
+                        str(suite), "--workers", "1"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    board = json.loads((out / "aggregation" / "benchmark" / "leaderboard.json").read_text())
+    specs = [m["spec"] for m in board["models"]]
+    assert specs[0] == "oracle" and specs[1].endswith("mobilenet.pt") and specs[2].endswith("round-1/model.pt")
+    assert all(m["overall"]["route_completion"] > 0 for m in board["models"])
+    commands = (out / "commands.txt").read_text().splitlines()
+    assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
+    state = json.loads((out / "aggregation" / "aggregation.json").read_text())
+    assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
+    assert "recipe done in" in r.stdout
