@@ -227,7 +227,7 @@ def _walk(obj, max_depth: int) -> None:
     """Check nesting depth and refuse out-of-range numbers, iteratively (no recursion on deep input)."""
     if isinstance(obj, _OutOfRange):
         raise _Refused(f"the top level: {obj.why()}")
-    stack = [(obj, 1, ())] if isinstance(obj, (dict, list)) and obj else []
+    stack: list[tuple[dict | list, int, tuple]] = [(obj, 1, ())] if isinstance(obj, (dict, list)) and obj else []
     if stack and max_depth < 1:
         raise _Refused(f"the top level: JSON nested more than {max_depth} levels deep")
     while stack:
