@@ -5,9 +5,9 @@
     predict.named([frame])                  # {output name: value}
 
 A sample's images are the world's cameras at the model's instants, oldest first (the highway: [front frame];
-MultiNet: [left t-1, right t-1, left t, right t]); `History` keeps the earlier steps' images for a driver that
-sees one step at a time. Frames of another size than the model's input are resampled inside the model, as in
-training.
+MultiNet: [left t-1, right t-1, left t, right t]); perception/history.py keeps the earlier steps' images for a
+driver that sees one step at a time. Frames of another size than the model's input are resampled inside the
+model, as in training.
 """
 from __future__ import annotations
 
@@ -78,31 +78,6 @@ class Predictor:
 
     def __repr__(self) -> str:
         return f"Predictor({self.description}, {len(self.outputs)} outputs, {self.device})"
-
-
-class History:
-    """The images of the last steps, so that a driver seeing one step at a time can build samples that reach back
-    (MultiNet's moment: the stereo pair now and one step earlier). Before enough steps have been seen, the
-    earliest available step stands in for the missing ones."""
-
-    def __init__(self, instants=(0,)):
-        self.instants = tuple(instants)
-        self.depth = -min(self.instants) + 1
-        self._steps: list = []
-
-    def reset(self) -> None:
-        self._steps.clear()
-
-    def push(self, frames) -> list:
-        """Add this step's images (one per camera) and return the sample's images, oldest instant first."""
-        self._steps.append(tuple(frames))
-        if len(self._steps) > self.depth:
-            self._steps.pop(0)
-        out = []
-        for dt in self.instants:
-            k = max(0, len(self._steps) - 1 + dt)
-            out.extend(self._steps[k])
-        return out
 
 
 def load_predictor(path, device: str = "cpu", world: str | None = None) -> Predictor:
