@@ -17,6 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,10 +68,10 @@ def main() -> None:
 
 def plot(board: dict, out: str) -> None:
     """Grouped bars: the driving score of each model on each route, and overall."""
-    import matplotlib
+    import matplotlib  # lazy: 0.7 s that only --plot needs
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
+    import matplotlib.pyplot as plt  # lazy: as matplotlib
+
     routes = [r["name"] for r in board["suite"]["routes"]] + ["suite"]
     models = board["models"]
     x = np.arange(len(routes))

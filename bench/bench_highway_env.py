@@ -31,6 +31,13 @@ import sys
 import time
 from pathlib import Path
 
+import gymnasium as gym
+import numpy as np
+
+import sim  # noqa: F401  registers drivestudio/Highway-v0
+from controller.highway import ChenController
+from sim.highway.gym_env import HighwayEnv
+
 REPO = Path(__file__).resolve().parents[1]
 WORKER = Path(__file__).resolve().with_name("_highway_env_worker.py")
 HIGHWAY_ENV = "highway-env==1.12.1"
@@ -78,25 +85,27 @@ class Theirs:
         self.proc = subprocess.Popen([str(python), str(WORKER), "--seed", str(seed), *extra], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                                      cwd=str(REPO))
+        assert self.proc.stdin and self.proc.stdout and self.proc.stderr   # all three are pipes
+        self._stdin, self._stdout, self._stderr = self.proc.stdin, self.proc.stdout, self.proc.stderr
         self.hello = self._read()
         if not self.hello.get("ready"):
             raise NotAvailable(f"highway-env did not start: {self.hello}")
 
     def _read(self) -> dict:
-        line = self.proc.stdout.readline()
+        line = self._stdout.readline()
         if not line:
-            err = self.proc.stderr.read().strip().splitlines()
+            err = self._stderr.read().strip().splitlines()
             raise NotAvailable(f"highway-env's worker stopped: {err[-1] if err else 'no output'}")
         return json.loads(line)
 
     def run(self, steps: int) -> dict:
-        self.proc.stdin.write(json.dumps({"steps": steps}) + "\n")
-        self.proc.stdin.flush()
+        self._stdin.write(json.dumps({"steps": steps}) + "\n")
+        self._stdin.flush()
         return self._read()
 
     def close(self) -> None:
         if self.proc.poll() is None:
-            self.proc.stdin.close()
+            self._stdin.close()
             try:
                 self.proc.wait(timeout=30)
             except subprocess.TimeoutExpired:
@@ -108,21 +117,16 @@ class Ours:
     """drivestudio/Highway-v0 with the Chen controller on the true indicators."""
 
     def __init__(self, seed: int = 0):
-        import gymnasium as gym
-        import numpy as np
-
-        import sim  # noqa: F401  registers drivestudio/Highway-v0
-        from controller.highway import ChenController
-
-        self.np, self.Chen = np, ChenController
         self.env = gym.make("drivestudio/Highway-v0", track="oval", lanes=3, cars=12, width=280, height=210)
+        highway = self.env.unwrapped
+        assert isinstance(highway, HighwayEnv)
+        self.dt = highway.dt   # [s] simulated per step
         self.seed = seed
         self._reset()
-        self.dt = float(self.env.unwrapped._world.config.dt)   # [s] simulated per step
 
     def _reset(self) -> None:
         self.frame, self.info = self.env.reset(seed=self.seed)
-        self.ctrl = self.Chen(self.info["lanes"])
+        self.ctrl = ChenController(self.info["lanes"])
         self.seed += 1
 
     def run(self, steps: int) -> dict:
@@ -130,8 +134,7 @@ class Ours:
         for _ in range(steps):
             t0 = time.perf_counter()
             a = self.ctrl.act(self.info["indicators"], self.info["speed"])
-            self.frame, _, terminated, truncated, self.info = self.env.step(self.np.array([a.steer, a.accel,
-                                                                                         a.brake]))
+            self.frame, _, terminated, truncated, self.info = self.env.step(np.array([a.steer, a.accel, a.brake]))
             self.frame = self.env.render()
             busy += time.perf_counter() - t0
             if terminated or truncated:

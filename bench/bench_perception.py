@@ -48,6 +48,27 @@ def timed(fn, steps: int, device, warmup: int = 1) -> float:
     return sorted(times)[len(times) // 2]
 
 
+def training_step(model, name: str, x: torch.Tensor, y: torch.Tensor):
+    """One training step of `model` on (x, y) as a function: GIST computes descriptors (its fit is closed-form),
+    the others take an SGD step."""
+    if name == "gist":
+        model.eval()
+
+        def describe() -> None:
+            with torch.no_grad():
+                model.net.descriptor(x.float() / 255)
+        return describe
+    model.train()
+    opt = torch.optim.SGD([p for p in model.parameters() if p.requires_grad], lr=1e-6, momentum=0.9)
+
+    def step() -> None:
+        loss = euclidean_loss(model(x), y)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+    return step
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu")
@@ -69,22 +90,7 @@ def main() -> None:
         batch = family(name).defaults["batch_size"] if name != "gist" else 32
         x = torch.randint(0, 256, (batch, 3, H, W), dtype=torch.uint8, generator=g).to(device)
         y = torch.rand(batch, len(labels), generator=g).to(device)
-        if name == "gist":
-            model.eval()
-
-            def step(model=model, x=x):
-                with torch.no_grad():
-                    model.net.descriptor(x.float() / 255)
-        else:
-            model.train()
-            opt = torch.optim.SGD([p for p in model.parameters() if p.requires_grad], lr=1e-6, momentum=0.9)
-
-            def step(model=model, x=x, y=y, opt=opt):
-                loss = euclidean_loss(model(x), y)
-                opt.zero_grad(set_to_none=True)
-                loss.backward()
-                opt.step()
-        train_rate = batch / timed(step, args.steps, device)
+        train_rate = batch / timed(training_step(model, name, x, y), args.steps, device)
         model.eval()
         xb = torch.randint(0, 256, (32, 3, H, W), dtype=torch.uint8, generator=g).to(device)
         with torch.inference_mode():
@@ -93,7 +99,7 @@ def main() -> None:
         print(f"{key:16s} {train_rate:16.1f} {batch:6d} {infer_rate:20.1f} {latency * 1e3:15.1f}", flush=True)
         rows.append({"model": key, "train_samples_per_s": train_rate, "batch": batch,
                      "infer_frames_per_s": infer_rate, "latency_ms": latency * 1e3})
-        model = step = opt = None  # free this model before the next is built
+        del model  # free this model before the next is built
     if args.json:
         args.json.write_text(json.dumps({"device": str(device), "on": what, "steps": args.steps, "models": rows},
                                         indent=2) + "\n")

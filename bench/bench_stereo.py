@@ -24,6 +24,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from controller.sidewalk import SidewalkExpert, SidewalkMetrics
+from drivestudio import worlds
+from perception.shards import encode_image
+from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
+
 MODES = ("direct", "follow", "furtive")
 
 
@@ -38,9 +43,6 @@ def generate(out: Path, frames: int, workers: int) -> float:
 def breakdown(steps: int = 600) -> dict:
     """CPU milliseconds per step of one process recording an episode: render (both cameras), PNG (both), the
     world's step (physics, lead car, truth), the expert, and the scene's set-up spread over the steps."""
-    from drivestudio import worlds
-    from perception.shards import encode_image
-
     plugin = worlds.get("sidewalk")
     options = {"modes": list(MODES), "paths": [], "procedural": 3, "obstacles": 4.0, "correctional": 0.0,
                "width": 336, "height": 188, "fov": 56.0}
@@ -49,6 +51,7 @@ def breakdown(steps: int = 600) -> dict:
     for ep in plugin.plan(options, 3 * steps, steps, 0):
         t = time.process_time()
         world, expert, _ = plugin.episode(ep, options, "tiny")
+        assert isinstance(world, SidewalkWorld)   # the sidewalk plugin's world: its renderer is timed apart
         obs = world.observe(True)
         total["set-up"] += time.process_time() - t
         for _ in range(ep.frames):
@@ -82,8 +85,6 @@ def closed_loop(mode: str, seconds: float) -> dict:
 
 
 def safety(mode: str, minutes: float, path: str = "procedural:11", seed: int = 5) -> dict:
-    from controller.sidewalk import SidewalkExpert, SidewalkMetrics
-    from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
     world = SidewalkWorld(SidewalkConfig(path=path, seed=seed, mode=mode, obstacles=5.0, render=False))
     expert, metrics = SidewalkExpert(), SidewalkMetrics(world.dt)
     obs = world.observe(False)

@@ -257,7 +257,7 @@ def uncovered() -> list[str]:
 
 
 def versions() -> dict:
-    out = {"python": platform.python_version()}
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for name, pkg in (("torch", "torch"), ("pybullet", "pybullet"), ("libsumo", "libsumo"), ("numpy", "numpy"),
                       ("OpenCV", "opencv-python-headless"), ("pyarrow", "pyarrow"), ("gymnasium", "gymnasium")):
         try:

@@ -182,11 +182,11 @@ class WorldDeclaration:
         for q in self.truth:
             if q.kind not in SCALAR_KINDS:
                 raise DeclarationError(f"truth field {q.name!r}: kind must be one of {', '.join(SCALAR_KINDS)}")
-        for c in self.columns:
-            if not COLUMN_KIND.fullmatch(c.kind):
-                raise DeclarationError(f"column {c.name!r}: kind {c.kind!r} is not str, f32[N] or f32[N]*")
-            if c.name in index:
-                raise DeclarationError(f"column {c.name!r} is also a truth field")
+        for col in self.columns:
+            if not COLUMN_KIND.fullmatch(col.kind):
+                raise DeclarationError(f"column {col.name!r}: kind {col.kind!r} is not str, f32[N] or f32[N]*")
+            if col.name in index:
+                raise DeclarationError(f"column {col.name!r} is also a truth field")
         missing = [lab.name for lab in self.labels if lab.name not in index]
         if missing:
             raise DeclarationError(f"world {self.name!r}: labels {missing} are not fields of the truth record")
@@ -285,7 +285,7 @@ class WorldDeclaration:
     def unpack(self, record) -> dict:
         """{field: value}: flags as bool, counts as int, everything else float (NaN stays NaN)."""
         arr = self.check_record(record)
-        out = {}
+        out: dict[str, bool | int | float] = {}
         for q, v in zip(self.truth, arr.tolist()):
             if q.kind == "bool":
                 out[q.name] = bool(v) if v == v else False

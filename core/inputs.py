@@ -15,6 +15,7 @@ import math
 import numbers
 import os
 import stat
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -69,8 +70,20 @@ def check_keys(obj: dict, allowed, where: str, error: type[Exception] = InputErr
 _MISSING = object()
 
 
+@overload
 def number(obj: dict, key: str, where: str, *, lo: float | None = None, hi: float | None = None,
-           lo_open: bool = False, unit: str = "", default=_MISSING, integer: bool = False,
+           lo_open: bool = False, unit: str = "", default: Any = _MISSING, integer: Literal[False] = False,
+           error: type[Exception] = InputError) -> float: ...
+
+
+@overload
+def number(obj: dict, key: str, where: str, *, lo: float | None = None, hi: float | None = None,
+           lo_open: bool = False, unit: str = "", default: Any = _MISSING, integer: Literal[True],
+           error: type[Exception] = InputError) -> int: ...
+
+
+def number(obj: dict, key: str, where: str, *, lo: float | None = None, hi: float | None = None,
+           lo_open: bool = False, unit: str = "", default: Any = _MISSING, integer: bool = False,
            error: type[Exception] = InputError) -> float:
     """obj[key] as a finite float (an int when `integer`) within [lo, hi] ((lo, hi] when `lo_open`).
 
@@ -227,7 +240,7 @@ def _walk(obj, max_depth: int) -> None:
     """Check nesting depth and refuse out-of-range numbers, iteratively (no recursion on deep input)."""
     if isinstance(obj, _OutOfRange):
         raise _Refused(f"the top level: {obj.why()}")
-    stack = [(obj, 1, ())] if isinstance(obj, (dict, list)) and obj else []
+    stack: list[tuple[dict | list, int, tuple]] = [(obj, 1, ())] if isinstance(obj, (dict, list)) and obj else []
     if stack and max_depth < 1:
         raise _Refused(f"the top level: JSON nested more than {max_depth} levels deep")
     while stack:

@@ -4,8 +4,12 @@ below drivestudio/commands/."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drivestudio.errors import UsageError
+
+if TYPE_CHECKING:
+    from perception.predictor import Predictor
 
 
 def check_device(name: str) -> str:
@@ -29,7 +33,7 @@ def check_checkpoint_path(model: str) -> Path:
     return path
 
 
-def load_predictor_for(model: str, world: str, device: str = "cpu"):
+def load_predictor_for(model: str, world: str, device: str = "cpu") -> Predictor:
     """The predictor of a checkpoint, which must be a model of `world`."""
     check_checkpoint_path(model)
     from perception.predictor import load_predictor  # lazy: torch

@@ -7,6 +7,7 @@ import numpy as np
 
 from core.declaration import WorldDeclaration, base_name
 from drivestudio.errors import UsageError
+from drivestudio.loop import Percept
 from perception.history import History
 
 
@@ -40,7 +41,7 @@ class DirectDriver:
         self.history.reset()
         self.previous = None
 
-    def current_mode(self, percept):
+    def current_mode(self, percept: Percept) -> str | None:
         if self.mode is not None or not self.predictor.modes:
             return self.mode
         index = getattr(percept, "behaviour", None)
@@ -48,7 +49,7 @@ class DirectDriver:
             index = int(percept.record[self.decl.index(self.decl.mode_field)])
         return None if index is None else self.decl.modes[int(index)]
 
-    def act(self, percept) -> tuple[np.ndarray, np.ndarray]:
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
         t0 = time.perf_counter()
         images = self.history.push(percept.frames)
         values = self.predictor(images, self.current_mode(percept))

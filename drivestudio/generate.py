@@ -19,13 +19,19 @@ import importlib.metadata
 import json
 import os
 import platform
+import socket
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from tqdm import tqdm
+
+from core.files import make_dir
 from drivestudio import worlds
 from drivestudio.errors import RunError, UsageError
+from drivestudio.loop import StepRecord, in_process, run_loop
 from drivestudio.worker_pool import run_pool, serve
 from drivestudio.worlds import Episode, Plugin
 from perception.shards import (
@@ -75,13 +81,13 @@ class GenerateConfig:
     options: dict = field(default_factory=dict)   # the world's own (Plugin.generate_options)
 
 
-def plugin_ref(plugin) -> str:
+def plugin_ref(plugin: Plugin) -> str:
     """Where a worker process finds the world's plugin: "module:Class"."""
     cls = type(plugin)
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
-def load_plugin(ref: str):
+def load_plugin(ref: str) -> Plugin:
     module, _, name = ref.partition(":")
     plugin = getattr(importlib.import_module(module), name)()
     return worlds.register(plugin)
@@ -92,17 +98,16 @@ def plan(cfg: GenerateConfig) -> list[Episode]:
                                       cfg.seed)
 
 
-def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=None) -> dict:
+def record_episode(plugin: Plugin, ep: Episode, cfg: GenerateConfig, out: str,
+                   progress: Callable[[int], object] | None = None) -> dict:
     """Drive one episode with the world's expert and write its shard; returns the manifest entry."""
-    from drivestudio.loop import in_process, run_loop
-
     world, expert, columns = plugin.episode(ep, cfg.options, cfg.renderer)
     try:
         act = in_process(expert)
         run_loop(world, act, cfg.warmup, render=False, when_lost="recover")
         writer = ShardWriter(Path(out) / shard_name(ep.index), world.declaration, cfg.encoding, cfg.quality)
 
-        def on_step(rec) -> None:
+        def on_step(rec: StepRecord) -> None:
             obs = rec.obs
             writer.add(obs.frames, obs.record, columns(obs), episode=ep.index, step=len(writer), t=obs.t,
                        seed=ep.seed, action=rec.action)
@@ -121,7 +126,7 @@ def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=
 
 # --- the run -------------------------------------------------------------------------------------------------
 def _software() -> dict:
-    out = {"python": platform.python_version()}
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for pkg in ("drivestudio", "pybullet", "libsumo", "numpy", "opencv-python-headless", "pyarrow", "trimesh"):
         try:
             out[pkg] = importlib.metadata.version(pkg)
@@ -134,7 +139,7 @@ def _config_dict(cfg: GenerateConfig) -> dict:
     return json.loads(json.dumps(asdict(cfg)))   # tuples become lists, as they come back from the manifest
 
 
-def _open_manifest(out: Path, cfg: GenerateConfig, plugin) -> dict:
+def _open_manifest(out: Path, cfg: GenerateConfig, plugin: Plugin) -> dict:
     config = _config_dict(cfg)
     if (out / MANIFEST).exists():
         manifest = read_manifest(out)
@@ -216,8 +221,6 @@ def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int
 
 def _check_reachable(address: str | None, timeout: float = 10.0) -> None:
     """RAY_ADDRESS=host:port (or ray://host:port) must answer: ray.init would otherwise retry for minutes."""
-    import socket
-
     if not address or address == "auto":
         return
     host, _, port = address.split("://")[-1].rpartition(":")
@@ -238,7 +241,7 @@ def ray_record_episode(ref: str, episode: dict, config: dict, out: str) -> dict:
 
 def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_done) -> None:
     try:
-        import ray
+        import ray  # lazy: an optional extra, seconds to import; without it, one clear line
     except ImportError:
         raise UsageError("--backend ray needs Ray: pip install 'drivestudio[cluster]' (and a folder every node "
                          "can write to as --out)") from None
@@ -278,10 +281,6 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
              show_progress: bool = True, log=print, plugin: Plugin | None = None) -> dict:
     """Make (or continue) the dataset in `out`; returns its manifest. `plugin`: the world's plugin, or one that
     drives its episodes otherwise (data aggregation's); its workers load it by its module and class."""
-    from tqdm import tqdm
-
-    from core.files import make_dir
-
     plugin = plugin or worlds.get(cfg.world)
     ref = plugin_ref(plugin)
     out = make_dir(Path(out))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -64,8 +64,10 @@ class Driver(Protocol):
     """Perception and control: a percept in, (action, estimate) out. The estimate has one value per name of the
     declaration's `estimate_names` (NaN where the driver has none)."""
 
-    name: str
     timings: dict[str, float]
+
+    @property
+    def name(self) -> str: ...              # what reports call it ("oracle", a checkpoint's description)
 
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]: ...
 
@@ -146,7 +148,10 @@ def run_loop(world: World, exchange: Exchange, seconds: float, render: bool = Tr
     return obs
 
 
-def timed(driver, stage: str, fn, *args):
+T = TypeVar("T")
+
+
+def timed(driver: Driver, stage: str, fn: Callable[..., T], *args: Any) -> T:
     """Call fn(*args), adding the seconds it took to driver.timings[stage]."""
     t0 = time.perf_counter()
     out = fn(*args)

@@ -4,11 +4,20 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import overload
 
 MAX_SEED = 2**32 - 1
 
 
-def _number(text: str, kind) -> float:
+@overload
+def _number(text: str, kind: type[int]) -> int: ...
+
+
+@overload
+def _number(text: str, kind: type[float]) -> float: ...
+
+
+def _number(text: str, kind: type[int] | type[float]) -> int | float:
     try:
         value = kind(text)
     except (TypeError, ValueError):

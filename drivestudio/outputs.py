@@ -37,13 +37,13 @@ class VideoWriter:
         reclaim_temporaries(self.path.parent, self.path.name)
         self._tmp = self.path.parent / f".{self.path.name}.{os.getpid()}.0.tmp.mp4"
         self.fps = fps
-        self._writer = None
+        self._writer: cv2.VideoWriter | None = None
         self.frames = 0
 
     def write(self, rgb: np.ndarray) -> None:
         if self._writer is None:
             h, w = rgb.shape[:2]
-            self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter_fourcc(*"mp4v"), self.fps, (w, h))
+            self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, (w, h))
             if not self._writer.isOpened():
                 raise UsageError(f"cannot write video {self.path} (no MPEG-4 encoder in this OpenCV)")
         self._writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))

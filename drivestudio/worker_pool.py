@@ -89,6 +89,7 @@ def run_pool(module: str, jobs: list[dict], workers: int, on_progress: Callable,
 
     try:
         for p in procs:
+            assert p.stdout is not None   # started with stdout=PIPE
             sel.register(p.stdout, selectors.EVENT_READ, p)
             give(p)
         while busy:

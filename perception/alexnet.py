@@ -33,7 +33,9 @@ class AlexNetRegressor(nn.Module):
             nn.Linear(256, num_outputs),
         )
         # Start the outputs at the middle of the normalised range [0.1, 0.9] rather than at 0.
-        nn.init.constant_(self.regressor[-1].bias, 0.5)
+        head = self.regressor[-1]
+        assert isinstance(head, nn.Linear)
+        nn.init.constant_(head.bias, 0.5)
 
     def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         x = self.features(x)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class AnyWorld:
             f = flag[order].astype(bool)
             return int(f[:1].sum() + np.sum(f[1:] & ~f[:-1] & same) + np.sum(f[1:] & ~same))
 
-        summary = {"world": ds.world, "frames": n, "episodes": int(len(np.unique(v["episode"]))),
+        summary: dict[str, Any] = {"world": ds.world, "frames": n, "episodes": int(len(np.unique(v["episode"]))),
                    "splits": splits(ds), "labels": spread,
                    "flags": {name: share(v[name].astype(bool)) for name in flags},
                    "flag_events": {name: events(v[name]) for name in flags}}
@@ -118,7 +118,7 @@ def draw_histograms(values: dict, out_dir: Path, names: list[str], inactive: dic
     note(name, active values) adds to a title; bins[name] overrides the 50 equal bins."""
     import matplotlib  # lazy: matplotlib takes most of a second to import and only stats draws
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: as matplotlib
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -144,7 +144,7 @@ class FrameDataset(torch.utils.data.Dataset):
 
     def images(self, k: int, t: int) -> list[np.ndarray]:
         """The decoded images of the sample at step t of shard k, oldest instant first, cameras in order."""
-        out = []
+        out: list[np.ndarray] = []
         for dt in self.spec.moment.instants:
             out.extend(decode_image(b) for b in self._image_bytes(k, t + dt))
         return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import platform
 import sys
 import time
 from pathlib import Path
@@ -34,10 +35,10 @@ def _sync(device: torch.device) -> None:
 def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", batch_size: int = 32,
                    workers: int = 0, latency_frames: int = 100, log=print,
                    layout: ReportLayout | None = None) -> ModelResult:
-    device = torch.device(device)
+    dev = torch.device(device)
     ds = Dataset(Path(data))
     try:
-        model, ckpt = load_model(path, device=device, world=ds.world)
+        model, ckpt = load_model(path, device=dev, world=ds.world)
     except CheckpointError as e:
         raise CheckpointError(f"{e} (the dataset {data} is of the {ds.world} world)") from None
     spec = ckpt["spec"]
@@ -45,26 +46,28 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
     context = tuple(c for c in (layout or ReportLayout()).context if not ds.missing_columns([c]))
     stream = FrameStream(data, split, labels, normalised=False, shuffle=False, context=context)
     loader = torch.utils.data.DataLoader(stream, batch_size=batch_size, num_workers=workers)
-    errors, contexts, seconds, first = [], [], 0.0, None
+    batch_errors: list[np.ndarray] = []
+    contexts: list[np.ndarray] = []
+    seconds, first = 0.0, None
     with torch.inference_mode(), tqdm(total=len(stream), unit="sample", desc=Path(path).name, file=sys.stderr,
                                       dynamic_ncols=True, mininterval=1.0 if sys.stderr.isatty() else 30.0) as bar:
         for batch in loader:
             x, m, y = batch[:3]
             if first is None:
                 first = (x[:1].clone(), m[:1].clone())
-                model(first[0].to(device), first[1].to(device))  # warm-up, not timed
-            _sync(device)
+                model(first[0].to(dev), first[1].to(dev))  # warm-up, not timed
+            _sync(dev)
             t0 = time.perf_counter()
-            pred = model(x.to(device), m.to(device))
-            _sync(device)
+            pred = model(x.to(dev), m.to(dev))
+            _sync(dev)
             seconds += time.perf_counter() - t0
-            errors.append(np.abs(model.denormalise(pred) - y.double().numpy()))
+            batch_errors.append(np.abs(model.denormalise(pred) - y.double().numpy()))
             contexts.append(batch[3].numpy() if context else np.zeros((len(x), 0)))
             bar.update(len(x))
-    errors, ctx = np.concatenate(errors), np.concatenate(contexts)
+    errors, ctx = np.concatenate(batch_errors), np.concatenate(contexts)
     frames = len(errors)
     column = {c: ctx[:, i] for i, c in enumerate(context)}
-    predictor = Predictor(model, spec, device)
+    predictor = Predictor(model, spec, dev)
     sample = FrameStream(data, split, labels, normalised=False, shuffle=False)
     images = []
     for img, mode, _ in sample:
@@ -81,7 +84,7 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
         lat.append(time.perf_counter() - t0)
     timing = {"frames": frames, "batch_size": batch_size, "throughput_fps": frames / max(seconds, 1e-9),
               "latency_ms_median": float(np.median(lat) * 1e3), "latency_ms_p90": float(np.percentile(lat, 90) * 1e3),
-              "latency_frames": len(lat), "device": _device_name(device), "threads": torch.get_num_threads(),
+              "latency_frames": len(lat), "device": _device_name(dev), "threads": torch.get_num_threads(),
               "parameters": sum(p.numel() for p in model.parameters())
               + sum(b.numel() for b in model.buffers())}
     return ModelResult(str(path), spec, describe(spec), errors, column, timing)
@@ -90,7 +93,6 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
 def _device_name(device: torch.device) -> str:
     if device.type == "cuda":
         return torch.cuda.get_device_name(device)
-    import platform
     return f"cpu ({platform.processor() or platform.machine()}, {torch.get_num_threads()} threads)"
 
 
@@ -148,7 +150,7 @@ def markdown(ev: Evaluation) -> str:
            ""]
     for by, title in (("regime", "By regime (dataset columns in_lane / on_marking)"), ("lanes", "By lane count")):
         out += [f"## {title}", ""]
-        groups = {}
+        groups: dict[str, list[tuple[ModelResult, np.ndarray]]] = {}
         for r in ev.results:
             for name, m in masks(ev, r, by):
                 groups.setdefault(name, []).append((r, m))
@@ -211,9 +213,10 @@ def summary(ev: Evaluation) -> dict:
 
 def bar_chart(ev: Evaluation) -> np.ndarray:
     """Grouped bars of MAE per indicator, ours solid and the paper's hatched; one panel per unit/scale."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib takes 0.7 s to import and only the report's chart needs it
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: as matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: as matplotlib
 
     cols = columns(ev)
     panels = ev.layout.panels(cols)
@@ -238,7 +241,9 @@ def bar_chart(ev: Evaluation) -> np.ndarray:
     fig.legend(handles, labels, loc="lower center", ncol=min(n, 4), fontsize=8, frameon=False)
     fig.suptitle(f"MAE per indicator, split {ev.split} ({ev.frames} frames)", fontsize=10)
     fig.tight_layout(rect=(0, 0.12 + 0.04 * ((n - 1) // 4), 1, 0.95))
-    fig.canvas.draw()
-    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    canvas = fig.canvas
+    assert isinstance(canvas, FigureCanvasAgg)   # the Agg backend, chosen above
+    canvas.draw()
+    rgb = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     plt.close(fig)
     return rgb

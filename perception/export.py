@@ -49,7 +49,7 @@ def export_onnx(checkpoint, path, check_batch: int = 4) -> dict:
     """Write the model of `checkpoint` as ONNX to `path` (atomically); run it with ONNX Runtime on random inputs
     and compare with PyTorch. Returns sizes, parameter count and the largest difference."""
     try:
-        import onnxruntime as ort
+        import onnxruntime as ort  # lazy: an optional extra; without it, one clear line instead of an ImportError
     except ImportError:
         raise CheckpointError("exporting needs onnx and onnxruntime: pip install 'drivestudio[export]'") from None
     model, ckpt = load_model(checkpoint)

@@ -50,6 +50,9 @@ def gabor_bank(h: int, w: int, orientations=ORIENTATIONS) -> torch.Tensor:
 class GistDescriptor(nn.Module):
     """Frames (B, 3, H, W) with values in [0, 1] -> GIST descriptors (B, filters * GRID * GRID)."""
 
+    gabor: torch.Tensor      # buffers (register_buffer), named for the type checker
+    lowpass: torch.Tensor
+
     def __init__(self, size=SIZE, orientations=ORIENTATIONS, grid: int = GRID, boundary: int = BOUNDARY):
         super().__init__()
         self.size, self.grid, self.boundary = tuple(size), grid, boundary
@@ -87,6 +90,14 @@ class GistDescriptor(nn.Module):
 
 class GistRegressor(nn.Module):
     """GIST descriptor + ridge (or random-Fourier-feature kernel ridge) head; fitted by `fit`, not by SGD."""
+
+    feature_mean: torch.Tensor   # buffers (register_buffer), named for the type checker
+    feature_std: torch.Tensor
+    rff_weight: torch.Tensor     # rbf only
+    rff_phase: torch.Tensor
+    rff_width: torch.Tensor
+    weight: torch.Tensor
+    bias: torch.Tensor
 
     def __init__(self, num_outputs: int = 13, regressor: str = "ridge", rff_features: int = RFF_FEATURES,
                  seed: int = 0) -> None:
@@ -139,7 +150,8 @@ class GistRegressor(nn.Module):
         proj = evecs.T @ (zc.T @ yc)
         scale = float(evals.clamp_min(0).mean())
         alphas = alphas if alphas is not None else [10.0 ** k for k in range(-6, 3)]
-        sweep, best = [], None
+        sweep: list[dict] = []
+        best: tuple[dict, torch.Tensor, torch.Tensor] | None = None
         for alpha in alphas:
             w = evecs @ (proj / (evals.clamp_min(0) + alpha * scale)[:, None])
             b = y_mean - z_mean @ w
@@ -150,6 +162,8 @@ class GistRegressor(nn.Module):
             sweep.append(row)
             if best is None or row["val_loss"] < best[0]["val_loss"]:
                 best = (row, w, b)
+        if best is None:
+            raise ValueError("GIST fit: no ridge strength to try")
         self.weight.copy_(best[1].float())
         self.bias.copy_(best[2].float())
         return sweep

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterable
 from dataclasses import fields
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from tqdm import tqdm
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import curve_paths, write_curves
 from perception.datasets import FrameStream
+from perception.gist import GistRegressor
 from perception.models import Regressor, describe, make_spec
 from perception.shards import DatasetError
 from perception.training import TrainConfig, data_summary, load_frames, open_data
@@ -24,8 +26,8 @@ def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32
     """GIST descriptors and normalised targets of a split (every frame, or `limit` spread over it)."""
     if limit is not None:
         images, modes, targets = load_frames(root, split, labels, limit)
-        chunks = [(images[i:i + batch], modes[i:i + batch], targets[i:i + batch])
-                  for i in range(0, len(images), batch)]
+        chunks: Iterable[tuple[torch.Tensor, torch.Tensor, torch.Tensor]] = [
+            (images[i:i + batch], modes[i:i + batch], targets[i:i + batch]) for i in range(0, len(images), batch)]
         total = len(images)
     else:
         stream = FrameStream(root, split, labels, shuffle=False)
@@ -35,10 +37,16 @@ def gist_descriptors(model: Regressor, root, split: str, labels, batch: int = 32
     with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
               mininterval=1.0 if sys.stderr.isatty() else 30.0) as bar:
         for x, _, y in chunks:
-            feats.append(model.net.descriptor(x.float() / 255.0))
+            feats.append(_gist(model).descriptor(x.float() / 255.0))
             targets.append(y)
             bar.update(len(x))
     return torch.cat(feats), torch.cat(targets)
+
+
+def _gist(model: Regressor) -> GistRegressor:
+    net = model.net
+    assert isinstance(net, GistRegressor)   # a "gist" spec builds one
+    return net
 
 
 def fit_gist(cfg: TrainConfig, log=print) -> dict:
@@ -68,7 +76,7 @@ def fit_gist(cfg: TrainConfig, log=print) -> dict:
             "frames")
         held = torch.arange(len(feats)) % 10 == 9
         val_feats, val_targets, feats, targets = feats[held], targets[held], feats[~held], targets[~held]
-    sweep = model.net.fit(feats, targets, val_feats, val_targets)
+    sweep = _gist(model).fit(feats, targets, val_feats, val_targets)
     best = min(sweep, key=lambda r: r["val_loss"])
     seconds = time.perf_counter() - t0
     log(f"ridge strength {best['alpha']:g}: train loss {best['train_loss']:.4f}, val loss {best['val_loss']:.4f} "

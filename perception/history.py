@@ -8,10 +8,10 @@ class History:
     (MultiNet's moment: the stereo pair now and one step earlier). Before enough steps have been seen, the
     earliest available step stands in for the missing ones."""
 
-    def __init__(self, instants=(0,)):
+    def __init__(self, instants: tuple[int, ...] = (0,)):
         self.instants = tuple(instants)
         self.depth = -min(self.instants) + 1
-        self._steps: list = []
+        self._steps: list[tuple] = []
 
     def reset(self) -> None:
         self._steps.clear()
@@ -21,7 +21,7 @@ class History:
         self._steps.append(tuple(frames))
         if len(self._steps) > self.depth:
             self._steps.pop(0)
-        out = []
+        out: list = []
         for dt in self.instants:
             k = max(0, len(self._steps) - 1 + dt)
             out.extend(self._steps[k])

@@ -44,10 +44,10 @@ class MobileNetRegressor(nn.Module):
         self.features = nn.Sequential(*layers)
         with torch.no_grad():
             cells = self.features(torch.zeros(1, channels, height, width)).numel()
-        self.regressor = nn.Sequential(nn.Flatten(), nn.Linear(cells, 256), nn.ReLU(inplace=True),
-                                       nn.Linear(256, outputs))
+        last = nn.Linear(256, outputs)
         # Start the outputs at the middle of the normalised range [0.1, 0.9] rather than at 0.
-        nn.init.constant_(self.regressor[-1].bias, 0.5)
+        nn.init.constant_(last.bias, 0.5)
+        self.regressor = nn.Sequential(nn.Flatten(), nn.Linear(cells, 256), nn.ReLU(inplace=True), last)
 
     def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         return self.regressor(self.features(x))

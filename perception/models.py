@@ -163,11 +163,10 @@ def _block_mean(x: torch.Tensor, fh: int, fw: int) -> torch.Tensor:
     """Area resampling by a whole-number factor: the mean of each fh x fw block. As a sum of strided slices it is
     4.5x faster on the CPU than interpolate(mode="area") or avg_pool2d (at batch 1 those took a third of Z2Color's
     time); on frames of whole numbers the sums are exact, so the result equals theirs bit for bit."""
-    total = None
-    for i in range(fh):
-        for j in range(fw):
-            part = x[..., i::fh, j::fw]
-            total = part if total is None else total + part
+    total = x[..., 0::fh, 0::fw]
+    for k in range(1, fh * fw):
+        i, j = divmod(k, fw)
+        total = total + x[..., i::fh, j::fw]
     return total / (fh * fw)
 
 
@@ -208,7 +207,8 @@ class Regressor(nn.Module):
             return x / 255.0 - 0.5
         if images.dtype == torch.uint8:
             x = x / 255.0
-        return (x - self.mean) / self.std
+        mean, std = self.get_buffer("mean"), self.get_buffer("std")
+        return (x - mean) / std
 
     def forward(self, images: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         if modes is None:
@@ -256,13 +256,14 @@ def load_trunk(model: Regressor, path: str) -> int:
         state = state["state_dict"]
     if not isinstance(state, dict):
         raise CheckpointError(f"{path} is not a torchvision state dict")
-    want = model.net.features.state_dict()
+    features = model.net.get_submodule("features")
+    want = features.state_dict()
     got = {k[len("features."):]: v for k, v in state.items() if isinstance(k, str) and k.startswith("features.")}
     kind = {"alexnet": "AlexNet", "vgg16": "VGG-16-BN" if model.spec["options"].get("batch_norm") else "VGG-16"}
     if set(got) != set(want) or any(tuple(got[k].shape) != tuple(want[k].shape) for k in want):
         raise CheckpointError(f"{path} is not a torchvision {kind.get(model.name, model.name)} ImageNet state "
                               "dict (its convolutional layers do not match)")
-    model.net.features.load_state_dict(got)
+    features.load_state_dict(got)
     return len(got)
 
 

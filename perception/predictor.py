@@ -5,9 +5,9 @@
     predict.named([frame])                  # {output name: value}
 
 A sample's images are the world's cameras at the model's instants, oldest first (the highway: [front frame];
-MultiNet: [left t-1, right t-1, left t, right t]); perception/history.py's `History` keeps the earlier steps'
-images for a driver that sees one step at a time. Frames of another size than the model's input are resampled
-inside the model, as in training.
+MultiNet: [left t-1, right t-1, left t, right t]); perception/history.py keeps the earlier steps' images for a
+driver that sees one step at a time. Frames of another size than the model's input are resampled inside the
+model, as in training.
 """
 from __future__ import annotations
 

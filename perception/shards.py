@@ -23,6 +23,7 @@ import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -31,6 +32,7 @@ import pyarrow.parquet as pq
 
 from core.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
 from core.files import atomic_write, reclaim_temporaries
+from core.worlds.highway import FRAME, HIGHWAY  # a version-1 dataset is a highway dataset
 
 FORMAT = "drivestudio-dataset"
 VERSION = 2
@@ -56,6 +58,7 @@ def image_column(camera: str) -> str:
 
 def _column_type(kind: str) -> pa.DataType:
     m = COLUMN_KIND.fullmatch(kind)
+    assert m is not None   # a WorldDeclaration checks its column kinds
     base, size, many = m.group(1), m.group(2), m.group(3)
     t = _SCALAR[base]
     if size:
@@ -136,7 +139,7 @@ class ShardWriter:
             raise ValueError(f"unknown image encoding '{encoding}' (choose from {', '.join(ENCODINGS)})")
         self.path, self.decl, self.encoding, self.quality = Path(path), decl, encoding, quality
         self.schema = schema_for(decl)
-        self._images = [[] for _ in decl.cameras]
+        self._images: list[list[bytes]] = [[] for _ in decl.cameras]
         self._records: list[np.ndarray] = []
         self._columns: dict[str, list] = {c.name: [] for c in decl.columns}
         self._generic: dict[str, list] = {n: [] for n in GENERIC}
@@ -165,7 +168,7 @@ class ShardWriter:
 
     def table(self) -> pa.Table:
         decl = self.decl
-        arrays = {image_column(c.name): store for c, store in zip(decl.cameras, self._images)}
+        arrays: dict[str, Any] = {image_column(c.name): store for c, store in zip(decl.cameras, self._images)}
         records = np.stack(self._records) if self._records else np.zeros((0, len(decl.truth)))
         for i, q in enumerate(decl.truth):
             col = records[:, i]
@@ -200,7 +203,6 @@ def clean_temporaries(root: Path) -> int:
 
 # --- the manifest --------------------------------------------------------------------------------------------
 def _v1_declaration(manifest: dict) -> WorldDeclaration:
-    from core.worlds.highway import FRAME, HIGHWAY
     cfg = manifest.get("config", {})
     return HIGHWAY.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
 

@@ -96,7 +96,7 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     check_spec(ckpt["spec"], str(out))
     if "optimizer" not in ckpt:
         raise CheckpointError(f"{out} holds no training state to continue from")
-    check_continuation(cfg, ckpt, optimizer)
+    check_continuation(cfg, decl, ckpt, optimizer)
     old = ckpt["train"]["config"]
     if old.get("lr") != lr or old.get("batch_size") != batch_size:
         log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
@@ -105,7 +105,12 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     return Plan(iterations, batch_size, lr, optimizer, ckpt["spec"], ckpt)
 
 
-def check_continuation(cfg: TrainConfig, ckpt: dict, optimizer: str) -> None:
+def earlier_frames(decl: WorldDeclaration, history: int) -> int:
+    """How many earlier frames a model trained with --history reads (0: the world's own data moment)."""
+    return history or len(decl.moment.instants) - 1
+
+
+def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, optimizer: str) -> None:
     """A checkpoint is continued only with the options it was trained with."""
     out, o = cfg.out, ckpt["spec"]["options"]
     if cfg.model == "vgg16" and o.get("frozen") == cfg.unfreeze:
@@ -114,7 +119,7 @@ def check_continuation(cfg: TrainConfig, ckpt: dict, optimizer: str) -> None:
     if cfg.model == "vgg16" and bool(o.get("batch_norm")) != cfg.batch_norm:
         raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
                               "use the same options to continue it, or another --out")
-    if len(ckpt["spec"]["input"]["instants"]) - 1 != cfg.history:
+    if len(ckpt["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"{out} reads {len(ckpt['spec']['input']['instants']) - 1} earlier frame(s); continue "
                               "it with the same --history, or use another --out")
     old = ckpt["train"]["config"]
@@ -128,7 +133,7 @@ def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict
     statistics and weights are kept (a new optimiser and schedule start)."""
     init = load_checkpoint(cfg.init, model=cfg.model, labels=labels, world=decl.name)
     check_spec(init["spec"], str(cfg.init))
-    if len(init["spec"]["input"]["instants"]) - 1 != cfg.history:
+    if len(init["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"--init {cfg.init} reads {len(init['spec']['input']['instants']) - 1} earlier "
                               f"frame(s), not --history {cfg.history}")
     return init
@@ -222,7 +227,11 @@ class SGDRun:
             self.amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
         self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp_dtype == torch.float16)
         self.state: dict = {"iteration": 0, "epoch": 0, "step_in_epoch": 0, "history": [], "seconds": 0.0}
-        self.val: tuple | None = None
+        self.val: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None   # images, modes, targets
+        self.losses: list[float] = []            # the training losses since the last row of the curve
+        self.t_start = self.t_row = time.perf_counter()
+        self.last_save = time.monotonic()
+        self.bar = tqdm(total=0, disable=True)      # the progress bar of run()
 
     # --- state -------------------------------------------------------------------------------------------------
     def restore(self) -> bool:
@@ -263,7 +272,7 @@ class SGDRun:
         cfg, plan = self.cfg, self.plan
         config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
         config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer)
-        payload = {"spec": plan.spec, "state_dict": self.model.state_dict(), "optimizer": self.opt.state_dict(),
+        payload: dict = {"spec": plan.spec, "state_dict": self.model.state_dict(), "optimizer": self.opt.state_dict(),
                    "scheduler": self.sched.state_dict(), "rng": torch.get_rng_state(),
                    "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
                    "data": data_summary(self.data)}
@@ -279,7 +288,8 @@ class SGDRun:
     def validate_into(self, row: dict) -> None:
         if self.val is None:
             return
-        v = validate(self.model, *self.val, self.device)
+        images, modes, targets = self.val
+        v = validate(self.model, images, modes, targets, self.device)
         row["val_loss"] = v["val_loss"]
         row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
         shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
@@ -401,7 +411,7 @@ class SGDRun:
         self.bar = tqdm(total=self.plan.iterations, initial=self.state["iteration"], unit="it", dynamic_ncols=True,
                         file=sys.stderr, mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=self.cfg.model,
                         disable=not self.dist.main)
-        self.losses: list[float] = []
+        self.losses = []
         self.t_row = time.perf_counter()
         self.t_start = time.perf_counter() - self.state["seconds"]
         self.last_save = time.monotonic()

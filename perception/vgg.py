@@ -29,14 +29,17 @@ class VGGRegressor(nn.Module):
         for m in self.modules():  # torchvision's VGG initialisation
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
-                nn.init.constant_(m.bias, 0)
+                if m.bias is not None:
+                    nn.init.constant_(m.bias, 0)
             elif isinstance(m, nn.BatchNorm2d):
                 nn.init.constant_(m.weight, 1)
                 nn.init.constant_(m.bias, 0)
             elif isinstance(m, nn.Linear):
                 nn.init.normal_(m.weight, 0, 0.01)
                 nn.init.constant_(m.bias, 0)
-        nn.init.constant_(self.regressor[-1].bias, 0.5)  # middle of the normalised range
+        head = self.regressor[-1]
+        assert isinstance(head, nn.Linear)
+        nn.init.constant_(head.bias, 0.5)  # middle of the normalised range
         self.frozen = frozen
         self.features.requires_grad_(not frozen)
 

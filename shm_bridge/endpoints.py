@@ -167,6 +167,7 @@ class _Link:
 class _Endpoint:
     _role = "?"
     _peer_role = "?"
+    _peer_heartbeat: int   # index in the u64 view of the peer's heartbeat (set by each endpoint's __init__)
 
     def _setup(self, segment: Segment, layout_: Layout, link: _Link, own_bell: str, peer_timeout: float | None,
                spin: float):
@@ -324,6 +325,7 @@ class _Endpoint:
     def _gone_again(self) -> PeerGone:
         """A fresh PeerGone like the first one (re-raising one instance would pile up tracebacks)."""
         g = self._gone
+        assert g is not None   # called only once the peer is known to be gone
         return PeerGone(str(g), pid=g.pid, orderly=g.orderly)
 
     def _peer_state(self):
@@ -339,8 +341,10 @@ class _Endpoint:
             return
         self._closed = True
         self._before_close()
-        self._slot_truth = self._slot_images = self._slot_t = self._action_block = None
-        self._u32 = self._i32 = self._u64 = None
+        # drop this endpoint's views of the mapping, so that the segment can unmap it (a closed endpoint reads
+        # nothing: using one is an AttributeError)
+        del self._slot_truth, self._slot_images, self._slot_t, self._action_block
+        del self._u32, self._i32, self._u64
         self._finalizer()
 
     @property
@@ -405,8 +409,7 @@ class WorldEndpoint(_Endpoint):
 
     def _lose(self, message: str, pid: int, orderly: bool = False) -> PeerGone:
         gone = super()._lose(message, pid, orderly)
-        gone.finished = orderly and self._u32 is not None and \
-            self._u32[_U32["driver_status"]] == STATUS_FINISHED
+        gone.finished = orderly and not self._closed and self._u32[_U32["driver_status"]] == STATUS_FINISHED
         if gone.finished:
             gone.args = (f"the driver (pid {pid}) finished the run",)
         return gone
@@ -591,7 +594,7 @@ def world_of(seg: Segment) -> tuple[int, bool]:
 def reclaim(prefix: str) -> list[str]:
     """Remove the bridge segments named PREFIX* whose world process is dead or closed (left by a run killed
     with SIGKILL, whose peer died too); returns the names removed. Segments of live worlds stay."""
-    removed = []
+    removed: list[str] = []
     try:
         entries = os.listdir(SHM_DIR)
     except OSError:
@@ -669,7 +672,7 @@ class DriverEndpoint(_Endpoint):
         return "attached", int(self._i32[_U32["world_pid"]])
 
     def _before_close(self) -> None:
-        self._end_reason = self.end_reason
+        self._end_reason = self._stored_end_reason()   # what end_reason answers once the views are gone
         if self._u32[_U32["world_state"]] != WORLD_CLOSED and not pid_alive(self._i32[_U32["world_pid"]]):
             self._link.unlink = True   # the world died unnoticed: its segment would be left behind
 
@@ -688,6 +691,9 @@ class DriverEndpoint(_Endpoint):
         "driver finished" or "error"."""
         if self._closed:
             return self._end_reason
+        return self._stored_end_reason()
+
+    def _stored_end_reason(self) -> str:
         v = self._u32[_U32["end_reason"]]
         return END_REASONS[v] if v < len(END_REASONS) else f"unknown({v})"
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core import worlds
 from core.declaration import DeclarationError, WorldDeclaration
 
 # --- constants of protocol version 2 -------------------------------------------------------------------------------
@@ -83,8 +84,8 @@ _CTYPES = {"uint8_t": ("<u1", 1), "char": ("S1", 1), "uint32_t": ("<u4", 4), "in
            "uint64_t": ("<u8", 8), "double": ("<f8", 8)}
 
 
-def _block(writer: str, *rows) -> tuple[Field, ...]:
-    return tuple(Field(*row, writer=writer) for row in rows)
+def _block(writer: str, *rows: tuple[str, str, int, int, str]) -> tuple[Field, ...]:
+    return tuple(Field(name, ctype, count, offset, doc, writer=writer) for name, ctype, count, offset, doc in rows)
 
 
 CONTROL_FIELDS: tuple[Field, ...] = (
@@ -549,7 +550,6 @@ def _markdown_world(decl: WorldDeclaration) -> str:
 
 def doc_blocks() -> dict[str, str]:
     """The parts of docs/shm-protocol.md that are generated from this module, by marker name."""
-    from core import worlds
     blocks = {"control-table": _markdown_fields(CONTROL_FIELDS), "camera-table": _markdown_fields(CAMERA_FIELDS),
               "name-table": _markdown_fields(NAME_FIELDS), "slot-table": _markdown_fields(SLOT_FIELDS),
               "action-table": _markdown_fields(ACTION_FIELDS), "c-header": "```c\n" + c_header() + "```"}

@@ -119,7 +119,7 @@ class Segment:
         self._closed = True
         for view in (self.u32, self.i32, self.u64):
             view.release()
-        self.buf = None
+        del self.buf   # the array is a view of the mapping: drop it so that the mapping can close
         try:
             self.mm.close()
         except BufferError:

@@ -33,8 +33,10 @@ import argparse
 import os
 import sys
 
+from core.files import check_output_dir
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
+from drivestudio.errors import UsageError
 from drivestudio.numbers import count
 
 
@@ -60,8 +62,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from drivestudio.errors import UsageError
+    # lazy: the benchmark's wiring adds 20 ms to every `drivestudio --help`; only this verb needs it
     from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
     from drivestudio.worlds.highway.benchmark.report import write_board
 

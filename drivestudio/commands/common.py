@@ -1,10 +1,12 @@
 """What the verbs share: choosing a world (`--world` plus that world's own options), output folders, models."""
 from __future__ import annotations
 
+import argparse
 import re
 import time
 from pathlib import Path
 
+from core.files import make_dir
 from drivestudio import worlds
 from drivestudio.errors import UsageError
 from drivestudio.numbers import seed as seed_type
@@ -46,7 +48,6 @@ def add_device_option(p, default: str = "cpu") -> None:
 
 
 def device_type(text: str) -> str:
-    import argparse
     if not DEVICE.fullmatch(text):
         raise argparse.ArgumentTypeError(f"--device must be cpu, cuda, cuda:N or auto, got {text!r}")
     return text
@@ -54,5 +55,4 @@ def device_type(text: str) -> str:
 
 def run_dir(out: str | None, prefix: str) -> Path:
     """The output folder (checked before any work, then created): --out, or runs/PREFIX-TIME."""
-    from core.files import make_dir
     return make_dir(Path(out) if out is not None else Path("runs") / f"{prefix}-{time.strftime('%Y%m%d-%H%M%S')}")

@@ -1,6 +1,10 @@
 """drivestudio export --model CKPT --onnx out.onnx: a trained model as ONNX, checked against PyTorch."""
 from __future__ import annotations
 
+from core.files import check_output
+from drivestudio.checkpoints import check_checkpoint_path
+from drivestudio.errors import RunError
+
 TOLERANCE = 1e-4   # largest |ONNX Runtime - PyTorch| accepted, in the labels' units
 
 
@@ -16,10 +20,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output
-    from drivestudio.checkpoints import check_checkpoint_path
-    from drivestudio.errors import RunError
-    from perception.export import export_onnx
+    from perception.export import export_onnx  # lazy: torch
 
     check_checkpoint_path(args.model)
     check_output(args.onnx, (".onnx",), "ONNX file")

@@ -5,6 +5,7 @@ import os
 import sys
 import time
 
+from core.files import check_output_dir
 from drivestudio.commands.common import add_world_options, plugin_for
 from drivestudio.numbers import count, non_negative
 
@@ -34,8 +35,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from drivestudio.generate import GenerateConfig, episode_length, generate
+    from drivestudio.generate import GenerateConfig, episode_length, generate  # lazy: pyarrow (80 ms)
 
     plugin = plugin_for(args)
     check_output_dir(args.out, "dataset folder")

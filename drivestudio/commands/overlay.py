@@ -4,11 +4,24 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from drivestudio.checkpoints import check_device
+import numpy as np
+
+from core.files import check_output, check_output_dir
+from drivestudio import worlds
+from drivestudio.checkpoints import check_device, load_predictor_for
 from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, seed
+from drivestudio.outputs import VideoWriter, write_png
+
+if TYPE_CHECKING:
+    from perception.datasets import FrameDataset
+    from perception.predictor import Predictor
+
+# one chosen sample: its images at the step, its record, {output: estimate} (None: the oracle draws the truth alone)
+Item = tuple[tuple, dict, dict | None]
 
 
 def register(sub) -> None:
@@ -36,14 +49,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
-    from tqdm import tqdm
-
-    from core.files import check_output, check_output_dir
-    from drivestudio import worlds
-    from drivestudio.outputs import VideoWriter, write_png
+    # lazy: perception's readers import torch and pyarrow (seconds); only drawing overlays needs them
     from perception.datasets import FrameDataset
-    from perception.shards import DatasetError
+    from perception.shards import Dataset, DatasetError
 
     check_device(args.device)
     if args.video:
@@ -57,8 +65,6 @@ def run(args) -> int:
     split = None if args.split == "all" else args.split
     predictor = None
     if args.model != "oracle":
-        from drivestudio.checkpoints import load_predictor_for
-        from perception.shards import Dataset
         predictor = load_predictor_for(args.model, Dataset(Path(args.data)).world, args.device)
     try:
         ds = FrameDataset(args.data, split, targets=None if predictor is None else predictor.labels,
@@ -68,45 +74,7 @@ def run(args) -> int:
     plugin = worlds.get(ds.data.world)
     label = "oracle" if predictor is None else predictor.name
 
-    if args.video:
-        episodes = {s.episode: k for k, s in enumerate(ds.shards)}
-        ep = args.episode if args.episode is not None else ds.shards[0].episode
-        if ep not in episodes:
-            raise UsageError(f"episode {ep} is not in split '{args.split}' (episodes: "
-                             f"{', '.join(str(e) for e in sorted(episodes))})")
-        wanted = [i for i in range(len(ds)) if ds.locate(i)[0] == episodes[ep]]
-        wanted = wanted if args.n is None else wanted[:args.n]
-    elif args.select == "random":
-        rng = np.random.default_rng(args.seed)
-        wanted = sorted(rng.choice(len(ds), min(args.n, len(ds)), replace=False).tolist())
-    elif args.select == "first":
-        wanted = list(range(min(args.n, len(ds))))
-    else:
-        wanted = list(range(len(ds)))  # ranked below, once every sample is estimated
-
-    items = []  # (images at the step, record, {output: estimate} or None)
-    batch: list = []
-
-    def flush():
-        if not batch:
-            return
-        est = None
-        if predictor is not None:
-            est = predictor.batch([ds.images(*ds.locate(i)) for i in batch],
-                                  [m if m >= 0 else None for m in (ds.mode_of(i) for i in batch)]
-                                  if predictor.modes else None)
-        for k, i in enumerate(batch):
-            images, record = ds.record(i)
-            record["targets"] = dict(zip(ds.outputs, ds.raw_targets(i).tolist()))   # the sample's true outputs
-            items.append((images, record, None if est is None else dict(zip(predictor.outputs, est[k]))))
-        batch.clear()
-
-    for i in tqdm(wanted, desc="estimating", unit="sample", disable=len(wanted) < 200, file=sys.stderr,
-                  mininterval=1.0 if sys.stderr.isatty() else 30.0):
-        batch.append(i)
-        if len(batch) == 32:
-            flush()
-    flush()
+    items = _estimate(ds, _choose(args, ds), predictor)
     if args.select == "worst" and not args.video:
         items.sort(key=lambda it: -plugin.overlay_error(it[1], it[2]))
         items = items[:args.n]
@@ -129,3 +97,53 @@ def run(args) -> int:
     else:
         print(f"wrote {len(items)} overlays to {args.out}/")
     return 0
+
+
+def _choose(args, ds: FrameDataset) -> list[int]:
+    """The samples to draw: one episode's (--video), a random, the first or (ranked later) every sample."""
+    if args.video:
+        episodes = {s.episode: k for k, s in enumerate(ds.shards)}
+        ep = args.episode if args.episode is not None else ds.shards[0].episode
+        if ep not in episodes:
+            raise UsageError(f"episode {ep} is not in split '{args.split}' (episodes: "
+                             f"{', '.join(str(e) for e in sorted(episodes))})")
+        wanted = [i for i in range(len(ds)) if ds.locate(i)[0] == episodes[ep]]
+        return wanted if args.n is None else wanted[:args.n]
+    if args.select == "random":
+        rng = np.random.default_rng(args.seed)
+        return sorted(rng.choice(len(ds), min(args.n, len(ds)), replace=False).tolist())
+    if args.select == "first":
+        return list(range(min(args.n, len(ds))))
+    return list(range(len(ds)))  # ranked by the caller, once every sample is estimated
+
+
+def _estimate(ds: FrameDataset, wanted: list[int], predictor: Predictor | None) -> list[Item]:
+    """Each wanted sample with the model's estimate, in batches of 32."""
+    from tqdm import tqdm  # lazy: 20 ms that `drivestudio --help` need not pay
+
+    items: list[Item] = []
+    batch: list[int] = []
+    for i in tqdm(wanted, desc="estimating", unit="sample", disable=len(wanted) < 200, file=sys.stderr,
+                  mininterval=1.0 if sys.stderr.isatty() else 30.0):
+        batch.append(i)
+        if len(batch) == 32:
+            items += _estimate_batch(ds, batch, predictor)
+            batch = []
+    return items + _estimate_batch(ds, batch, predictor)
+
+
+def _estimate_batch(ds: FrameDataset, batch: list[int], predictor: Predictor | None) -> list[Item]:
+    if not batch:
+        return []
+    est = None
+    if predictor is not None:
+        est = predictor.batch([ds.images(*ds.locate(i)) for i in batch],
+                              [m if m >= 0 else None for m in (ds.mode_of(i) for i in batch)]
+                              if predictor.modes else None)
+    items: list[Item] = []
+    for k, i in enumerate(batch):
+        images, record = ds.record(i)
+        record["targets"] = dict(zip(ds.outputs, ds.raw_targets(i).tolist()))   # the sample's true outputs
+        items.append((images, record, None if predictor is None or est is None
+                      else dict(zip(predictor.outputs, est[k]))))
+    return items

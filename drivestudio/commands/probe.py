@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import json
 
+from core.worlds.highway import indicators_to_dict
+
 
 def register(sub) -> None:
     p = sub.add_parser("probe", help="print the ground-truth indicators of a scenario as JSON",
@@ -16,7 +18,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.worlds.highway import indicators_to_dict
+    # lazy: the highway's simulator imports trimesh (0.3 s), which `drivestudio --help` need not pay
     from sim.highway.scenario import load_scenario
     from sim.highway.world import World, WorldConfig
 

@@ -3,8 +3,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from core.files import check_output
 from drivestudio.commands.common import add_world_options, plugin_for
 from drivestudio.errors import UsageError
+from drivestudio.outputs import write_json, write_png
 
 
 def register(sub) -> None:
@@ -27,9 +29,6 @@ def camera_paths(out: Path, cameras) -> dict:
 
 
 def run(args) -> int:
-    from core.files import check_output
-    from drivestudio.outputs import write_json, write_png
-
     plugin = plugin_for(args)
     out = check_output(args.out, (".png",), "frame")
     if args.truth:

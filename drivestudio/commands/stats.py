@@ -22,7 +22,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.shards import Dataset  # lazy: pyarrow and OpenCV load only when a dataset is read
+    from perception.shards import Dataset  # lazy: pyarrow (80 ms) loads only when a dataset is read
 
     ds = Dataset(Path(args.data))
     out = check_output_dir(Path(args.out) if args.out else Path(args.data) / "stats")

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import importlib.util
 import math
 import os
-import pkgutil
 import shutil
 import sys
 import tempfile
@@ -54,8 +54,14 @@ RENDERERS = ("tiny", "egl")
 CAR_PARTS = ("paint", "glass", "tyres", "taillights", "headlights")  # base first, then links
 
 
+def _egl_plugin_file() -> str | None:
+    """The file of pybullet's EGL renderer plugin, None when this build has none."""
+    spec = importlib.util.find_spec("eglRenderer")
+    return spec.origin if spec is not None else None
+
+
 def egl_available() -> bool:
-    return pkgutil.get_loader("eglRenderer") is not None
+    return _egl_plugin_file() is not None
 
 
 class BulletScene:
@@ -68,11 +74,11 @@ class BulletScene:
         self._tmp: Path | None = None
         self._plugin = None
         if renderer == "egl":
-            if not egl_available():
+            plugin_file = _egl_plugin_file()
+            if plugin_file is None:
                 raise RendererError("the EGL renderer plugin is not available in this pybullet build")
             with _quiet():
-                self._plugin = self._bc.loadPlugin(pkgutil.get_loader("eglRenderer").get_filename(),
-                                                   "_eglRendererPlugin")
+                self._plugin = self._bc.loadPlugin(plugin_file, "_eglRendererPlugin")
             if self._plugin < 0:
                 raise RendererError("the EGL renderer plugin failed to load (no EGL driver?)")
             # the EGL plugin draws meshes from files only

@@ -66,6 +66,13 @@ def _box(centre, size) -> trimesh.Trimesh:
     return b
 
 
+def _join(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """One mesh of several (trimesh declares the result a Geometry; meshes make a mesh)."""
+    out = trimesh.util.concatenate(meshes)
+    assert isinstance(out, trimesh.Trimesh)
+    return out
+
+
 def _make(name, length, width, height, nose, tail, belt, cabin, clearance=0.22, wheel_r=0.33):
     """nose/tail: how far the bonnet and boot drop [m]; belt: waist height; cabin: (x_back, x_front,
     x_roof_back, x_roof_front) of the glasshouse."""
@@ -82,12 +89,12 @@ def _make(name, length, width, height, nose, tail, belt, cabin, clearance=0.22, 
             w.apply_translation([x, y, wheel_r])
             wheels.append(w)
     tail_z = belt - tail - 0.12
-    taillights = trimesh.util.concatenate([_box([-hl - 0.01, s * (hw - 0.3), tail_z], [0.04, 0.35, 0.14])
+    taillights = _join([_box([-hl - 0.01, s * (hw - 0.3), tail_z], [0.04, 0.35, 0.14])
                                            for s in (1, -1)])
     head_z = belt - nose - 0.1
-    headlights = trimesh.util.concatenate([_box([hl + 0.01, s * (hw - 0.3), head_z], [0.04, 0.35, 0.12])
+    headlights = _join([_box([hl + 0.01, s * (hw - 0.3), head_z], [0.04, 0.35, 0.12])
                                            for s in (1, -1)])
-    parts = {"paint": body, "glass": glass, "tyres": trimesh.util.concatenate(wheels),
+    parts = {"paint": body, "glass": glass, "tyres": _join(wheels),
              "taillights": taillights, "headlights": headlights}
     return CarModel(name, length, width, height, {k: MeshData.from_trimesh(v) for k, v in parts.items()})
 

@@ -29,6 +29,7 @@ class HighwayEnv(gym.Env):
         self._config = WorldConfig(track=track, lanes=lanes, cars=cars, renderer=renderer, camera=camera,
                                    start_speed=start_speed)
         self._world: World | None = None
+        self.dt = self._config.dt   # [s] simulated per step
         self.max_steps = max_steps
         self.render_mode = render_mode
         self.observation_space = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)

@@ -23,7 +23,7 @@ CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 class Renderer:
     def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny"):
-        from sim.highway.bullet_scene import BulletScene  # pybullet loads only when frames are wanted
+        from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
         self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)
         chunks = build_scenery(track, seed)

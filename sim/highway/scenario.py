@@ -54,8 +54,9 @@ class Scenario:
 def _num(obj: dict, key: str, where: str, default=None, lo: float | None = None, hi: float | None = None,
          unit: str = "m") -> float:
     """obj[key] as a finite float within [lo, hi]; `default` when missing (None: required)."""
-    kw = {} if default is None else {"default": float(default)}
-    return number(obj, key, where, lo=lo, hi=hi, unit=unit, error=ScenarioError, **kw)
+    if default is None:
+        return number(obj, key, where, lo=lo, hi=hi, unit=unit, error=ScenarioError)
+    return number(obj, key, where, lo=lo, hi=hi, unit=unit, default=float(default), error=ScenarioError)
 
 
 def _check_on_road(track: Track, d: float, where: str) -> None:

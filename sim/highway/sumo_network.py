@@ -43,7 +43,7 @@ def cache_dir() -> Path:
 
 def _sumo_version() -> str:
     try:
-        import sumolib
+        import sumolib  # lazy: 0.1 s to import, and only a world with AI cars needs SUMO
         return str(getattr(sumolib, "__version__", "")) or _netconvert()
     except ImportError:  # pragma: no cover - sumolib is a declared dependency
         return _netconvert()
@@ -51,7 +51,7 @@ def _sumo_version() -> str:
 
 def _netconvert() -> str:
     try:
-        import sumo
+        import sumo  # lazy: as sumolib; and a missing SUMO is one clear TrafficError, not an ImportError
     except ImportError:
         raise TrafficError("SUMO is not installed (the eclipse-sumo package provides netconvert)") from None
     exe = Path(sumo.SUMO_HOME) / "bin" / "netconvert"
@@ -63,11 +63,11 @@ def _netconvert() -> str:
 def _edge_bounds(track: Track) -> np.ndarray:
     """Edges start at every segment boundary (so an edge is all straight or all arc, and a lane position maps
     to s by one ratio) and are cut to at most EDGE_LENGTH; a loop needs at least three edges."""
-    bounds = []
+    starts: list[float] = []
     for seg, s0 in zip(track.segments, track.starts):
         n = max(1, int(math.ceil(seg.length / EDGE_LENGTH)))
-        bounds.extend(s0 + seg.length * np.arange(n) / n)
-    bounds = np.array(bounds)
+        starts.extend(s0 + seg.length * np.arange(n) / n)
+    bounds = np.array(starts)
     while len(bounds) < 3:  # halve every edge
         bounds = np.sort(np.r_[bounds, (bounds + np.r_[bounds[1:], track.length]) / 2])
     return np.r_[bounds, track.length]

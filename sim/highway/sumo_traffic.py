@@ -38,7 +38,7 @@ DRIVER_STYLES = (
 
 def _load_libsumo():
     try:
-        import libsumo
+        import libsumo  # lazy: libsumo takes 0.65 s to import and only a world with AI cars needs it
     except ImportError as e:  # pragma: no cover - libsumo is a declared dependency
         raise TrafficError(f"libsumo cannot be loaded: {e}") from None
     return libsumo
@@ -202,10 +202,10 @@ class SumoTraffic:
     def states(self) -> CarStates:
         ls, tr = self._ls, self.track
         present = set(ls.vehicle.getIDList())
-        idx = [i for i, vid in enumerate(self._ids) if vid in present]
-        if not idx:
+        present_idx = [i for i, vid in enumerate(self._ids) if vid in present]
+        if not present_idx:
             return CarStates.empty()
-        idx = np.array(idx)
+        idx = np.array(present_idx)
         front = np.array([ls.vehicle.getPosition(self._ids[i]) for i in idx])
         yaw = np.radians(90.0 - np.array([ls.vehicle.getAngle(self._ids[i]) for i in idx]))
         half = self.length[idx] / 2

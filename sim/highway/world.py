@@ -13,7 +13,9 @@ import numpy as np
 from core.worlds.highway import HIGHWAY, Action
 from sim.camera import CameraConfig
 from sim.collision import overlaps
+from sim.highway.renderer import Renderer
 from sim.highway.scenario import Scenario
+from sim.highway.sumo_traffic import SumoTraffic
 from sim.highway.traffic import CarStates, ScriptedTraffic
 from sim.highway.truth import GroundTruth, ground_truth, truth_record
 from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
@@ -80,9 +82,9 @@ class World:
             self.track = load_track(config.track, lanes=config.lanes, lane_width=config.lane_width)
             self.seed = config.seed
         self.timings = {"render": 0.0, "physics": 0.0, "traffic": 0.0, "truth": 0.0}
-        self._renderer = None
-        self._renderer_seed = None
-        self._traffic = None
+        self._renderer: Renderer | None = None
+        self._renderer_seed: int | None = None
+        self._traffic: ScriptedTraffic | SumoTraffic | None = None   # None once closed
         self.ego = VehicleState()
         self.t = 0.0
         self.reset(self.seed)
@@ -108,10 +110,9 @@ class World:
             self._traffic = self._make_traffic()
         return self.observe()
 
-    def _make_traffic(self):
+    def _make_traffic(self) -> ScriptedTraffic | SumoTraffic:
         if self.config.cars == 0:
             return ScriptedTraffic(self.track, [], [], [], seed=self.seed)
-        from sim.highway.sumo_traffic import SumoTraffic  # SUMO starts only when AI cars are asked for
         return SumoTraffic(self.track, self.config.cars, seed=self.seed, dt=self.config.dt, ego=self.ego_pose(),
                            ego_speed=self.ego.speed)
 
@@ -141,8 +142,13 @@ class World:
         x, y, h = self.track.pose(self.ego.s, self.ego.d)
         return np.array([x, y, h + self.ego.heading, self.ego.s, self.ego.d])
 
+    def _live_traffic(self) -> ScriptedTraffic | SumoTraffic:
+        if self._traffic is None:
+            raise RuntimeError("the highway world is closed")
+        return self._traffic
+
     def cars(self) -> CarStates:
-        return self._traffic.states()
+        return self._live_traffic().states()
 
     def step(self, action, render: bool | None = None) -> Observation:
         """Advance one step under `action`: an Action, or [steer, accel, brake] as the declaration orders it."""
@@ -151,7 +157,7 @@ class World:
         t0 = time.perf_counter()
         self.ego = step_vehicle(self.ego, action, self.config.dt, self.track, self.config.vehicle)
         t1 = time.perf_counter()
-        self._traffic.step(self.config.dt, self.ego_pose(), self.ego.speed)
+        self._live_traffic().step(self.config.dt, self.ego_pose(), self.ego.speed)
         self.timings["physics"] += t1 - t0
         self.timings["traffic"] += time.perf_counter() - t1
         self.t += self.config.dt
@@ -160,7 +166,7 @@ class World:
     def observe(self, render: bool | None = None) -> Observation:
         t0 = time.perf_counter()
         ego = self.ego_pose()
-        cars = self._traffic.states()
+        cars = self._live_traffic().states()
         truth = ground_truth(self.track, ego, self.ego.heading, self.ego.speed, cars.poses())
         p = self.config.vehicle
         collision = bool(overlaps((ego[0], ego[1], ego[2], p.length, p.width), cars.boxes()).any())
@@ -176,7 +182,6 @@ class World:
 
     def _render(self, ego: np.ndarray, cars: CarStates) -> np.ndarray:
         if self._renderer is None or self._renderer_seed != self.seed:
-            from sim.highway.renderer import Renderer
             if self._renderer is not None:
                 self._renderer.close()
             self._renderer = Renderer(self.track, self.seed, self.config.camera, self.config.renderer)

@@ -53,7 +53,7 @@ class SidewalkEnv(gym.Env):
         return np.stack(obs.frames), self._info(obs)
 
     def step(self, action):
-        assert self._world is not None, "call reset() first"
+        assert self._world is not None and self._last is not None, "call reset() first"
         before = self._last.record
         obs = self._world.step(np.asarray(action, dtype=np.float64), True)
         self._steps += 1

@@ -168,7 +168,7 @@ def obstacles_from_file(path: SidewalkPath, file, start_s: float | None = None) 
                 raise PathError(f"{at}: missing '{key}'")
             if not isinstance(v, numbers.Real) or isinstance(v, bool) or not math.isfinite(v):
                 raise PathError(f"{at}: '{key}' must be a finite number, got {v!r}")
-            if not lo <= v <= hi:
+            if not lo <= float(v) <= hi:
                 raise PathError(f"{at}: '{key}' must be from {lo:g} to {hi:g}, got {v:g}")
             values[key] = float(v)
         out.append(make_obstacle(path, item["kind"], values["s"] % path.length, values["d"],
@@ -209,14 +209,26 @@ def place_obstacles(path: SidewalkPath, density: float, rng: np.random.Generator
 
 
 # --- borders, trees, lamps -----------------------------------------------------------------------------------------
-STYLE = {  # bordered and open zones [m], a border's stretches and gaps inside a bordered zone [m], the odds
-           # of a hedge (else bushes), trees per metre per side, lamp post spacing [m] (0: none)
-    "sidewalk": {"zone": (15.0, 45.0), "open": (5.0, 16.0), "border": (6.0, 25.0), "gap": (1.5, 6.0), "hedge": 0.8,
-                 "trees": 0.06, "lamps": 20.0},
-    "park": {"zone": (12.0, 40.0), "open": (5.0, 18.0), "border": (5.0, 20.0), "gap": (1.5, 8.0), "hedge": 0.45,
-             "trees": 0.12, "lamps": 28.0},
-    "forest": {"zone": (10.0, 35.0), "open": (4.0, 14.0), "border": (4.0, 16.0), "gap": (1.5, 6.0), "hedge": 0.0,
-               "trees": 0.45, "lamps": 0.0},
+@dataclass(frozen=True)
+class Style:
+    """How a path's surroundings are drawn; a pair is the (low, high) of a uniform draw."""
+
+    zone: tuple[float, float]     # [m] length of a bordered zone
+    open: tuple[float, float]     # [m] length of an open zone (no border on either side) between bordered ones
+    border: tuple[float, float]   # [m] a border's stretch inside a bordered zone
+    gap: tuple[float, float]      # [m] a gap between two stretches
+    hedge: float                  # the odds that a stretch is a hedge (else bushes)
+    trees: float                  # trees per metre per side
+    lamps: float                  # [m] lamp post spacing (0: none)
+
+
+STYLE = {
+    "sidewalk": Style(zone=(15.0, 45.0), open=(5.0, 16.0), border=(6.0, 25.0), gap=(1.5, 6.0), hedge=0.8,
+                      trees=0.06, lamps=20.0),
+    "park": Style(zone=(12.0, 40.0), open=(5.0, 18.0), border=(5.0, 20.0), gap=(1.5, 8.0), hedge=0.45,
+                  trees=0.12, lamps=28.0),
+    "forest": Style(zone=(10.0, 35.0), open=(4.0, 14.0), border=(4.0, 16.0), gap=(1.5, 6.0), hedge=0.0,
+                    trees=0.45, lamps=0.0),
 }
 
 
@@ -228,9 +240,9 @@ def make_borders(path: SidewalkPath, rng: np.random.Generator) -> tuple[Border, 
     zones = []
     s = float(rng.uniform(0.0, 8.0))
     while s < path.length - 5.0:
-        end = min(s + float(rng.uniform(*st["zone"])), path.length - 2.0)
+        end = min(s + float(rng.uniform(*st.zone)), path.length - 2.0)
         zones.append((s, end))
-        s = end + float(rng.uniform(*st["open"]))
+        s = end + float(rng.uniform(*st.open))
     hw = path.half_width
     out = []
     for side in (1.0, -1.0):
@@ -238,17 +250,17 @@ def make_borders(path: SidewalkPath, rng: np.random.Generator) -> tuple[Border, 
         for z0, z1 in zones:
             s = z0 + float(rng.uniform(0.0, 2.0))
             while True:
-                end = min(s + float(rng.uniform(*st["border"])), z1)
+                end = min(s + float(rng.uniform(*st.border)), z1)
                 if end - s < 2.5:
                     break
-                kind = "hedge" if rng.uniform() < st["hedge"] else "bushes"
+                kind = "hedge" if rng.uniform() < st.hedge else "bushes"
                 b.starts.append(s)
                 b.ends.append(end)
                 b.face.append(side * (hw + float(rng.uniform(*BORDER_FACE))))
                 b.kinds.append(kind)
                 b.heights.append(float(rng.uniform(0.6, 1.2) if kind == "hedge" else rng.uniform(0.45, 0.9)))
                 b.depths.append(float(rng.uniform(0.5, 0.9) if kind == "hedge" else rng.uniform(0.6, 1.0)))
-                s = end + float(rng.uniform(*st["gap"]))
+                s = end + float(rng.uniform(*st.gap))
         out.append(b)
     return out[0], out[1]
 
@@ -262,7 +274,7 @@ def _clear_of_path(path: SidewalkPath, x, y, clearance: float) -> np.ndarray:
 def make_trees(path: SidewalkPath, rng: np.random.Generator) -> list[Tree]:
     st = STYLE[path.style]
     hw = path.half_width
-    n = rng.poisson(st["trees"] * path.length * 2)
+    n = rng.poisson(st.trees * path.length * 2)
     s = rng.uniform(0.0, path.length, n)
     side = np.where(rng.uniform(size=n) < 0.5, 1.0, -1.0)
     near = 1.5 if path.style != "forest" else 1.4
@@ -279,7 +291,7 @@ def make_trees(path: SidewalkPath, rng: np.random.Generator) -> list[Tree]:
 
 
 def make_lamps(path: SidewalkPath, rng: np.random.Generator) -> list[tuple[float, float]]:
-    spacing = STYLE[path.style]["lamps"]
+    spacing = STYLE[path.style].lamps
     if not spacing:
         return []
     side = 1.0 if rng.uniform() < 0.5 else -1.0

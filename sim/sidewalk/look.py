@@ -45,7 +45,8 @@ class SidewalkLook(Look):
     def shade(self, rgb, normal) -> tuple[int, int, int]:
         """uint8 RGB of a face of colour rgb (0..1) facing `normal` (unit, world)."""
         k = self.ambient + self.diffuse * max(0.0, float(np.dot(normal, self.light_direction)))
-        return tuple(int(v) for v in np.clip(np.asarray(rgb[:3]) * k * 255.0, 0, 255))
+        r, g, b = (int(v) for v in np.clip(np.asarray(rgb[:3]) * k * 255.0, 0, 255))
+        return r, g, b
 
 
 def _c(rgb, tint, scale: float = 1.0) -> tuple:
@@ -55,8 +56,8 @@ def _c(rgb, tint, scale: float = 1.0) -> tuple:
 def make_look(seed: int, style: str) -> SidewalkLook:
     rng = np.random.default_rng([int(seed), 0x5EE])
     time = TIMES[int(rng.integers(len(TIMES)))]
-    (el0, el1), tint, sky_top, sky_hor, amb, dif = _TIME[time]
-    tint = np.array(tint)
+    (el0, el1), tint_rgb, sky_top, sky_hor, amb, dif = _TIME[time]
+    tint = np.array(tint_rgb)
     az = rng.uniform(0, 2 * math.pi)
     el = math.radians(rng.uniform(el0, el1))
     light = (math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), math.sin(el))

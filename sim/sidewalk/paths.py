@@ -117,9 +117,10 @@ def _check_segments(specs, width: float, where: str) -> None:
         if kind == "straight":
             total += _number(seg, "length", at, 0.0, STRAIGHT_MAX, "m", lo_open=True)
         else:
-            if "radius" in seg and isinstance(seg["radius"], numbers.Real) and not isinstance(seg["radius"], bool) \
-                    and math.isfinite(seg["radius"]) and 0 < seg["radius"] < r_min:
-                raise PathError(f"{at}: an arc of radius {fmt_number(seg['radius'])} m is too tight for a path "
+            asked = seg.get("radius")
+            if isinstance(asked, numbers.Real) and not isinstance(asked, bool) and math.isfinite(asked) \
+                    and 0 < float(asked) < r_min:
+                raise PathError(f"{at}: an arc of radius {fmt_number(float(asked))} m is too tight for a path "
                                 f"{fmt_number(width)} m wide (at least {r_min:g} m: width / 2 + {BORDER_ZONE:g} m)")
             radius = _number(seg, "radius", at, r_min, RADIUS_MAX, "m")
             angle = _number(seg, "angle_deg", at, 0.0, 360.0, "degrees", lo_open=True)

@@ -132,9 +132,9 @@ def _ground(layout: Layout, look: SidewalkLook, s0: float, s1: float, rng) -> di
         side = rng.choice([-1.0, 1.0])
         sd = blob_outline(track, rng.uniform(s0, s1), side * (hw + rng.uniform(0.6, 6.0)), rng.uniform(0.6, 2.5),
                           rng.uniform(0.4, 1.5), rng)
-        kind = ("soil", "leaves", "grass_dark") if path.style == "forest" else ("grass_dark", "grass_light",
-                                                                                 "grass_dark", "soil")
-        g.setdefault(str(rng.choice(kind)), []).append(to_world(track, sd))
+        kinds = ("soil", "leaves", "grass_dark") if path.style == "forest" else ("grass_dark", "grass_light",
+                                                                                  "grass_dark", "soil")
+        g.setdefault(str(rng.choice(kinds)), []).append(to_world(track, sd))
     # stains and repairs on the path; leaves on forest paths
     for _ in range(rng.poisson({"sidewalk": 0.5, "park": 0.8, "forest": 1.6}[path.style] * length / 4)):
         sd = blob_outline(track, rng.uniform(s0, s1), rng.uniform(-hw, hw), rng.uniform(0.15, 0.8),
@@ -223,7 +223,7 @@ def border_pieces(layout: Layout, k: int, side: int, rng) -> list[tuple[float, P
     b = layout.borders[side]
     s0, s1, face, kind = b.starts[k], b.ends[k], b.face[k], b.kinds[k]
     h, depth, sign = b.heights[k], b.depths[k], b.side
-    out: list[Piece] = []
+    out: list[tuple[float, Piece]] = []
     if kind == "hedge":
         s = s0
         while s < s1 - 1e-6:
@@ -324,17 +324,17 @@ def _shadows(ground: dict, layout: Layout, look: SidewalkLook, trees, obstacles,
 
 def _hull(pts: np.ndarray) -> np.ndarray:
     """Convex hull (monotone chain) of 2-D points, counter-clockwise."""
-    pts = sorted(map(tuple, pts))
+    ordered = sorted(map(tuple, pts))
 
-    def half(points):
-        out = []
+    def half(points: list[tuple]) -> list[tuple]:
+        out: list[tuple] = []
         for p in points:
             while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
                                      - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0:
                 out.pop()
             out.append(p)
         return out
-    lower, upper = half(pts), half(pts[::-1])
+    lower, upper = half(ordered), half(ordered[::-1])
     return np.array(lower[:-1] + upper[:-1])
 
 
@@ -376,8 +376,8 @@ def build_scenery(layout: Layout, look: SidewalkLook) -> list[SceneChunk]:
     for c, (s0, s1) in enumerate(zip(edges[:-1], edges[1:])):
         ground = _ground(layout, look, s0, s1, rng)
         _shadows(ground, layout, look, trees_in[c], obst_in[c], borders_in[c])
-        xy = [p[:, :2] for ps in ground.values() for p in ps] + [p.faces.reshape(-1, 3)[:, :2] for p in pieces[c]]
-        xy = np.vstack(xy)
+        xy = np.vstack([p[:, :2] for ps in ground.values() for p in ps]
+                       + [p.faces.reshape(-1, 3)[:, :2] for p in pieces[c]])
         lo, hi = xy.min(axis=0), xy.max(axis=0)
         out.append(SceneChunk(Chunk((lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2), ground, {}), pieces[c]))
     return out

@@ -180,5 +180,6 @@ class StereoRenderer:
 
 
 def with_size(config: StereoConfig, width: int | None, height: int | None, fov: float | None) -> StereoConfig:
-    return replace(config, **{k: v for k, v in (("width", width), ("height", height), ("fov_deg", fov))
-                              if v is not None})
+    return replace(config, width=config.width if width is None else width,
+                   height=config.height if height is None else height,
+                   fov_deg=config.fov_deg if fov is None else fov)

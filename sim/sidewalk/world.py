@@ -160,7 +160,7 @@ class SidewalkWorld:
                                     OPERATIONS.index(self.operation), self.correcting)
         t1 = time.perf_counter()
         self.timings["truth"] += t1 - t0
-        frames = (None, None)
+        frames: tuple = (None, None)
         if self.config.render if render is None else render:
             x, y, yaw = record[SIDEWALK.index("x")], record[SIDEWALK.index("y")], record[SIDEWALK.index("yaw")]
             frames = self.renderer.render(float(x), float(y), float(yaw), lead)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.worlds.highway import lane_centres, markings
-from sim.track.segments import Segment, wrap_angle
+from sim.track.segments import Arc, Segment, wrap_angle
 
 VERGE_WIDTH = 2.0  # [m] shoulder beside each edge; the on-marking system covers it (docs/affordances.md)
 
@@ -174,7 +174,7 @@ class Track:
         return math.hypot(x - x0, y - y0), abs(float(wrap_angle(h - h0)))
 
     def min_radius(self) -> float:
-        radii = [seg.radius for seg in self.segments if seg.kind == "arc"]
+        radii = [seg.radius for seg in self.segments if isinstance(seg, Arc)]
         return min(radii) if radii else math.inf
 
     def sample(self, step: float = 2.0) -> np.ndarray:

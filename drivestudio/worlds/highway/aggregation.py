@@ -138,10 +138,11 @@ def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     every round drives new traffic on new procedural tracks), denser traffic, and the learner."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
-    options = {"tracks": [], "procedural": 3, "lanes": [1, 2, 3], "cars": list(cfg.cars),
+    lanes = [1, 2, 3]
+    options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.cars),
                "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0}
     held_out = benchmark_tracks()
-    tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in options["lanes"])]
+    tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in lanes)]
     return {**options, "tracks": tracks, "learner": str(learner.resolve()), "beta": cfg.beta_of(round_),
             "device": cfg.device}
 
@@ -217,7 +218,7 @@ class Aggregation:
                           batch_size=cfg.batch_size, lr=cfg.lr, history=len(spec["input"]["instants"]) - 1,
                           device=cfg.device, seed=cfg.seed + r, workers=0), log=self.log)
         history = load_checkpoint(self.model_of(r), world="highway")["train"]["history"]
-        last = next((h for h in reversed(history) if h.get("val_loss") is not None), {})
+        last: dict = next((h for h in reversed(history) if h.get("val_loss") is not None), {})
         return {"val_loss": last.get("val_loss"),
                 "val_mae": {k[len("val_mae_"):]: v for k, v in last.items() if k.startswith("val_mae_")}}
 

@@ -2,24 +2,36 @@
 data-collection expert, closed-loop metrics, overlay videos and the generation plan."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
+from drivestudio.checkpoints import load_predictor_for
 from drivestudio.errors import UsageError
+from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
-from drivestudio.worlds.base import Episode, Plugin, WorldOptions
+from drivestudio.worlds import base
+from drivestudio.worlds.base import Episode, WorldOptions
 from drivestudio.worlds.highway.drivers import ChenDriver, ExpertDriver
 from drivestudio.worlds.highway.metrics import HighwayMetrics
+from drivestudio.worlds.highway.overlays import overlay_record
 from drivestudio.worlds.highway.video import OverlayRecorder
+from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
 from perception.highway.table3 import Table3Layout
+from sim.camera import CameraConfig
+from sim.track import load_track, preset_names
+
+if TYPE_CHECKING:
+    from sim.highway.world import World, WorldConfig
 
 DEFAULT_CARS = 12
 START_SPEED = 15.0          # [m/s]
 
 
 # --- the plugin ----------------------------------------------------------------------------------------------------
-class Plugin(Plugin):
+class Plugin(base.Plugin):
     declaration = HIGHWAY
     expert_names = ("oracle", "expert")
 
@@ -60,9 +72,8 @@ class Plugin(Plugin):
                         dest="car_range")
 
     # --- worlds ----------------------------------------------------------------------------------------------------
-    def config(self, args, render: bool, **extra):
-        from sim.camera import CameraConfig
-        from sim.highway.world import WorldConfig
+    def config(self, args, render: bool, **extra) -> WorldConfig:
+        from sim.highway.world import WorldConfig  # lazy: the highway world imports trimesh (0.3 s)
         camera = CameraConfig(width=getattr(args, "width", None) or FRAME[1],
                               height=getattr(args, "height", None) or FRAME[0],
                               fov_deg=getattr(args, "fov", None) or 60.0)
@@ -71,13 +82,13 @@ class Plugin(Plugin):
                            render=render, camera=camera,
                            start_speed=START_SPEED if args.start_speed is None else args.start_speed, **extra)
 
-    def world(self, args, render: bool):
-        from sim.highway.world import World
+    def world(self, args, render: bool) -> World:
+        from sim.highway.world import World  # lazy: trimesh
         return World(self.config(args, render))
 
     def render(self, args) -> tuple[dict, dict]:
-        from sim.highway.scenario import load_scenario
-        from sim.highway.world import World, WorldConfig
+        from sim.highway.scenario import load_scenario  # lazy: with the world
+        from sim.highway.world import World, WorldConfig  # lazy: trimesh
         if args.scenario:
             if args.track or args.warmup:
                 raise UsageError("--track and --warmup go without a scenario file (a scenario places its own cars)")
@@ -92,18 +103,17 @@ class Plugin(Plugin):
             obs = world.observe(render=True)
             return {"front": obs.frame}, obs.truth.as_dict()
 
-    def driver(self, model: str, args, declaration=None):
+    def driver(self, model: str, args, declaration=None) -> Driver:
         if model in ("oracle", "expert"):
             return ChenDriver(None)
-        from drivestudio.checkpoints import load_predictor_for
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
                           gap_hold=getattr(args, "gap_hold", None) or 0.0)
 
-    def supervisor(self, world, args):
+    def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
 
-        def supervise(obs, action, mode: str):
+        def supervise(obs: Observation, action: np.ndarray, mode: str) -> tuple[np.ndarray, str]:
             if mode == "manual":
                 return expert.act(obs)[0], "manual"
             return action, "network"
@@ -119,15 +129,13 @@ class Plugin(Plugin):
         est = np.array([estimate.get(n, 0.0) for n in INDICATORS])
         return est, estimate.get("lanes_left")
 
-    def overlay(self, images, record: dict, estimate: dict | None, label: str):
-        from drivestudio.worlds.highway.overlays import overlay_record
+    def overlay(self, images, record: dict, estimate: dict | None, label: str) -> np.ndarray:
         truth = np.array([record[n] for n in INDICATORS], dtype=np.float64)
         est, ll = self._estimate(estimate)
         title = f"episode {record['episode']} frame {record['step']}  {record['track']}, {record['lanes']} lanes"
         return overlay_record(images[0], record, truth, est, title, ll, label)
 
     def overlay_error(self, record: dict, estimate: dict | None) -> float:
-        from perception.highway.overlay import mean_normalised_error
         est, _ = self._estimate(estimate)
         if est is None:
             return 0.0
@@ -154,7 +162,6 @@ class Plugin(Plugin):
 
     # --- datasets ------------------------------------------------------------------------------------------------
     def generate_options(self, args) -> dict:
-        from sim.track import load_track
         lanes = _int_list(args.lane_counts or "1,2,3", "--lanes")
         if not lanes or any(not 1 <= n <= MAX_LANES for n in lanes):
             raise UsageError(f"--lanes must list lane counts from 1 to {MAX_LANES}")
@@ -179,7 +186,6 @@ class Plugin(Plugin):
     def track_list(options: dict, seed_: int) -> list[str]:
         if options["tracks"]:
             return list(options["tracks"])
-        from sim.track import preset_names
         return preset_names() + [f"procedural:{seed_ * 1000 + i}" for i in range(options["procedural"])]
 
     def plan(self, options: dict, frames: int, episode_frames: int, seed_: int) -> list[Episode]:
@@ -201,8 +207,7 @@ class Plugin(Plugin):
         return episodes
 
     def episode(self, ep: Episode, options: dict, renderer: str):
-        from sim.camera import CameraConfig
-        from sim.highway.world import World, WorldConfig
+        from sim.highway.world import World, WorldConfig  # lazy: trimesh
         camera = CameraConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         p = ep.params
         world = World(WorldConfig(track=p["track"], lanes=p["lanes"], cars=p["cars"], seed=ep.seed,
@@ -215,9 +220,8 @@ class Plugin(Plugin):
         return world, expert, columns
 
 
-def warm_up(world, seconds: float):
+def warm_up(world: World, seconds: float) -> Observation:
     """Let the traffic settle: the oracle drives the host car for `seconds`, nothing is rendered."""
-    from drivestudio.loop import in_process, run_loop
     return run_loop(world, in_process(ChenDriver(None)), seconds, render=False)
 
 
