@@ -200,9 +200,9 @@ def clean_temporaries(root: Path) -> int:
 
 # --- the manifest --------------------------------------------------------------------------------------------
 def _v1_declaration(manifest: dict) -> WorldDeclaration:
-    from core.worlds.highway import FRAME, HIGHWAY
+    from core.worlds.highway import FRAME, HIGHWAY_WITHOUT_REAR
     cfg = manifest.get("config", {})
-    return HIGHWAY.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
+    return HIGHWAY_WITHOUT_REAR.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
 
 
 def read_manifest(root: Path) -> dict:
