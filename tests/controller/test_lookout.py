@@ -1,0 +1,213 @@
+"""The lookout controller, one test per rule of docs/controller.md's "The lookout" (L1-L3), with the numbers
+written out from the document (min_gap 5 m, change_time 1.5 s, crossing_time 0.8 s, follower_decel 4 m/s^2,
+ahead_min 10 m, clear_margin 0.3 m), and closed loops on the kinematic car that the paper's controller crashes in.
+
+Most frames follow a car 10 m ahead at 10 m/s, the follow curve's speed there (20 (1 - exp(-2.772/20 10 + 0.693))
+= 10), so that L3 takes nothing off the host's speed and the closing speeds are the labels' own."""
+import math
+
+import numpy as np
+import pytest
+
+from controller.highway import ChenController
+from controller.highway.lookout import LookoutController, LookoutParams, safe_gap
+from sim.highway.traffic import ScriptedTraffic
+from sim.highway.vehicle import VehicleState
+from sim.track import load_track
+from tests.controller.drive_helpers import collided, drive
+from tests.controller.test_chen import feed, in_lane, ind
+
+NOTHING = (60.0, 60.0, 0.0, 0.0)   # dist_LB, dist_RB, closing_LB, closing_RB of an empty road
+
+
+def rear(dist_LB=60.0, dist_RB=60.0, closing_LB=0.0, closing_RB=0.0):
+    return (dist_LB, dist_RB, closing_LB, closing_RB)
+
+
+def warm(lanes=3, lane=1, behind=NOTHING, **given):
+    """A lookout controller that has driven 61 frames in `lane`: both neighbour lanes proved clear (rule 1)."""
+    ctrl = LookoutController(lanes)
+    for _ in range(61):
+        ctrl.act(in_lane(lanes=lanes, lane=lane, **given), 15.0, behind)
+    return ctrl
+
+
+V = 20 * (1 - math.exp(-2.772 / 20 * 10 + 0.693))   # [m/s] the follow speed at 10 m: 9.9993
+
+
+def test_the_lookout_holds_the_documented_constants():
+    p = LookoutParams()
+    assert (p.min_gap, p.change_time, p.crossing_time, p.follower_decel, p.ahead_min, p.clear_margin) == \
+        (5.0, 1.5, 0.8, 4.0, 10.0, 0.3)
+
+
+@pytest.mark.parametrize("closing, need", [(-8.0, 5.0), (0.0, 5.0), (4.0, 5 + 6 + 2), (10.0, 5 + 15 + 12.5),
+                                           (16.0, 5 + 24 + 32)])
+def test_safe_gap_is_min_gap_plus_the_crossing_plus_the_followers_braking(closing, need):
+    assert safe_gap(closing) == pytest.approx(need)
+    assert safe_gap(closing, time=0.8) == pytest.approx(need - 0.7 * max(closing, 0.0))
+
+
+def test_with_nothing_beside_or_behind_it_steers_as_the_chen_controller():
+    """L1 and L2 never act on an empty road; only L3 changes the speed, and only during a lane change."""
+    chen, look = ChenController(3), LookoutController(3)
+    vectors = [in_lane(offset=0.3 * np.sin(i / 7), dist_MM=30 - i / 5, angle=0.02 * np.cos(i / 5))
+               for i in range(150)]
+    for v in vectors:
+        a, b = chen.act(v, 15.0), look.act(v, 15.0, NOTHING)
+        assert a.steer == b.steer and chen.state == look.state
+        if chen.state == "keep":
+            assert a == b
+    assert chen.lane_changes_started == look.lane_changes_started >= 1 and look.refusals == look.aborts == 0
+
+
+# --- L1: look before moving ---------------------------------------------------------------------------------------
+def test_L1_refuses_an_overtake_to_the_left_into_a_car_within_the_safe_gap_and_goes_right():
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=12.9, closing_LB=4.0))   # needs 13 m
+    assert ctrl.state == "right-1" and ctrl.refusals == 1
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=13.0, closing_LB=4.0))
+    assert ctrl.state == "left-1" and ctrl.refusals == 0
+
+
+def test_L1_refuses_both_sides_then_the_host_follows():
+    ctrl = warm()
+    a = ctrl.act(in_lane(dist_MM=10.0, fast=1.0), V, rear(dist_LB=0.0, dist_RB=4.9))   # alongside; 4.9 < 5
+    assert ctrl.state == "keep" and ctrl.refused == "right" and ctrl.refusals == 2
+    assert (a.accel, a.brake) == (pytest.approx(0.2), 0.0)   # the follow law: 10 m/s, accel 0.2 (10 - 10 + 1)
+    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=0.0, dist_RB=5.0, closing_RB=-3.0))
+    assert ctrl.state == "right-1"   # a slower car 5 m behind: min_gap is enough
+
+
+def test_L1_a_faster_car_far_behind_needs_more_than_a_slower_one_near():
+    ctrl = warm(dist_RR=12.0)
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=32.4, closing_LB=10.0))   # needs 32.5
+    assert ctrl.state == "keep" and ctrl.refused == "left"
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=32.5, closing_LB=10.0))
+    assert ctrl.state == "left-1"
+
+
+def test_L1_counts_the_speed_L3_will_take_off_the_host():
+    """At 14 m/s (V + 4) behind a car 10 m ahead, L3 will hold the host to 10 m/s during the change: a car behind
+    at +2 m/s will close at 6 m/s, so it needs 5 + 9 + 4.5 = 18.5 m, not 5 + 3 + 0.5."""
+    ctrl = warm(dist_RR=12.0)
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=18.4, closing_LB=2.0))
+    assert ctrl.state == "keep" and ctrl.refused == "left"
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=18.5, closing_LB=2.0))
+    assert ctrl.state == "left-1"
+
+
+def test_L1_applies_to_lane_preference_too():
+    ctrl = LookoutController(2)   # two lanes: keep right (rule 3)
+    left = in_lane(lanes=2, lane=0)
+    for _ in range(61):
+        ctrl.act(left, 20.0, rear(dist_RB=0.0, closing_RB=0.5))   # a car alongside in the right lane
+    assert ctrl.right_clear and ctrl.state == "keep" and ctrl.refused == "right"
+    ctrl.act(left, 20.0, rear(dist_RB=9.0, closing_RB=-1.0))
+    assert ctrl.state == "right-1"
+
+
+# --- L2: abort until the centre crosses -----------------------------------------------------------------------------
+def test_L2_aborts_in_phase_1_and_keeps_its_lane():
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), V, NOTHING)
+    assert ctrl.state == "left-1"
+    ctrl.act(in_lane(offset=0.5), V, rear(dist_LB=8.6, closing_LB=3.0))   # L1 would need 10.6, L2 5 + 2.4 + 1.125
+    assert ctrl.state == "left-1" and ctrl.aborts == 0
+    s = ctrl.act(in_lane(offset=0.8), V, rear(dist_LB=8.6, closing_LB=3.1)).steer   # L2 needs 8.68
+    assert ctrl.state == "keep" and ctrl.aborts == 1
+    assert s == pytest.approx(-0.8 / 8 / 0.541052 / 1.5)   # lane keeping steers back to the lane centre
+    assert not ctrl.left_clear and not ctrl.right_clear     # both lanes prove clear afresh
+
+
+def test_L2_aborts_on_the_marking_before_the_centre_crosses_it():
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), V, NOTHING)
+    ctrl.act(ind(toMarking_L=-4.2, toMarking_M=-0.2, toMarking_R=3.8, dist_L=60.0, dist_R=10.0), V, NOTHING)
+    assert ctrl.state == "left-2"
+    s = ctrl.act(ind(toMarking_L=-4.1, toMarking_M=-0.1, toMarking_R=3.9, dist_L=60.0, dist_R=10.0), V,
+                 rear(dist_LB=0.0, closing_LB=2.0)).steer
+    # the mirror change's phase 2 aims at the lane right of the marking, (R + M) / 2, with phase 1's gain 6
+    assert ctrl.state == "right-2" and ctrl.aborts == 1
+    assert s == pytest.approx(-((3.9 - 0.1) / 2) / 8 / 0.541052 / 6)
+
+
+def test_L2_does_not_abort_once_the_centre_has_crossed():
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), 15.0, NOTHING)
+    ctrl.act(ind(toMarking_L=-4.2, toMarking_M=-0.2, toMarking_R=3.8), 15.0, NOTHING)
+    ctrl.act(ind(toMarking_L=-3.9, toMarking_M=0.1, toMarking_R=4.1), 15.0, rear(dist_LB=0.0, closing_LB=9.0))
+    assert ctrl.state == "left-2" and ctrl.aborts == 0
+
+
+def test_L2_aborts_for_a_car_closer_than_10_m_ahead_in_the_target_lane():
+    ctrl = warm()
+    ctrl.act(in_lane(dist_MM=10.0), 15.0, NOTHING)
+    ctrl.act(in_lane(offset=0.5, dist_LL=10.0), 15.0, NOTHING)
+    assert ctrl.state == "left-1"
+    ctrl.act(in_lane(offset=0.7, dist_LL=9.9), 15.0, NOTHING)
+    assert ctrl.state == "keep" and ctrl.aborts == 1
+
+
+def test_L2_a_right_change_mirrors_a_left_one():
+    ctrl = warm(dist_LL=12.0)
+    ctrl.act(in_lane(dist_MM=10.0, dist_LL=12.0), 15.0, NOTHING)
+    assert ctrl.state == "right-1"
+    ctrl.act(ind(toMarking_L=-3.8, toMarking_M=0.2, toMarking_R=4.2), 15.0, NOTHING)
+    assert ctrl.state == "right-2"
+    ctrl.act(ind(toMarking_L=-3.9, toMarking_M=0.1, toMarking_R=4.1), 15.0, rear(dist_RB=3.0))
+    assert ctrl.state == "left-2" and ctrl.aborts == 1
+
+
+# --- L3: pull out behind the leader -------------------------------------------------------------------------------
+def test_L3_holds_the_follow_speed_of_the_leader_until_laterally_clear():
+    ctrl, chen = warm(), ChenController(3)
+    feed(chen, in_lane(), 61)
+    for c in (ctrl, chen):
+        a = c.act(in_lane(dist_MM=9.0, fast=1.0), 12.0, NOTHING) if c is ctrl else \
+            c.act(in_lane(dist_MM=9.0, fast=1.0), 12.0)
+        assert c.state == "left-1"
+        if c is chen:
+            assert a.accel == pytest.approx(1.0) and a.brake == 0.0   # the paper's driver: full throttle
+        else:   # follow curve at 9 m: 20 (1 - exp(-2.772 / 20 * 9 + 0.693)) = 8.51 m/s: it brakes
+            assert a.accel == 0.0 and a.brake == pytest.approx(0.1 * (12 - 8.5093), abs=1e-3)
+    on_marking = dict(toMarking_L=-4.2, toMarking_M=-0.2, toMarking_R=3.8, dist_L=60.0, dist_R=9.0, fast=1.0)
+    a = ctrl.act(ind(**on_marking), 12.0, NOTHING)      # on the marking: the leader is in the lane right of it
+    assert ctrl.state == "left-2" and a.brake > 0
+    a = ctrl.act(ind(**{**on_marking, "toMarking_M": 0.29, "toMarking_L": -3.71}), 12.0, NOTHING)
+    assert a.brake > 0                                    # 0.29 m past the marking: not yet clear
+    a = ctrl.act(ind(**{**on_marking, "toMarking_M": 0.31, "toMarking_L": -3.69}), 12.0, NOTHING)
+    assert a.accel > 0 and a.brake == 0                   # clear: free to accelerate
+
+
+# --- closed loop on the kinematic car -----------------------------------------------------------------------------
+def overtaking_scene(controller, behind_speed, behind):
+    """Two lanes, the host in the right lane at 15 m/s closing on a car at 8 m/s 30 m ahead; in the left lane a
+    car `behind` [m] behind the host at `behind_speed`, which the paper's indicators cannot see until it is ahead.
+    Scripted cars keep their speed: nothing brakes for the host."""
+    tr = load_track("oval", lanes=2)
+    start = VehicleState(s=20.0, d=float(tr.lane_centres[1]), speed=15.0)
+    warmup = ScriptedTraffic(tr, s=[], d=[], speed=[])
+    drive(tr, controller, start, 6.2, traffic=warmup)   # 61 frames alone: both lanes proved clear
+    traffic = ScriptedTraffic(tr, s=[start.s + 30.0, start.s - behind], d=[tr.lane_centres[1], tr.lane_centres[0]],
+                              speed=[8.0, behind_speed])
+    return drive(tr, controller, start, 20.0, traffic=traffic)
+
+
+SCENES = [(19.0, 5.0), (22.0, 10.0), (22.0, 20.0), (25.0, 30.0), (28.0, 40.0)]   # the paper's driver crashes in each
+
+
+@pytest.mark.parametrize("behind_speed, behind", SCENES)
+def test_closed_loop_the_chen_controller_pulls_out_into_a_faster_car_from_behind(behind_speed, behind):
+    assert collided(overtaking_scene(ChenController(2), behind_speed, behind))
+
+
+@pytest.mark.parametrize("behind_speed, behind", SCENES + [(19.0, 20.0), (15.0, 10.0)])
+def test_closed_loop_the_lookout_lets_it_pass_then_overtakes(behind_speed, behind):
+    ctrl = LookoutController(2)
+    trace = overtaking_scene(ctrl, behind_speed, behind)
+    assert not collided(trace)
+    gaps = np.asarray(trace.gaps)
+    assert np.any(gaps[:, 0] < 0), "never passed the slow car"
+    assert np.all(np.abs(trace.d) < 4.0)
