@@ -8,7 +8,7 @@ from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds.base import Episode, Plugin, WorldOptions
-from drivestudio.worlds.highway.drivers import ChenDriver, ExpertDriver
+from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.video import OverlayRecorder
 
@@ -19,7 +19,7 @@ START_SPEED = 15.0          # [m/s]
 # --- the plugin ----------------------------------------------------------------------------------------------------
 class Plugin(Plugin):
     declaration = HIGHWAY
-    expert_names = ("oracle", "expert")
+    expert_names = ("oracle", "oracle-extended", "expert")
 
     def add_options(self, options: WorldOptions) -> None:
         verb = options.verb
@@ -91,8 +91,8 @@ class Plugin(Plugin):
             return {"front": obs.frame}, obs.truth.as_dict()
 
     def driver(self, model: str, args, declaration=None):
-        if model in ("oracle", "expert"):
-            return ChenDriver(None)
+        if model in ORACLES or model == "expert":
+            return ChenDriver(None, lookout=ORACLES.get(model, False))
         from drivestudio.checkpoints import load_predictor_for
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,

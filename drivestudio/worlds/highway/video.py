@@ -6,7 +6,7 @@ import numpy as np
 from core.worlds.highway import INDICATORS
 from drivestudio.loop import StepRecord
 from drivestudio.outputs import VideoWriter
-from drivestudio.worlds.highway.drivers import ESTIMATE_INDEX
+from drivestudio.worlds.highway.drivers import ESTIMATE_INDEX, ORACLES
 from drivestudio.worlds.highway.overlays import overlay_observation
 
 
@@ -21,8 +21,9 @@ class OverlayRecorder:
         if self.writer is not None:
             t = rec.obs.truth
             title = f"t {rec.obs.t:5.1f} s  {self.world.track.name}, {t.lanes} lanes, {t.speed:4.1f} m/s"
-            estimate = None if self.label == "oracle" else np.asarray(rec.estimate)[:len(INDICATORS)]
-            ll = None if self.label == "oracle" else rec.estimate[ESTIMATE_INDEX["lanes_left"]]
+            exact = self.label in ORACLES   # an oracle's estimate is the truth: nothing to draw beside it
+            estimate = None if exact else np.asarray(rec.estimate)[:len(INDICATORS)]
+            ll = None if exact else rec.estimate[ESTIMATE_INDEX["lanes_left"]]
             self.writer.write(overlay_observation(rec.obs, estimate, self.world.track, title,
                                                   None if ll is None or not np.isfinite(ll) else float(ll),
                                                   label=self.label))

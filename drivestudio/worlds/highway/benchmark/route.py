@@ -153,11 +153,12 @@ _PREDICTORS: dict = {}
 
 
 def driver_for(model: ModelSpec, device: str):
-    """The driver `drive --model` makes: the Chen controller on the truth (oracle) or on a checkpoint's
-    estimates, smoothed as the model asks. A worker keeps each checkpoint's predictor for its next routes."""
+    """The driver `drive --model` makes: the Chen controller on the truth (oracle), the lookout controller on the
+    truth (oracle-extended) or the Chen controller on a checkpoint's estimates, smoothed as the model asks. A worker
+    keeps each checkpoint's predictor for its next routes."""
     from drivestudio.worlds.highway.drivers import ChenDriver
     if model.path is None:
-        return ChenDriver(None)
+        return ChenDriver(None, lookout=model.lookout)
     key = (model.path, device)
     if key not in _PREDICTORS:
         from drivestudio.checkpoints import load_predictor_for
@@ -166,7 +167,7 @@ def driver_for(model: ModelSpec, device: str):
 
 
 def _driver_command(name: str, model: ModelSpec, device: str) -> list[str]:
-    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or "oracle",
+    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or model.family,
            "--device", device]
     for f, a in model.filters().items():
         cmd += [f"--{f.replace('_', '-')}", repr(a)]
