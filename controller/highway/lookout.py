@@ -7,11 +7,13 @@ the lanes left and right, and its closing speed) and adds three rules to docs/co
 (docs/controller.md, "The lookout"; every number argued there):
 
     L1  look: a change (rule 2 or 3) starts only when the target lane's rear gap is at least the safe gap
-        need(c) = min_gap + c+ * change_time + c+^2 / (2 follower_decel), c+ = max(c, 0), where c is the closing
-        speed the car behind will have: its own, plus what L3 will take off the host's speed;
+        need(c, T) = min_gap + c+ T + c+^2 / (2 follower_decel), c+ = max(c, 0), with T = crossing(v) + margin_time:
+        c is the closing speed the car behind will have (its own, plus what L3 will take off the host's speed), v
+        the host's speed under L3, and crossing(v) = max(min_crossing_time, crossing_distance / v) the time the
+        host's centre takes to reach the marking;
     L2  abort: until the host car's centre crosses the marking, a change is given up, and the car steers back into
-        its lane, when the target lane's rear gap falls below need(c) with the crossing time alone
-        (crossing_time instead of change_time), or a car ahead in it comes closer than ahead_min;
+        its lane, when the target lane's rear gap falls below need(c, crossing(v)), or a car ahead in it comes
+        closer than ahead_min;
     L3  pull out behind the leader: until the host car is laterally clear of the lane it leaves (its centre
         clear_margin past the marking), its speed stays within the follow curve (rule 2) of the car ahead in
         that lane.
@@ -35,19 +37,29 @@ NOTHING_BEHIND = (REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE, CLOSING_INACTIVE)   
 class LookoutParams:
     """The lookout's constants (docs/controller.md, "The lookout", argues each)."""
 
-    min_gap: float = 5.0           # [m] bumper gap to a car alongside or behind that is never cut in front of
-    change_time: float = 1.5       # [s] the closing time L1 allows for: the crossing and as much again
-    crossing_time: float = 0.8     # [s] from the decision until the host's centre crosses the marking (L2)
-    follower_decel: float = 4.0    # [m/s^2] the follower's braking: the calmest SUMO driver's comfortable decel
+    min_gap: float = 5.0             # [m] bumper gap to a car alongside or behind that is never cut in front of
+    crossing_distance: float = 14.0  # [m] road the host covers from the decision until its centre crosses the marking
+    min_crossing_time: float = 0.7   # [s] ... but never faster than this (the steering rate limit, above 20 m/s)
+    margin_time: float = 0.7         # [s] L1's closing time beyond the crossing
+    follower_decel: float = 4.0      # [m/s^2] the follower's braking: the calmest SUMO driver's comfortable decel
     ahead_min: float = 10.0        # [m] centre to centre: a car this close ahead in the target lane aborts (L2)
     clear_margin: float = 0.3      # [m] past the marking the host's body is clear of the leader it pulls out from
 
 
-def safe_gap(closing: float, p: LookoutParams = LookoutParams(), time: float | None = None) -> float:
-    """need(c) [m]: the rear gap a change needs to a car closing in at `closing` [m/s], allowing `time` [s]
-    (default: L1's change_time) before the host is in front of it."""
+MIN_SPEED = 0.5   # [m/s] crossing() of a (nearly) standing host: as at this speed (28 s at 14 m)
+
+
+def crossing(speed: float, p: LookoutParams = LookoutParams()) -> float:
+    """crossing(v) [s]: from the decision until the host's centre crosses the marking, at `speed` [m/s]."""
+    return max(p.min_crossing_time, p.crossing_distance / max(float(speed), MIN_SPEED))
+
+
+def safe_gap(closing: float, speed: float, p: LookoutParams = LookoutParams(), abort: bool = False) -> float:
+    """need(c, T) [m]: the rear gap a change needs to a car closing in at `closing` [m/s] when the host drives at
+    `speed` [m/s]: T = crossing(v) + margin_time to start one (L1), crossing(v) alone to go on with it (L2)."""
     c = max(0.0, float(closing))
-    return p.min_gap + c * (p.change_time if time is None else time) + c * c / (2.0 * p.follower_decel)
+    time = crossing(speed, p) + (0.0 if abort else p.margin_time)
+    return p.min_gap + c * time + c * c / (2.0 * p.follower_decel)
 
 
 class LookoutController(ChenController):
@@ -90,13 +102,15 @@ class LookoutController(ChenController):
         return super().act(indicators, speed)
 
     # --- L1: look before moving --------------------------------------------------------------------------------
-    def rear_safe(self, side: str, v: dict[str, float], time: float | None = None) -> bool:
-        """The rear gap in the lane on `side` is at least need(c), c the closing speed of the car there once L3
-        holds the host to the follow speed of the car ahead in the lane it leaves."""
+    def rear_safe(self, side: str, v: dict[str, float], abort: bool = False) -> bool:
+        """The rear gap in the lane on `side` is at least need(c, T), for the host's speed once L3 holds it to the
+        follow speed of the car ahead in the lane it leaves, and the closing speed of the car there then."""
         k = "L" if side == "left" else "R"
-        slowing = max(0.0, self._speed - self._change_speed_limit(v, side))
-        closing = self._rear[f"closing_{k}B"] + slowing
-        return self._rear[f"dist_{k}B"] >= safe_gap(closing, self.lookout, time)
+        if self._rear[f"dist_{k}B"] >= REAR_RANGE:
+            return True   # no car within the labels' range: nothing known to reach the host (docs/controller.md)
+        speed = min(self._speed, self._change_speed_limit(v, side))
+        closing = self._rear[f"closing_{k}B"] + (self._speed - speed)
+        return self._rear[f"dist_{k}B"] >= safe_gap(closing, speed, self.lookout, abort)
 
     def _target_safe(self, side: str, v: dict[str, float]) -> bool:
         if self.rear_safe(side, v):
@@ -120,7 +134,7 @@ class LookoutController(ChenController):
 
     def _still_safe(self, v: dict[str, float]) -> bool:
         left = self._state in LEFT_CHANGE
-        if not self.rear_safe("left" if left else "right", v, self.lookout.crossing_time):
+        if not self.rear_safe("left" if left else "right", v, abort=True):
             return False
         if self._state in (LEFT_1, RIGHT_1) and self._in_lane_valid(v):
             ahead = v["dist_LL"] if left else v["dist_RR"]

@@ -43,7 +43,7 @@ INACTIVE: dict[str, float] = {
 # and how fast it closes in (its speed minus the host's). A lane that does not exist, or holds no such car within
 # REAR_RANGE, reads REAR_RANGE and a closing speed of 0: nothing there can reach the host.
 REAR: tuple[str, ...] = ("dist_LB", "dist_RB", "closing_LB", "closing_RB")
-REAR_RANGE = 60.0       # [m] rear gaps are measured up to this; also their inactive value
+REAR_RANGE = 100.0      # [m] rear gaps are measured up to this; also their inactive value
 CLOSING_INACTIVE = 0.0  # [m/s] closing speed when no car is within REAR_RANGE or the lane does not exist
 HOST_LENGTH = 4.6       # [m] the host car's body (sim/highway/vehicle.py VehicleParams.length, SUMO's host)
 
@@ -65,7 +65,7 @@ NORMALISATION: dict[str, tuple[float, float]] = {
     "dist_L": (1 / 95, 0.12), "dist_R": (1 / 95, 0.12),
     "fast": (0.6, 0.2),
     "lanes_left": (0.2, 0.1),
-    # ours: rear gaps 0..60 m and closing speeds -20..20 m/s both to 0.1..0.9
+    # ours: rear gaps 0..100 m and closing speeds -20..20 m/s both to 0.1..0.9
     "dist_LB": (0.8 / REAR_RANGE, 0.1), "dist_RB": (0.8 / REAR_RANGE, 0.1),
     "closing_LB": (0.02, 0.5), "closing_RB": (0.02, 0.5),
 }

@@ -1,26 +1,39 @@
 """The lookout controller, one test per rule of docs/controller.md's "The lookout" (L1-L3), with the numbers
-written out from the document (min_gap 5 m, change_time 1.5 s, crossing_time 0.8 s, follower_decel 4 m/s^2,
-ahead_min 10 m, clear_margin 0.3 m), and closed loops on the kinematic car that the paper's controller crashes in.
+written out from the document (min_gap 5 m, crossing_distance 14 m, min_crossing_time 0.7 s, margin_time 0.7 s,
+follower_decel 4 m/s^2, ahead_min 10 m, clear_margin 0.3 m), and closed loops on the kinematic car that the paper's
+controller crashes in.
 
-Most frames follow a car 10 m ahead at 10 m/s, the follow curve's speed there (20 (1 - exp(-2.772/20 10 + 0.693))
-= 10), so that L3 takes nothing off the host's speed and the closing speeds are the labels' own."""
+Most frames follow a car 10 m ahead at V = 9.9993 m/s, the follow curve's speed there (20 (1 - exp(-2.772/20 10 +
+0.693))), so that L3 takes nothing off the host's speed and the closing speeds are the labels' own; the host then
+crosses in 14 / V = 1.4 s, so L1 allows 2.1 s of closing and L2 1.4 s."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from controller.highway import ChenController
-from controller.highway.lookout import LookoutController, LookoutParams, safe_gap
+from controller.highway.lookout import LookoutController, LookoutParams, crossing, safe_gap
+from core.worlds.highway import Action
 from sim.highway.traffic import ScriptedTraffic
-from sim.highway.vehicle import VehicleState
+from sim.highway.truth import affordances
+from sim.highway.vehicle import VehicleState, step_vehicle
 from sim.track import load_track
 from tests.controller.drive_helpers import collided, drive
 from tests.controller.test_chen import feed, in_lane, ind
 
-NOTHING = (60.0, 60.0, 0.0, 0.0)   # dist_LB, dist_RB, closing_LB, closing_RB of an empty road
+NOTHING = (100.0, 100.0, 0.0, 0.0)   # dist_LB, dist_RB, closing_LB, closing_RB of an empty road
+V = 20 * (1 - math.exp(-2.772 / 20 * 10 + 0.693))   # [m/s] the follow speed at 10 m: 9.9993
+T1, T2 = 14 / V + 0.7, 14 / V   # [s] L1's and L2's closing times at V
 
 
-def rear(dist_LB=60.0, dist_RB=60.0, closing_LB=0.0, closing_RB=0.0):
+def need(c, time):
+    """The document's safe gap, written out."""
+    c = max(c, 0.0)
+    return 5 + c * time + c * c / 8
+
+
+def rear(dist_LB=100.0, dist_RB=100.0, closing_LB=0.0, closing_RB=0.0):
     return (dist_LB, dist_RB, closing_LB, closing_RB)
 
 
@@ -32,20 +45,38 @@ def warm(lanes=3, lane=1, behind=NOTHING, **given):
     return ctrl
 
 
-V = 20 * (1 - math.exp(-2.772 / 20 * 10 + 0.693))   # [m/s] the follow speed at 10 m: 9.9993
-
-
 def test_the_lookout_holds_the_documented_constants():
     p = LookoutParams()
-    assert (p.min_gap, p.change_time, p.crossing_time, p.follower_decel, p.ahead_min, p.clear_margin) == \
-        (5.0, 1.5, 0.8, 4.0, 10.0, 0.3)
+    assert (p.min_gap, p.crossing_distance, p.min_crossing_time, p.margin_time, p.follower_decel, p.ahead_min,
+            p.clear_margin) == (5.0, 14.0, 0.7, 0.7, 4.0, 10.0, 0.3)
 
 
-@pytest.mark.parametrize("closing, need", [(-8.0, 5.0), (0.0, 5.0), (4.0, 5 + 6 + 2), (10.0, 5 + 15 + 12.5),
-                                           (16.0, 5 + 24 + 32)])
-def test_safe_gap_is_min_gap_plus_the_crossing_plus_the_followers_braking(closing, need):
-    assert safe_gap(closing) == pytest.approx(need)
-    assert safe_gap(closing, time=0.8) == pytest.approx(need - 0.7 * max(closing, 0.0))
+def test_crossing_takes_14_m_of_road_but_never_less_than_0_7_s():
+    assert crossing(7.0) == pytest.approx(2.0) and crossing(14.0) == pytest.approx(1.0)
+    assert crossing(20.0) == crossing(28.0) == 0.7 and crossing(0.0) == pytest.approx(28.0)
+
+
+@pytest.mark.parametrize("closing, expected", [(-8.0, 5.0), (0.0, 5.0), (4.0, 5 + 4 * 1.7 + 2), (10.0, 5 + 17 + 12.5)])
+def test_safe_gap_is_min_gap_plus_the_closing_during_the_crossing_plus_the_followers_braking(closing, expected):
+    assert safe_gap(closing, 14.0) == pytest.approx(expected)                 # crossing 1 s, + 0.7 s margin
+    assert safe_gap(closing, 14.0, abort=True) == pytest.approx(expected - 0.7 * max(closing, 0.0))
+    assert safe_gap(closing, 7.0) == pytest.approx(need(closing, 2.7))       # a slower host crosses longer
+
+
+@pytest.mark.parametrize("speed", [3.0, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0])
+def test_crossing_is_what_the_chen_controllers_change_takes_on_the_kinematic_car(speed):
+    """crossing(v) is measured: from begin_lane_change until the host's centre is across the marking, at a speed
+    held constant (L3 may hold it), the host covers 13-14 m of road; above 20 m/s the steering rate caps it."""
+    tr = load_track("oval", lanes=3)
+    state = VehicleState(s=50.0, d=float(tr.lane_centres[1]), speed=speed)
+    ctrl = ChenController(3)
+    ctrl.begin_lane_change("left")
+    t = 0.0
+    while state.d < tr.markings[1]:
+        a = ctrl.act(affordances(tr, state.s, state.d, state.heading), state.speed)
+        state = replace(step_vehicle(state, Action(a.steer, 0.0, 0.0), 0.1, tr), speed=speed)
+        t += 0.1
+    assert crossing(speed) - 0.3 <= t <= crossing(speed) + 0.1 + 1e-9
 
 
 def test_with_nothing_beside_or_behind_it_steers_as_the_chen_controller():
@@ -64,10 +95,10 @@ def test_with_nothing_beside_or_behind_it_steers_as_the_chen_controller():
 # --- L1: look before moving ---------------------------------------------------------------------------------------
 def test_L1_refuses_an_overtake_to_the_left_into_a_car_within_the_safe_gap_and_goes_right():
     ctrl = warm()
-    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=12.9, closing_LB=4.0))   # needs 13 m
+    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=need(4, T1) - 0.01, closing_LB=4.0))   # 15.4 m
     assert ctrl.state == "right-1" and ctrl.refusals == 1
     ctrl = warm()
-    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=13.0, closing_LB=4.0))
+    ctrl.act(in_lane(dist_MM=10.0), V, rear(dist_LB=need(4, T1) + 0.01, closing_LB=4.0))
     assert ctrl.state == "left-1" and ctrl.refusals == 0
 
 
@@ -82,19 +113,20 @@ def test_L1_refuses_both_sides_then_the_host_follows():
 
 def test_L1_a_faster_car_far_behind_needs_more_than_a_slower_one_near():
     ctrl = warm(dist_RR=12.0)
-    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=32.4, closing_LB=10.0))   # needs 32.5
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=38.4, closing_LB=10.0))   # needs 38.5
     assert ctrl.state == "keep" and ctrl.refused == "left"
-    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=32.5, closing_LB=10.0))
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V, rear(dist_LB=38.6, closing_LB=10.0))
     assert ctrl.state == "left-1"
 
 
 def test_L1_counts_the_speed_L3_will_take_off_the_host():
-    """At 14 m/s (V + 4) behind a car 10 m ahead, L3 will hold the host to 10 m/s during the change: a car behind
-    at +2 m/s will close at 6 m/s, so it needs 5 + 9 + 4.5 = 18.5 m, not 5 + 3 + 0.5."""
+    """At 14 m/s (V + 4) behind a car 10 m ahead, L3 will hold the host to V during the change: a car behind at
+    +2 m/s will close at 6 m/s while the host takes 1.4 s to cross, so it needs 5 + 6 x 2.1 + 4.5 = 22.1 m, not
+    the 5 + 2 x 1.7 + 0.5 = 8.9 m of a host that kept 14 m/s."""
     ctrl = warm(dist_RR=12.0)
-    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=18.4, closing_LB=2.0))
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=need(6, T1) - 0.01, closing_LB=2.0))
     assert ctrl.state == "keep" and ctrl.refused == "left"
-    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=18.5, closing_LB=2.0))
+    ctrl.act(in_lane(dist_MM=10.0, dist_RR=12.0), V + 4.0, rear(dist_LB=need(6, T1) + 0.01, closing_LB=2.0))
     assert ctrl.state == "left-1"
 
 
@@ -113,9 +145,9 @@ def test_L2_aborts_in_phase_1_and_keeps_its_lane():
     ctrl = warm()
     ctrl.act(in_lane(dist_MM=10.0), V, NOTHING)
     assert ctrl.state == "left-1"
-    ctrl.act(in_lane(offset=0.5), V, rear(dist_LB=8.6, closing_LB=3.0))   # L1 would need 10.6, L2 5 + 2.4 + 1.125
+    ctrl.act(in_lane(offset=0.5), V, rear(dist_LB=10.4, closing_LB=3.0))   # L1 would need 12.4, L2 10.33
     assert ctrl.state == "left-1" and ctrl.aborts == 0
-    s = ctrl.act(in_lane(offset=0.8), V, rear(dist_LB=8.6, closing_LB=3.1)).steer   # L2 needs 8.68
+    s = ctrl.act(in_lane(offset=0.8), V, rear(dist_LB=10.4, closing_LB=3.1)).steer   # L2 needs 10.54
     assert ctrl.state == "keep" and ctrl.aborts == 1
     assert s == pytest.approx(-0.8 / 8 / 0.541052 / 1.5)   # lane keeping steers back to the lane centre
     assert not ctrl.left_clear and not ctrl.right_clear     # both lanes prove clear afresh

@@ -33,7 +33,7 @@ def test_a_generated_dataset_carries_the_rear_labels_and_a_model_learns_the_exte
     train(tiny_config("gist", out, labels="extended"), log=lambda *a: None)
     spec = load_checkpoint(out)["spec"]
     assert tuple(spec["labels"]) == EXTENDED and tuple(spec["outputs"])[-4:] == REAR
-    assert spec["normalisation"]["dist_LB"] == [pytest.approx(0.8 / 60), 0.1]
+    assert spec["normalisation"]["dist_LB"] == [pytest.approx(0.8 / 100), 0.1]
 
 
 def test_an_unknown_label_set_is_refused_in_one_line_before_any_work(tmp_path):

@@ -292,10 +292,10 @@ def test_rear_labels_are_declared_after_everything_else_with_their_maps():
     assert LABEL_SETS["paper"] == PAPER_INDICATORS == HIGHWAY.targets
     assert LABEL_SETS["extended"] == INDICATORS + ("lanes_left", "dist_LB", "dist_RB", "closing_LB", "closing_RB")
     assert HIGHWAY.label_set("extended") == LABEL_SETS["extended"]
-    # rear gaps 0 .. 60 m and closing speeds -20 .. 20 m/s both map to 0.1 .. 0.9
-    assert HIGHWAY.normalise([0.0, 60.0, -20.0, 20.0], ["dist_LB", "dist_RB", "closing_LB", "closing_RB"]) == \
+    # rear gaps 0 .. 100 m and closing speeds -20 .. 20 m/s both map to 0.1 .. 0.9
+    assert HIGHWAY.normalise([0.0, 100.0, -20.0, 20.0], ["dist_LB", "dist_RB", "closing_LB", "closing_RB"]) == \
         pytest.approx([0.1, 0.9, 0.1, 0.9], abs=1e-6)
-    assert HIGHWAY.label("dist_LB").inactive == 60.0 and HIGHWAY.label("closing_RB").inactive == 0.0
+    assert HIGHWAY.label("dist_LB").inactive == 100.0 and HIGHWAY.label("closing_RB").inactive == 0.0
 
 
 def test_rear_a_car_exactly_alongside_reads_0_and_its_closing_speed(tracks):
@@ -313,7 +313,7 @@ def test_rear_a_car_just_behind_reads_the_bumper_gap(tracks):
     # rear bumper of the host at s - 2.3, front bumper of a 4.1 m car at its s + 2.05: 0.5 m apart
     v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 2.3 - 2.05 - 0.5, -4.0, 4.1, 26.0)])
     assert v["dist_RB"] == pytest.approx(0.5) and v["closing_RB"] == pytest.approx(6.0)
-    assert v["dist_LB"] == 60.0 and v["closing_LB"] == 0.0
+    assert v["dist_LB"] == 100.0 and v["closing_LB"] == 0.0
     v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 30.0, 4.0, 4.6, 15.0)])
     assert v["dist_LB"] == pytest.approx(30.0 - 4.6) and v["closing_LB"] == pytest.approx(-5.0)
 
@@ -321,14 +321,14 @@ def test_rear_a_car_just_behind_reads_the_bumper_gap(tracks):
 def test_rear_a_car_wholly_ahead_does_not_count(tracks):
     half = (HOST + 4.4) / 2
     v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT + half, 4.0, 4.4, 30.0), (S_STRAIGHT + 20, -4.0, 4.4, 30.0)])
-    assert v == {"dist_LB": 60.0, "dist_RB": 60.0, "closing_LB": 0.0, "closing_RB": 0.0}
+    assert v == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
 
 
-def test_rear_range_is_60_m_beyond_it_the_inactive_values(tracks):
-    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 59.9, 4.0, 4.6, 30.0)])
-    assert v["dist_LB"] == pytest.approx(59.9) and v["closing_LB"] == pytest.approx(10.0)
-    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 60.1, 4.0, 4.6, 30.0)])
-    assert (v["dist_LB"], v["closing_LB"]) == (60.0, 0.0)
+def test_rear_range_is_100_m_beyond_it_the_inactive_values(tracks):
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 99.9, 4.0, 4.6, 30.0)])
+    assert v["dist_LB"] == pytest.approx(99.9) and v["closing_LB"] == pytest.approx(10.0)
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 100.1, 4.0, 4.6, 30.0)])
+    assert (v["dist_LB"], v["closing_LB"]) == (100.0, 0.0)
 
 
 def test_rear_nearest_car_per_lane_and_the_faster_of_two_alongside(tracks):
@@ -341,28 +341,28 @@ def test_rear_nearest_car_per_lane_and_the_faster_of_two_alongside(tracks):
 def test_rear_only_the_lanes_beside_count_not_the_hosts_own_or_two_away(tracks):
     cars = [(S_STRAIGHT - 10, 0.0, 4.6, 30.0), (S_STRAIGHT - 10, -6.0, 4.6, 30.0)]   # 4 lanes: lanes 2 and 3
     v = rear(tracks[4], 1.5, cars=cars)   # host in lane 1 (d 1.5): left lane 0, right lane 2
-    assert v["dist_RB"] == pytest.approx(10.0 - 4.6) and v["dist_LB"] == 60.0
+    assert v["dist_RB"] == pytest.approx(10.0 - 4.6) and v["dist_LB"] == 100.0
     v = rear(tracks[4], 1.5, cars=[(S_STRAIGHT - 10, 2.0, 4.6, 30.0)])                # same lane as the host
-    assert v == {"dist_LB": 60.0, "dist_RB": 60.0, "closing_LB": 0.0, "closing_RB": 0.0}
+    assert v == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
 
 
 def test_rear_lanes_that_do_not_exist_read_the_inactive_values(tracks):
     cars = [(S_STRAIGHT - 10, 4.0, 4.6, 30.0), (S_STRAIGHT - 10, -4.0, 4.6, 30.0)]
     left = rear(tracks[3], 4.0, cars=cars)     # leftmost lane: no lane to the left
-    assert (left["dist_LB"], left["closing_LB"]) == (60.0, 0.0) and left["dist_RB"] == 60.0
+    assert (left["dist_LB"], left["closing_LB"]) == (100.0, 0.0) and left["dist_RB"] == 100.0
     right = rear(tracks[3], -4.0, cars=cars)   # rightmost lane
-    assert (right["dist_RB"], right["closing_RB"]) == (60.0, 0.0) and right["dist_LB"] == 60.0
+    assert (right["dist_RB"], right["closing_RB"]) == (100.0, 0.0) and right["dist_LB"] == 100.0
     one = rear(tracks[1], 0.0, cars=[(S_STRAIGHT - 5, 0.5, 4.6, 30.0)])
-    assert one == {"dist_LB": 60.0, "dist_RB": 60.0, "closing_LB": 0.0, "closing_RB": 0.0}
+    assert one == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
     two = rear(tracks[2], -2.0, cars=[(S_STRAIGHT - 10, 2.0, 4.6, 22.0)])
     assert two["dist_LB"] == pytest.approx(5.4) and two["closing_LB"] == pytest.approx(2.0)
-    assert (two["dist_RB"], two["closing_RB"]) == (60.0, 0.0)
+    assert (two["dist_RB"], two["closing_RB"]) == (100.0, 0.0)
 
 
 def test_rear_lanes_follow_lanes_left_on_a_marking_too(tracks):
     cars = [(S_STRAIGHT - 10, 4.0, 4.6, 30.0), (S_STRAIGHT - 10, 0.0, 4.6, 25.0)]
     v = rear(tracks[3], 2.3, cars=cars)   # astride m_1 = 2, centre in lane 0: the lane to its right is lane 1
-    assert v["dist_LB"] == 60.0 and v["dist_RB"] == pytest.approx(5.4) and v["closing_RB"] == pytest.approx(5.0)
+    assert v["dist_LB"] == 100.0 and v["dist_RB"] == pytest.approx(5.4) and v["closing_RB"] == pytest.approx(5.0)
     v = rear(tracks[3], 2.0, cars=cars)   # exactly on m_1: in lane 1, lane 0 on its left
     assert v["dist_LB"] == pytest.approx(5.4) and v["closing_LB"] == pytest.approx(10.0)
 

@@ -155,14 +155,15 @@ def describe_contact(entries: list[Entry], track) -> str:
     return text + ("; " + ", ".join(changed) if changed else "")
 
 
-def rear_text(rear) -> str:
-    """The rear labels as a line: "left 3.2 m closing +4.1 m/s (needs 11.2 m), right none within 60 m"."""
+def rear_text(rear, speed: float) -> str:
+    """The rear labels as a line: "left 3.2 m closing +4.1 m/s (safe gap 11.2 m), right none within 100 m", the
+    safe gap (the lookout's L1) for a host at `speed` [m/s]."""
     v = dict(zip(REAR, np.asarray(rear, dtype=np.float64).tolist()))
     parts = []
     for side, k in (("left", "L"), ("right", "R")):
         gap, closing = v[f"dist_{k}B"], v[f"closing_{k}B"]
         parts.append(f"{side} none within {REAR_RANGE:.0f} m" if gap >= REAR_RANGE else
-                     f"{side} {gap:.1f} m closing {closing:+.1f} m/s (safe gap {safe_gap(closing):.1f} m)")
+                     f"{side} {gap:.1f} m closing {closing:+.1f} m/s (safe gap {safe_gap(closing, speed):.1f} m)")
     return ", ".join(parts)
 
 
@@ -183,8 +184,9 @@ def rule_at_fault(entries: list[Entry], dt: float) -> str:
             k = "L" if side == "left" else "R"
             rear = dict(zip(REAR, e.obs.truth.rear.tolist()))
             gap, closing = rear[f"dist_{k}B"], rear[f"closing_{k}B"]
-            held = "nothing within 60 m" if gap >= REAR_RANGE else \
-                f"a car {gap:.1f} m behind closing at {closing:+.1f} m/s (safe gap {safe_gap(closing):.1f} m)"
+            held = f"nothing within {REAR_RANGE:.0f} m" if gap >= REAR_RANGE else \
+                (f"a car {gap:.1f} m behind closing at {closing:+.1f} m/s (safe gap "
+                 f"{safe_gap(closing, float(e.obs.truth.speed)):.1f} m)")
             ahead = e.obs.truth.indicators[INDEX["dist_LL" if side == "left" else "dist_RR"]]
             return (f"{rule} started a change to the {side} {t_event - float(e.obs.t):.1f} s before; beside and "
                     f"behind in that lane: {held}; ahead in it: {ahead:.1f} m")
@@ -318,7 +320,7 @@ class ClipRecorder:
             lines.append((f"largest error in the 5 s before: {blame['indicator']} (mean |error| "
                           f"{blame['mean_error']:g}, {blame['normalised']:.2f} of its scale; then {then})",
                           (255, 140, 140)))
-        lines.append((f"beside and behind (truth): {rear_text(truth.rear)}", (235, 235, 235)))
+        lines.append((f"beside and behind (truth): {rear_text(truth.rear, float(truth.speed))}", (235, 235, 235)))
         lines.append((f"contact: {info['contact']}", (235, 235, 235)))
         if info.get("rule"):
             lines.append((f"rule: {info['rule']}", (255, 210, 90)))
