@@ -48,11 +48,12 @@ class ChenDriver:
         self.lookout = lookout
         self.smoothing, self.gap_hold = smoothing, gap_hold
         self.timings = {"perception": 0.0, "control": 0.0}
-        self.controller = None
+        self.controller: ChenController | None = None
         self._i_speed, self._i_lanes = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
         self._slots = [] if predictor is None else [(i, ESTIMATE_INDEX[n]) for i, n in
                                                     enumerate(predictor.outputs) if n in ESTIMATE_INDEX]
-        self._smoothed = self._held = None
+        self._smoothed: np.ndarray | None = None
+        self._held: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -84,9 +85,10 @@ class ChenDriver:
         est = self.estimate(percept)
         t1 = time.perf_counter()
         lanes = int(percept.record[self._i_lanes])
-        if self.controller is None or self.controller.lanes != lanes:
-            self.controller = make_controller(lanes, self.lookout)
-        action = act_on(self.controller, est, float(percept.record[self._i_speed]))
+        controller = self.controller
+        if controller is None or controller.lanes != lanes:
+            controller = self.controller = make_controller(lanes, self.lookout)
+        action = act_on(controller, est, float(percept.record[self._i_speed]))
         self.timings["perception"] += t1 - t0
         self.timings["control"] += time.perf_counter() - t1
         return action.as_array(), est

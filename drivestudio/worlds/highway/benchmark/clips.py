@@ -27,6 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from controller.highway import ChenController
 from controller.highway.lookout import LookoutController, safe_gap
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, REAR, REAR_RANGE
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
@@ -66,20 +67,20 @@ class ShadowController:
     """The driver's controller, replayed on the world side from the estimates the driver reported."""
 
     def __init__(self, lookout: bool = False):
-        self.ctrl = None
+        self.ctrl: ChenController | None = None
         self.lookout = lookout
         self.agreed = True
 
     def __call__(self, rec) -> dict:
         record = rec.obs.record
         lanes = int(record[_I_LANES])
-        if self.ctrl is None or self.ctrl.lanes != lanes:
-            self.ctrl = make_controller(lanes, self.lookout)
+        c = self.ctrl
+        if c is None or c.lanes != lanes:
+            c = self.ctrl = make_controller(lanes, self.lookout)
         estimate = np.asarray(rec.estimate, dtype=np.float64)
-        action = act_on(self.ctrl, estimate, float(record[_I_SPEED])).as_array()
+        action = act_on(c, estimate, float(record[_I_SPEED])).as_array()
         same = bool(np.allclose(action, np.asarray(rec.action, dtype=np.float64), rtol=0, atol=1e-9))
         self.agreed &= same
-        c = self.ctrl
         dist_mm = float(np.nan_to_num(estimate[INDEX["dist_MM"]], nan=0.0))
         follow = c.follow_speed(dist_mm) if c.state == "keep" and dist_mm < c.params.follow_gap else None
         out = {"state": c.state, "left_clear": c.left_clear, "right_clear": c.right_clear,
@@ -180,7 +181,7 @@ def rule_at_fault(entries: list[Entry], dt: float) -> str:
             e = entries[i]
             side = states[i].split("-")[0]
             rule = {"overtake": "rule 2 (overtake)", "preference": "rule 3 (lane preference)"}.get(
-                e.control.get("reason", ""), "a forced change")
+                (e.control or {}).get("reason", ""), "a forced change")
             k = "L" if side == "left" else "R"
             rear = dict(zip(REAR, e.obs.truth.rear.tolist()))
             gap, closing = rear[f"dist_{k}B"], rear[f"closing_{k}B"]

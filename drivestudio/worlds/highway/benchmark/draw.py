@@ -102,6 +102,7 @@ def main(argv=None) -> int:
     ap.add_argument("--name", help="the suite's name (default: the output file's name)")
     ap.add_argument("--out", required=True, help="the suite file to write (.json)")
     args = ap.parse_args(argv)
+    errors: tuple[type[BaseException], ...] = (ValueError, *input_errors())
     try:
         if args.lanes[0] > args.lanes[1] or args.cars[0] > args.cars[1]:
             raise ValueError("--lanes and --cars take LO HI with LO <= HI")
@@ -111,7 +112,7 @@ def main(argv=None) -> int:
                                           args.seconds))
         parse_suite(json.loads(text), show_path(out), out.resolve().parent)   # a name or route it cannot drive
         atomic_write(out, text.encode())
-    except (ValueError, *input_errors()) as e:
+    except errors as e:
         print(f"{ap.prog}: error: {e}", file=sys.stderr)
         return 2
     print(f"wrote {out}: {args.routes} routes drawn from seed {args.seed}")

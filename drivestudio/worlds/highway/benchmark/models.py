@@ -112,13 +112,14 @@ def check_model(text: str) -> ModelSpec:
     from drivestudio.checkpoints import check_checkpoint_path
     from perception.checkpoint import load_checkpoint
     from perception.models import check_spec, describe
-    check_checkpoint_path(path)
+    check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]
     check_spec(spec, path)
     label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
                                                                for f, a in filters.items())
-    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]), **filters)
+    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
+                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0))
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:
