@@ -16,7 +16,10 @@ the lanes left and right, and its closing speed) and adds three rules to docs/co
         closer than ahead_min;
     L3  pull out behind the leader: until the host car is laterally clear of the lane it leaves (its centre
         clear_margin past the marking), its speed stays within the follow curve (rule 2) of the car ahead in
-        that lane.
+        that lane;
+    L4  cross at lane keeping's gain: phase 2 of a change (and of an abort's way back) steers with coe_phase_2
+        (rule 4's 1.5) instead of 20, with which a change to the inside of a bend of 100 m radius or less stalls
+        on the marking.
 
 Everything else is the Chen controller, unchanged. Depends only on numpy and the highway's declaration.
 """
@@ -43,7 +46,8 @@ class LookoutParams:
     margin_time: float = 0.7         # [s] L1's closing time beyond the crossing
     follower_decel: float = 4.0      # [m/s^2] the follower's braking: the calmest SUMO driver's comfortable decel
     ahead_min: float = 10.0        # [m] centre to centre: a car this close ahead in the target lane aborts (L2)
-    clear_margin: float = 0.3      # [m] past the marking the host's body is clear of the leader it pulls out from
+    clear_margin: float = 0.3        # [m] past the marking the host's body is clear of the leader it pulls out from
+    coe_phase_2: float = 1.5         # [-] L4: the steering divisor of phase 2 (rule 4's coe_keep, not rule 5's 20)
 
 
 MIN_SPEED = 0.5   # [m/s] crossing() of a (nearly) standing host: as at this speed (28 s at 14 m)
@@ -123,7 +127,10 @@ class LookoutController(ChenController):
     def _target(self, v: dict[str, float]) -> float:
         if self._state in LEFT_CHANGE + RIGHT_CHANGE and not self._crossed(v) and not self._still_safe(v):
             self._abort(v)
-        return super()._target(v)
+        center_line = super()._target(v)
+        if self._state in (LEFT_2, RIGHT_2):
+            self._coe_steer = self.lookout.coe_phase_2   # L4
+        return center_line
 
     def _crossed(self, v: dict[str, float]) -> bool:
         """The host car's centre is past the marking it is crossing (the on-marking toMarking_M changed sign)."""
@@ -149,8 +156,7 @@ class LookoutController(ChenController):
         if self._state in (LEFT_1, RIGHT_1) and self._in_lane_valid(v):
             self._state = KEEP
         else:
-            self._state = RIGHT_2 if self._state in LEFT_CHANGE else LEFT_2
-            self._coe_steer = self.params.coe_change   # firmly back, as a change's phase 1 steers
+            self._state = RIGHT_2 if self._state in LEFT_CHANGE else LEFT_2   # L4 sets its gain
         self._left_timer = self._right_timer = 0        # both lanes prove clear afresh, as after a change
 
     # --- L3: pull out behind the leader -------------------------------------------------------------------------

@@ -48,7 +48,7 @@ def warm(lanes=3, lane=1, behind=NOTHING, **given):
 def test_the_lookout_holds_the_documented_constants():
     p = LookoutParams()
     assert (p.min_gap, p.crossing_distance, p.min_crossing_time, p.margin_time, p.follower_decel, p.ahead_min,
-            p.clear_margin) == (5.0, 14.0, 0.7, 0.7, 4.0, 10.0, 0.3)
+            p.clear_margin, p.coe_phase_2) == (5.0, 14.0, 0.7, 0.7, 4.0, 10.0, 0.3, 1.5)
 
 
 def test_crossing_takes_14_m_of_road_but_never_less_than_0_7_s():
@@ -66,17 +66,20 @@ def test_safe_gap_is_min_gap_plus_the_closing_during_the_crossing_plus_the_follo
 @pytest.mark.parametrize("speed", [3.0, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0])
 def test_crossing_is_what_the_chen_controllers_change_takes_on_the_kinematic_car(speed):
     """crossing(v) is measured: from begin_lane_change until the host's centre is across the marking, at a speed
-    held constant (L3 may hold it), the host covers 13-14 m of road; above 20 m/s the steering rate caps it."""
+    held constant (L3 may hold it), the host covers 13-14 m of road; above 20 m/s the steering rate caps it. The
+    lookout's own change (L4's stronger phase 2) is no slower."""
     tr = load_track("oval", lanes=3)
-    state = VehicleState(s=50.0, d=float(tr.lane_centres[1]), speed=speed)
-    ctrl = ChenController(3)
-    ctrl.begin_lane_change("left")
-    t = 0.0
-    while state.d < tr.markings[1]:
-        a = ctrl.act(affordances(tr, state.s, state.d, state.heading), state.speed)
-        state = replace(step_vehicle(state, Action(a.steer, 0.0, 0.0), 0.1, tr), speed=speed)
-        t += 0.1
-    assert crossing(speed) - 0.3 <= t <= crossing(speed) + 0.1 + 1e-9
+    for ctrl in (ChenController(3), LookoutController(3)):
+        state = VehicleState(s=50.0, d=float(tr.lane_centres[1]), speed=speed)
+        ctrl.begin_lane_change("left")
+        t = 0.0
+        while state.d < tr.markings[1]:
+            a = ctrl.act(affordances(tr, state.s, state.d, state.heading), state.speed)
+            state = replace(step_vehicle(state, Action(a.steer, 0.0, 0.0), 0.1, tr), speed=speed)
+            t += 0.1
+        assert t <= crossing(speed) + 0.1 + 1e-9
+        if isinstance(ctrl, ChenController) and not isinstance(ctrl, LookoutController):
+            assert crossing(speed) - 0.3 <= t
 
 
 def test_with_nothing_beside_or_behind_it_steers_as_the_chen_controller():
@@ -160,9 +163,9 @@ def test_L2_aborts_on_the_marking_before_the_centre_crosses_it():
     assert ctrl.state == "left-2"
     s = ctrl.act(ind(toMarking_L=-4.1, toMarking_M=-0.1, toMarking_R=3.9, dist_L=60.0, dist_R=10.0), V,
                  rear(dist_LB=0.0, closing_LB=2.0)).steer
-    # the mirror change's phase 2 aims at the lane right of the marking, (R + M) / 2, with phase 1's gain 6
+    # the mirror change's phase 2 aims at the lane right of the marking, (R + M) / 2, with L4's gain 1.5
     assert ctrl.state == "right-2" and ctrl.aborts == 1
-    assert s == pytest.approx(-((3.9 - 0.1) / 2) / 8 / 0.541052 / 6)
+    assert s == pytest.approx(max(-1.0, -((3.9 - 0.1) / 2) / 8 / 0.541052 / 1.5))
 
 
 def test_L2_does_not_abort_once_the_centre_has_crossed():
@@ -211,6 +214,46 @@ def test_L3_holds_the_follow_speed_of_the_leader_until_laterally_clear():
     assert a.brake > 0                                    # 0.29 m past the marking: not yet clear
     a = ctrl.act(ind(**{**on_marking, "toMarking_M": 0.31, "toMarking_L": -3.69}), 12.0, NOTHING)
     assert a.accel > 0 and a.brake == 0                   # clear: free to accelerate
+
+
+# --- L4: cross at lane keeping's gain --------------------------------------------------------------------------------
+def test_L4_phase_2_steers_with_lane_keepings_gain_not_20():
+    ctrl, chen = warm(), ChenController(3)
+    feed(chen, in_lane(), 61)
+    on_marking = ind(toMarking_L=-4.2, toMarking_M=-0.2, toMarking_R=3.8)
+    for c in (ctrl, chen):
+        c.act(in_lane(dist_MM=10.0), V, NOTHING) if c is ctrl else c.act(in_lane(dist_MM=10.0), V)
+    s_look = ctrl.act(on_marking, V, NOTHING).steer
+    s_chen = chen.act(on_marking, V).steer
+    assert ctrl.state == chen.state == "left-2"
+    assert s_chen == pytest.approx(2.2 / 8 / 0.541052 / 20) and s_look == pytest.approx(2.2 / 8 / 0.541052 / 1.5)
+
+
+def bend(turn: str):
+    """Two 4 m lanes; the host enters a 60 m arc turning `turn` (half circles joined by 100 m straights)."""
+    from sim.track import track_from_spec
+    arc = {"type": "arc", "radius": 60, "angle_deg": 180, "turn": turn}
+    return track_from_spec({"name": "bend", "lanes": 2, "lane_width": 4.0, "segments": [
+        {"type": "straight", "length": 100}, arc, {"type": "straight", "length": 100}, arc]})
+
+
+@pytest.mark.parametrize("speed", [8.0, 14.0, 20.0])
+def test_L4_a_change_to_the_inside_of_a_tight_bend_completes(speed):
+    """On a 60 m bend the paper's phase 2 (coe 20) cannot turn with the road and the host drifts back across the
+    marking; the lookout's change ends in the target lane (speed held, the controller steering)."""
+    tr = bend("left")
+    results = {}
+    for name, ctrl in (("chen", ChenController(2)), ("lookout", LookoutController(2))):
+        state = VehicleState(s=110.0, d=float(tr.lane_centres[1]), speed=speed)
+        ctrl.begin_lane_change("left")
+        for _ in range(100):
+            a = ctrl.act(affordances(tr, state.s, state.d, state.heading), state.speed)
+            state = replace(step_vehicle(state, Action(a.steer, 0.0, 0.0), 0.1, tr), speed=speed)
+            if ctrl.state == "keep":
+                break
+        results[name] = (ctrl.state, tr.lane_of(state.d))
+    assert results["lookout"] == ("keep", 0)
+    assert results["chen"] != ("keep", 0)
 
 
 # --- closed loop on the kinematic car -----------------------------------------------------------------------------

@@ -266,7 +266,7 @@ class ClipRecorder:
         writer = VideoWriter(self.dir / name)
         try:
             for entry in p.before + p.after:
-                writer.write(self._frame(entry, t, info))
+                writer.write(self.frame(entry, t, info))
             writer.close()
         except BaseException:
             writer.abort()
@@ -274,7 +274,8 @@ class ClipRecorder:
         info["file"] = name
         self.clips.append(info)
 
-    def _frame(self, entry: Entry, t_event: float, info: dict) -> np.ndarray:
+    def frame(self, entry: Entry, t_event: float, info: dict, mark: bool = True) -> np.ndarray:
+        """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""
         from drivestudio.worlds.highway.overlays import overlay_observation
         obs = entry.obs
         truth = obs.truth
@@ -290,7 +291,7 @@ class ClipRecorder:
         top = overlay_observation(obs, est, self.world.track, title, ll, label=label)
         panel = self._panel(entry, obs.t - t_event, info, top.shape[1])
         frame = np.vstack([top, panel])
-        if obs.t >= t_event - 1e-6:   # from the event on: a red frame
+        if mark and obs.t >= t_event - 1e-6:   # from the event on: a red frame
             cv2.rectangle(frame, (0, 0), (frame.shape[1] - 1, frame.shape[0] - 1), (230, 30, 30), 6)
         return frame
 
