@@ -83,7 +83,8 @@ def test_crossing_is_what_the_chen_controllers_change_takes_on_the_kinematic_car
 
 
 def test_with_nothing_beside_or_behind_it_steers_as_the_chen_controller():
-    """L1 and L2 never act on an empty road; only L3 changes the speed, and only during a lane change."""
+    """L1 and L2 never act on an empty road; L3 changes the speed only during a lane change (and L4 the steering
+    only in phase 2, which these in-lane frames never reach)."""
     chen, look = ChenController(3), LookoutController(3)
     vectors = [in_lane(offset=0.3 * np.sin(i / 7), dist_MM=30 - i / 5, angle=0.02 * np.cos(i / 5))
                for i in range(150)]

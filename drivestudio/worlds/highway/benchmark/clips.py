@@ -34,7 +34,7 @@ from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 from drivestudio.worlds.highway.drivers import act_on, make_controller
 
-PANEL_HEIGHT = 162
+PANEL_HEIGHT = 184
 LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
 GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller reacts to cars within 20 m (rule 1)
                            # and 15 m (rule 2; its follow speed is 97 % of v_max at 30 m), so 60 read as 40 is no fault
@@ -325,7 +325,10 @@ class ClipRecorder:
         lines.append((f"beside and behind (truth): {rear_text(truth.rear, float(truth.speed))}", (235, 235, 235)))
         lines.append((f"contact: {info['contact']}", (235, 235, 235)))
         if info.get("rule"):
-            lines.append((f"rule: {info['rule']}", (255, 210, 90)))
+            head, _, tail = info["rule"].partition("; ")   # the rule, then what the target lane held
+            lines.append((f"rule: {head}" + (";" if tail else ""), (255, 210, 90)))
+            if tail:
+                lines.append((f"      {tail}", (255, 210, 90)))
         for i, (text, colour) in enumerate(lines):
             cv2.putText(img, text[:150], (10, 20 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
         return img
