@@ -51,43 +51,34 @@ def lane_gaps(track: Track, ego_s: float, cars_s, cars_d) -> np.ndarray:
     return gaps
 
 
-def rear_cars(track: Track, ego_s: float, host_length: float, host_speed: float, cars_s, cars_d, cars_length,
-              cars_speed) -> tuple[np.ndarray, np.ndarray]:
-    """Per lane (0 = leftmost): the bumper-to-bumper gap [m] to the nearest car alongside or behind the host car,
-    and that car's closing speed [m/s] (its speed minus the host's).
+def rear_indicators(track: Track, ego_s: float, ego_d: float, host_length: float, host_speed: float, cars_s=(),
+                    cars_d=(), cars_length=(), cars_speed=()) -> np.ndarray:
+    """dist_LB, dist_RB, closing_LB, closing_RB (core/worlds/highway.py REAR order): for the lanes left and right of
+    the host car's lane k = lanes_left, the bumper-to-bumper gap [m] to the nearest car alongside or behind the
+    host, and that car's closing speed [m/s] (its speed minus the host's).
 
     A car counts when it is not wholly ahead (s_car - s_host < (host_length + car_length) / 2) and its gap,
     s_host - s_car - (host_length + car_length) / 2 along the centreline, is below REAR_RANGE; the gap is 0 while
-    it overlaps the host's length. Of equal gaps the faster car counts. A lane with no such car reads
-    (REAR_RANGE, CLOSING_INACTIVE)."""
-    gaps = np.full(track.lanes, REAR_RANGE)
-    closing = np.full(track.lanes, CLOSING_INACTIVE)
-    cars_s = np.asarray(cars_s, dtype=np.float64)
-    if cars_s.size:
-        half = (host_length + np.asarray(cars_length, dtype=np.float64)) / 2
-        behind = -track.gap(ego_s, cars_s) - half          # bumper gap; negative: overlapping or ahead
-        gap = np.maximum(behind, 0.0)
-        close = np.asarray(cars_speed, dtype=np.float64) - host_speed
-        lanes = track.lane_of(np.asarray(cars_d, dtype=np.float64))
-        counted = (behind > -2 * half) & (gap < REAR_RANGE)   # -2 half: the car's rear is at the host's front
-        for k in range(track.lanes):
-            m = np.flatnonzero(counted & (lanes == k))
-            if m.size:
-                i = m[np.lexsort((-close[m], gap[m]))[0]]
-                gaps[k], closing[k] = gap[i], close[i]
-    return gaps, closing
-
-
-def rear_indicators(track: Track, ego_s: float, ego_d: float, host_length: float, host_speed: float, cars_s=(),
-                    cars_d=(), cars_length=(), cars_speed=()) -> np.ndarray:
-    """dist_LB, dist_RB, closing_LB, closing_RB (core/worlds/highway.py REAR order) for the lanes left and right of
-    the host car's lane k = lanes_left; a lane that does not exist reads REAR_RANGE and CLOSING_INACTIVE."""
-    gaps, closing = rear_cars(track, ego_s, host_length, host_speed, cars_s, cars_d, cars_length, cars_speed)
-    k = track.lane_of(ego_d)
+    it overlaps the host's length. Of equal gaps the faster car counts. A lane that does not exist, or holds no such
+    car, reads REAR_RANGE and CLOSING_INACTIVE."""
     out = np.array([REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE, CLOSING_INACTIVE])
+    cars_s = np.asarray(cars_s, dtype=np.float64)
+    if not cars_s.size:
+        return out
+    half = (host_length + np.asarray(cars_length, dtype=np.float64)) / 2
+    behind = -track.gap(ego_s, cars_s) - half            # bumper gap; negative: overlapping or ahead
+    near = np.flatnonzero((behind > -2 * half) & (behind < REAR_RANGE))   # -2 half: its rear at the host's front
+    if not near.size:
+        return out
+    lanes = track.lane_of(np.asarray(cars_d, dtype=np.float64)[near])
+    gap = np.maximum(behind[near], 0.0)
+    close = np.asarray(cars_speed, dtype=np.float64)[near] - host_speed
+    k = track.lane_of(ego_d)
     for i, lane in enumerate((k - 1, k + 1)):
-        if 0 <= lane < track.lanes:
-            out[i], out[2 + i] = gaps[lane], closing[lane]
+        m = np.flatnonzero(lanes == lane)   # no car is in a lane that does not exist
+        if m.size:
+            j = m[np.lexsort((-close[m], gap[m]))[0]]
+            out[i], out[2 + i] = gap[j], close[j]
     return out
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
+from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds.base import Episode, Plugin, WorldOptions
@@ -122,7 +122,8 @@ class Plugin(Plugin):
         truth = np.array([record[n] for n in INDICATORS], dtype=np.float64)
         est, ll = self._estimate(estimate)
         title = f"episode {record['episode']} frame {record['step']}  {record['track']}, {record['lanes']} lanes"
-        return overlay_record(images[0], record, truth, est, title, ll, label)
+        rear = None if estimate is None else np.array([estimate.get(n, np.nan) for n in REAR], dtype=np.float64)
+        return overlay_record(images[0], record, truth, est, title, ll, label, rear)
 
     def overlay_error(self, record: dict, estimate: dict | None) -> float:
         from perception.highway.overlay import mean_normalised_error

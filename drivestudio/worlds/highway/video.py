@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.worlds.highway import INDICATORS
+from core.worlds.highway import INDICATORS, REAR
 from drivestudio.loop import StepRecord
 from drivestudio.outputs import VideoWriter
 from drivestudio.worlds.highway.drivers import ESTIMATE_INDEX, ORACLES
@@ -24,9 +24,10 @@ class OverlayRecorder:
             exact = self.label in ORACLES   # an oracle's estimate is the truth: nothing to draw beside it
             estimate = None if exact else np.asarray(rec.estimate)[:len(INDICATORS)]
             ll = None if exact else rec.estimate[ESTIMATE_INDEX["lanes_left"]]
+            rear = None if exact else np.asarray(rec.estimate)[[ESTIMATE_INDEX[n] for n in REAR]]
             self.writer.write(overlay_observation(rec.obs, estimate, self.world.track, title,
                                                   None if ll is None or not np.isfinite(ll) else float(ll),
-                                                  label=self.label))
+                                                  label=self.label, rear=rear))
 
     def close(self, ok: bool) -> None:
         if self.writer is not None:

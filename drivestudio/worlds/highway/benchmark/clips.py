@@ -41,6 +41,7 @@ GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller re
 CHANGE_BLAME = 2.0         # [s] a lane change over longer than this before a collision is not its cause (as the
                            # route metrics' CHANGE_MARGIN)
 _I_LANES_LEFT_EST = HIGHWAY.estimate_names.index("lanes_left")
+_I_REAR_EST = [HIGHWAY.estimate_names.index(n) for n in REAR]
 _I_SPEED, _I_LANES = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
 
 
@@ -282,13 +283,14 @@ class ClipRecorder:
         title = (f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, "
                  f"{self.route.cars} cars")
         if self.model.exact or not np.isfinite(entry.estimate[:len(PAPER_INDICATORS)]).all():
-            est, ll = None, None
+            est, ll, rear = None, None, None
         else:
             est = entry.estimate[:len(INDICATORS)]
             ll = entry.estimate[_I_LANES_LEFT_EST]
             ll = float(ll) if np.isfinite(ll) else None
+            rear = entry.estimate[_I_REAR_EST]
         label = self.model.family if self.model.exact else (self.model.family or "estimate")
-        top = overlay_observation(obs, est, self.world.track, title, ll, label=label)
+        top = overlay_observation(obs, est, self.world.track, title, ll, label=label, rear=rear)
         panel = self._panel(entry, obs.t - t_event, info, top.shape[1])
         frame = np.vstack([top, panel])
         if mark and obs.t >= t_event - 1e-6:   # from the event on: a red frame
