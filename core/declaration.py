@@ -142,6 +142,7 @@ class WorldDeclaration:
     (typed by kind); every label is also a truth field of the same name. columns: what datasets record besides
     (strings, lists). action: the driver's command, in order. modes: behavioural modes (shared flag `behaviour` on
     the bridge; `mode_field` of the truth record holds the index). targets: the labels a model learns by default.
+    label_sets: named lists of labels a model may learn instead (`train --labels NAME`).
     """
 
     name: str
@@ -156,6 +157,7 @@ class WorldDeclaration:
     mode_field: str | None = None
     moment: Moment = Moment()
     targets: tuple[str, ...] = ()
+    label_sets: tuple[tuple[str, tuple[str, ...]], ...] = ()   # named target lists: (("paper", (...)), ...)
     version: int = 1                              # bump when the meaning of a field changes
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -193,6 +195,12 @@ class WorldDeclaration:
         unknown = [t for t in self.targets if t not in {lab.name for lab in self.labels}]
         if unknown:
             raise DeclarationError(f"world {self.name!r}: default targets {unknown} are not labels")
+        for set_name, names in self.label_sets:
+            _name(set_name, "label set")
+            unknown = [n for n in names if n not in {lab.name for lab in self.labels}]
+            if not names or unknown:
+                raise DeclarationError(f"world {self.name!r}: label set {set_name!r} names no label or unknown "
+                                       f"labels {unknown}")
         if self.modes and (self.mode_field is None or self.mode_field not in index):
             raise DeclarationError(f"world {self.name!r}: behavioural modes need a mode_field of the truth record")
         if not self.moment.instants or self.moment.horizon < 0 or max(self.moment.instants) > 0:
@@ -227,6 +235,14 @@ class WorldDeclaration:
     def outputs(self, targets=None) -> tuple[str, ...]:
         """A model's output names for `targets` (default: the declaration's targets)."""
         return expand(self.targets if targets is None else targets, self.moment.horizon)
+
+    def label_set(self, name: str) -> tuple[str, ...]:
+        """The labels of the named label set, or DeclarationError naming the sets there are."""
+        for set_name, names in self.label_sets:
+            if set_name == name:
+                return tuple(names)
+        known = ", ".join(n for n, _ in self.label_sets) or "none"
+        raise DeclarationError(f"the {self.name} world has no label set {name!r} (label sets: {known})")
 
     def index(self, name: str) -> int:
         """Position of a truth field in the record."""
@@ -359,7 +375,8 @@ class WorldDeclaration:
                 "columns": [plain(c) for c in self.columns], "modes": list(self.modes),
                 "mode_field": self.mode_field, "moment": {"instants": list(self.moment.instants),
                                                           "horizon": self.moment.horizon},
-                "targets": list(self.targets)}
+                "targets": list(self.targets),
+                **({"label_sets": {n: list(v) for n, v in self.label_sets}} if self.label_sets else {})}
 
     @classmethod
     def from_json(cls, obj: Mapping) -> WorldDeclaration:
@@ -379,7 +396,8 @@ class WorldDeclaration:
                        modes=tuple(obj.get("modes", ())), mode_field=obj.get("mode_field"),
                        moment=Moment(tuple(obj.get("moment", {}).get("instants", (0,))),
                                      int(obj.get("moment", {}).get("horizon", 0))),
-                       targets=tuple(obj.get("targets", ())))
+                       targets=tuple(obj.get("targets", ())),
+                       label_sets=tuple((str(n), tuple(v)) for n, v in dict(obj.get("label_sets", {})).items()))
         except (KeyError, TypeError, ValueError) as e:
             if isinstance(e, DeclarationError):
                 raise

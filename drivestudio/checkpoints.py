@@ -25,11 +25,12 @@ def check_device(name: str) -> str:
     return name
 
 
-def check_checkpoint_path(model: str) -> Path:
+def check_checkpoint_path(model: str, drivers: tuple[str, ...] = ("oracle", "expert")) -> Path:
+    """The checkpoint file `model` names; `drivers` are the world's own drivers, named in the message."""
     path = Path(model)
     if not path.is_file():
-        raise UsageError(f"--model must be a world's driver (oracle, expert) or a checkpoint file; no such file: "
-                         f"{model}")
+        raise UsageError(f"--model must be a world's driver ({', '.join(drivers)}) or a checkpoint file; no such "
+                         f"file: {model}")
     return path
 
 

@@ -7,20 +7,16 @@ import os
 import sys
 
 from drivestudio.errors import input_errors, runtime_errors
+from drivestudio.parsing import Parser
 
 VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "overlay", "serve", "drive", "benchmark",
          "aggregate", "recipe", "autonomy", "export", "demo")
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, not a usage dump
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="drivestudio", description="Headless driving world with exact DeepDriving "
+    parser = Parser(prog="drivestudio", description="Headless driving world with exact DeepDriving "
                      "affordances, the models that read them and the loop that drives from them.")
-    sub = parser.add_subparsers(dest="verb", metavar="VERB", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="verb", metavar="VERB", parser_class=Parser)
     sub.required = True
     for verb in VERBS:
         importlib.import_module(f"drivestudio.commands.{verb}").register(sub)

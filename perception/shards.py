@@ -32,7 +32,7 @@ import pyarrow.parquet as pq
 
 from core.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
 from core.files import atomic_write, reclaim_temporaries
-from core.worlds.highway import FRAME, HIGHWAY  # a version-1 dataset is a highway dataset
+from core.worlds.highway import FRAME, HIGHWAY_WITHOUT_REAR  # a version-1 dataset is a highway dataset
 
 FORMAT = "drivestudio-dataset"
 VERSION = 2
@@ -204,7 +204,7 @@ def clean_temporaries(root: Path) -> int:
 # --- the manifest --------------------------------------------------------------------------------------------
 def _v1_declaration(manifest: dict) -> WorldDeclaration:
     cfg = manifest.get("config", {})
-    return HIGHWAY.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
+    return HIGHWAY_WITHOUT_REAR.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
 
 
 def read_manifest(root: Path) -> dict:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from core.declaration import Moment, WorldDeclaration
+from core.declaration import DeclarationError, Moment, WorldDeclaration
 from perception.datasets import FrameDataset
 from perception.models import Regressor, family, fitting
 from perception.shards import Dataset
@@ -31,6 +31,7 @@ class TrainConfig:
     model: str = "alexnet"            # a family of perception/models.py that fits the dataset's world
     out: str = "runs/alexnet.pt"
     targets: str | None = None        # comma-separated labels (default: the world's); "+name" adds to the default
+    labels: str | None = None         # a named label set of the world (highway: paper, extended) as the default
     iterations: int | None = None     # None: the paper's for the model (or from `epochs`)
     epochs: float | None = None       # alternative to iterations: passes over the training split
     batch_size: int | None = None     # None: the paper's (15 AlexNet, 10 VGG-16)
@@ -66,18 +67,29 @@ class TrainConfig:
     def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:
         """The targets of this run for a dataset of world `decl`."""
         return resolve_targets(decl, self.targets, extra=tuple(
-            n for n, on in (("fast", self.fast), ("lanes_left", self.lanes_left)) if on))
+            n for n, on in (("fast", self.fast), ("lanes_left", self.lanes_left)) if on), label_set=self.labels)
 
 
-def resolve_targets(decl: WorldDeclaration, text: str | None, extra=()) -> tuple[str, ...]:
-    """--targets: "a,b" replaces the world's default targets, "+a,+b" adds to them; `extra` adds too."""
+def resolve_targets(decl: WorldDeclaration, text: str | None, extra=(), label_set: str | None = None) \
+        -> tuple[str, ...]:
+    """--targets: "a,b" replaces the default targets, "+a,+b" adds to them; `extra` adds too. The default is the
+    world's, or its label set named by --labels."""
     items = [t.strip() for t in (text or "").split(",") if t.strip()]
+    if label_set is not None:
+        try:
+            default = list(decl.label_set(label_set))
+        except DeclarationError as e:
+            raise TrainingError(f"--labels: {e}") from None
+    else:
+        default = list(decl.targets)
     if items and all(not t.startswith("+") for t in items):
+        if label_set is not None:
+            raise TrainingError("--labels names the targets; --targets may only add to them (+name)")
         names = items
     elif any(not t.startswith("+") for t in items):
         raise TrainingError("--targets takes either names (replacing the defaults) or +names (adding to them)")
     else:
-        names = list(decl.targets) + [t[1:] for t in items]
+        names = default + [t[1:] for t in items]
     names += [n for n in extra if n not in names]
     known = set(decl.label_names)
     unknown = [n for n in names if n not in known]

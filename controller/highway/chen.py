@@ -102,6 +102,7 @@ class ChenController:
         self._pre_ML = INACTIVE["toMarking_ML"]
         self._pre_MR = INACTIVE["toMarking_MR"]
         self._lane_changes = 0
+        self._change_reason = ""
 
     # --- what others read ---------------------------------------------------------------------------------
     @property
@@ -112,6 +113,11 @@ class ChenController:
     @property
     def lane_changes_started(self) -> int:
         return self._lane_changes
+
+    @property
+    def change_reason(self) -> str:
+        """What started the last lane change: "overtake" (rule 2), "preference" (rule 3) or "forced"."""
+        return self._change_reason
 
     @property
     def left_clear(self) -> bool:
@@ -133,7 +139,7 @@ class ChenController:
         if direction not in ("left", "right"):
             raise ValueError(f"direction must be 'left' or 'right', got {direction!r}")
         if self._state == KEEP:
-            self._begin_change(LEFT_1 if direction == "left" else RIGHT_1, overtaking=False)
+            self._begin_change(LEFT_1 if direction == "left" else RIGHT_1, overtaking=False, reason="forced")
 
     # --- one frame ------------------------------------------------------------------------------------------
     def act(self, indicators, speed: float) -> Action:
@@ -148,6 +154,7 @@ class ChenController:
             else:
                 self._prefer_lane(v, trend)
         center_line = self._target(v)
+        slow_down = min(slow_down, self._change_speed_limit(v))
         steer = self._steer(v["angle"], center_line)
         self._steers.append(steer)
         accel, brake = self._speed_control(v["fast"], float(speed), slow_down)
@@ -189,14 +196,25 @@ class ChenController:
     def _may_turn_right(self, trend: float, bounded: bool) -> bool:
         return trend <= 0 and (not bounded or trend > -self.params.steer_trend_bound)
 
+    # --- what a subclass may add (controller/highway/lookout.py); here they change nothing ---------------------
+    def _target_safe(self, side: str, v: dict[str, float]) -> bool:
+        """May a change to `side` ("left" or "right") start now, besides rules 1-3? The paper's driver: always."""
+        return True
+
+    def _change_speed_limit(self, v: dict[str, float]) -> float:
+        """A speed limit [m/s] on top of rules 2 and 7, checked after the state machine ran. Here: none."""
+        return self.params.no_slow_down
+
     def _overtake_or_follow(self, v: dict[str, float], trend: float) -> float:
         """Rule 2 (dist_MM < follow_gap): start an overtake if a neighbour lane is clear, else follow.
 
         Returns slow_down [m/s]."""
         bounded = not self.two_lane  # the two-lane driver has no 0.2 bound on an overtake
-        if self._left_exists(v) and self.left_clear and self._may_turn_left(trend, bounded):
+        if self._left_exists(v) and self.left_clear and self._may_turn_left(trend, bounded) and \
+                self._target_safe("left", v):
             self._begin_change(LEFT_1, overtaking=True)
-        elif self._right_exists(v) and self.right_clear and self._may_turn_right(trend, bounded):
+        elif self._right_exists(v) and self.right_clear and self._may_turn_right(trend, bounded) and \
+                self._target_safe("right", v):
             self._begin_change(RIGHT_1, overtaking=True)
         else:
             return self.follow_speed(v["dist_MM"])
@@ -215,17 +233,21 @@ class ChenController:
         preference is never worth starting a change while the car is turning."""
         left, right = self._left_exists(v), self._right_exists(v)
         if self.two_lane:
-            if right and self.right_clear and self._may_turn_right(trend, bounded=True):
+            if right and self.right_clear and self._may_turn_right(trend, bounded=True) and \
+                    self._target_safe("right", v):
                 self._begin_change(RIGHT_1, overtaking=False)
         elif left and not right and self.left_clear and self._may_turn_left(trend, bounded=True):
-            self._begin_change(LEFT_1, overtaking=False)   # in the rightmost lane: move towards the centre
+            if self._target_safe("left", v):
+                self._begin_change(LEFT_1, overtaking=False)   # in the rightmost lane: move towards the centre
         elif right and not left and self.right_clear and self._may_turn_right(trend, bounded=True):
-            self._begin_change(RIGHT_1, overtaking=False)  # in the leftmost lane: move towards the centre
+            if self._target_safe("right", v):
+                self._begin_change(RIGHT_1, overtaking=False)  # in the leftmost lane: move towards the centre
 
-    def _begin_change(self, state: str, overtaking: bool) -> None:
+    def _begin_change(self, state: str, overtaking: bool, reason: str = "") -> None:
         self._state = state
         self._coe_steer = self.params.coe_change
         self._lane_changes += 1
+        self._change_reason = reason or ("overtake" if overtaking else "preference")
         # both lanes must prove clear afresh before the next change (rule 2 resets both timers)
         self._left_timer = 0
         self._right_timer = 0

@@ -7,7 +7,7 @@ declaration types.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -37,6 +37,23 @@ INACTIVE: dict[str, float] = {
     "dist_L": GAP_INACTIVE, "dist_R": GAP_INACTIVE,
 }
 
+# --- beside and behind: the extended label set (ours, beyond DeepDriving; docs/affordances.md) ------------------
+# The 13 see only cars ahead. For the lanes left and right of the host car's lane k (= lanes_left), the nearest car
+# alongside or behind it: the bumper-to-bumper gap along the centreline (0 while the car overlaps the host's length)
+# and how fast it closes in (its speed minus the host's). A lane that does not exist, or holds no such car within
+# REAR_RANGE, reads REAR_RANGE and a closing speed of 0: nothing there can reach the host.
+REAR: tuple[str, ...] = ("dist_LB", "dist_RB", "closing_LB", "closing_RB")
+REAR_RANGE = 100.0      # [m] rear gaps are measured up to this; also their inactive value
+CLOSING_INACTIVE = 0.0  # [m/s] closing speed when no car is within REAR_RANGE or the lane does not exist
+HOST_LENGTH = 4.6       # [m] the host car's body (sim/highway/vehicle.py VehicleParams.length, SUMO's host)
+
+# Named label sets (`train --labels NAME`): the paper's 13 stay the default; `extended` adds `fast`, `lanes_left`
+# and the four above. Names and order are fixed once published: models trained on a set depend on them.
+LABEL_SETS: dict[str, tuple[str, ...]] = {
+    "paper": PAPER_INDICATORS,
+    "extended": INDICATORS + ("lanes_left",) + REAR,
+}
+
 # DeepDriving's affine maps to about [0.1, 0.9]: normalised = value * scale + offset. lanes_left is ours
 # (0..3 -> 0.1..0.7); angle is additionally clipped to [0, 1].
 NORMALISATION: dict[str, tuple[float, float]] = {
@@ -48,6 +65,9 @@ NORMALISATION: dict[str, tuple[float, float]] = {
     "dist_L": (1 / 95, 0.12), "dist_R": (1 / 95, 0.12),
     "fast": (0.6, 0.2),
     "lanes_left": (0.2, 0.1),
+    # ours: rear gaps 0..100 m and closing speeds -20..20 m/s both to 0.1..0.9
+    "dist_LB": (0.8 / REAR_RANGE, 0.1), "dist_RB": (0.8 / REAR_RANGE, 0.1),
+    "closing_LB": (0.02, 0.5), "closing_RB": (0.02, 0.5),
 }
 
 # A network's estimate of an inactive indicator lands near its inactive value, never on it. These thresholds lie
@@ -126,11 +146,17 @@ _MEANING = {
     "toMarking_R": "d minus the marking right of the one the car is on",
     "dist_L": "gap to the car ahead in the lane left of the marking",
     "dist_R": "gap to the car ahead in the lane right of the marking",
+    "dist_LB": "bumper gap to the nearest car alongside or behind in the lane to the left (0: alongside)",
+    "dist_RB": "bumper gap to the nearest car alongside or behind in the lane to the right (0: alongside)",
+    "closing_LB": "that car's speed minus the host's (positive: it closes in), lane to the left",
+    "closing_RB": "that car's speed minus the host's (positive: it closes in), lane to the right",
 }
+_REAR_INACTIVE = {"dist_LB": REAR_RANGE, "dist_RB": REAR_RANGE, "closing_LB": CLOSING_INACTIVE,
+                  "closing_RB": CLOSING_INACTIVE}
 
 
 def _unit(name: str) -> str:
-    return "rad" if name == "angle" else "0/1" if name == "fast" else "m"
+    return "rad" if name == "angle" else "0/1" if name == "fast" else "m/s" if name.startswith("closing") else "m"
 
 
 HIGHWAY = WorldDeclaration(
@@ -140,7 +166,8 @@ HIGHWAY = WorldDeclaration(
     cameras=(Camera("front", *FRAME),),
     labels=tuple(Label(n, _unit(n), _MEANING[n], *NORMALISATION[n], clip=(0.0, 1.0) if n == "angle" else None,
                        inactive=INACTIVE.get(n)) for n in INDICATORS)
-    + (Label("lanes_left", "count", "lanes to the left of the host car's lane", *NORMALISATION["lanes_left"]),),
+    + (Label("lanes_left", "count", "lanes to the left of the host car's lane", *NORMALISATION["lanes_left"]),)
+    + tuple(Label(n, _unit(n), _MEANING[n], *NORMALISATION[n], inactive=_REAR_INACTIVE[n]) for n in REAR),
     truth=tuple(Quantity(n, _unit(n), "indicator (docs/affordances.md)", "f32") for n in INDICATORS) + (
         Quantity("lanes_left", "count", "lanes to the left of the host car's lane", "i8"),
         Quantity("lanes", "count", "lanes of the road", "i8"),
@@ -155,7 +182,7 @@ HIGHWAY = WorldDeclaration(
         Quantity("d", "m", "lateral offset from the centreline, positive left", "f64"),
         Quantity("collision", "0/1", "1: the host car touches another car", "bool"),
         Quantity("off_road", "0/1", "1: the host car's centre is beyond a road edge", "bool"),
-    ),
+    ) + tuple(Quantity(n, _unit(n), f"{_MEANING[n]} (docs/affordances.md)", "f32") for n in REAR),
     action=(Control("steer", "-", "front wheels, +1 = full lock LEFT (0.541052 rad)", -1.0, 1.0, 0.0),
             Control("accel", "-", "throttle pedal", 0.0, 1.0, 0.0),
             Control("brake", "-", "brake pedal", 0.0, 1.0, 0.0)),
@@ -163,4 +190,12 @@ HIGHWAY = WorldDeclaration(
              Column("perturbation", "str", "what the data-collection expert did at this step"),
              Column("cars", "f32[5]*", "other cars: x, y, yaw, s, d")),
     targets=PAPER_INDICATORS,
+    label_sets=tuple(LABEL_SETS.items()),
 )
+
+# The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came
+# later), so such a dataset still reads with every column it has.
+HIGHWAY_WITHOUT_REAR = replace(
+    HIGHWAY, labels=tuple(lab for lab in HIGHWAY.labels if lab.name not in REAR),
+    truth=tuple(q for q in HIGHWAY.truth if q.name not in REAR),
+    label_sets=tuple((n, v) for n, v in HIGHWAY.label_sets if not set(v) & set(REAR)))

@@ -3,9 +3,10 @@
 Re-run from the repository root with `.venv/bin/python docs/figures/affordance_figures.py`; it needs no network
 and no display (matplotlib's Agg backend) and rewrites docs/img/affordances-*.png and docs/img/controller-*.png.
 Every number in the pictures is computed here, not typed: the indicators by `sim.highway.truth.affordances` on a track
-built with `sim.track.track_from_spec`, the markings and lane centres by the track, the follow curve by
-`ChenController.follow_speed`, the steering curve and the overtakes by running `ChenController` on the exact
-indicators (the overtakes also drive the host car's kinematic model). Edit a scene in SCENES below and re-run.
+built with `sim.track.track_from_spec`, the rear labels by `sim.highway.truth.rear_indicators`, the markings and lane
+centres by the track, the follow curve by `ChenController.follow_speed`, the safe gap by `lookout.safe_gap`, the
+steering curve and the overtakes by running `ChenController` on the exact indicators (the overtakes also drive the
+host car's kinematic model). Edit a scene in SCENES or REAR_SCENES below and re-run.
 """
 from __future__ import annotations
 
@@ -26,8 +27,9 @@ sys.path.insert(0, str(ROOT))
 
 # --- the project's code: every import of it, in one place -------------------------------------------------------
 from controller.highway.chen import ChenController, ChenParams  # noqa: E402
-from core.worlds.highway import INACTIVE, INDICATORS  # noqa: E402  (the highway's declaration)
-from sim.highway.truth import affordances  # noqa: E402
+from controller.highway.lookout import LookoutParams, crossing, safe_gap  # noqa: E402
+from core.worlds.highway import HOST_LENGTH, INACTIVE, INDICATORS, REAR, REAR_RANGE  # noqa: E402  (the declaration)
+from sim.highway.truth import affordances, rear_indicators  # noqa: E402
 from sim.highway.vehicle import VehicleState, step_vehicle  # noqa: E402
 from sim.track import VERGE_WIDTH, track_from_spec  # noqa: E402
 
@@ -503,6 +505,137 @@ def draw_state_machine() -> None:
     save(fig, "controller-states.png")
 
 
+# --- the cars beside and behind (the extended label set) -------------------------------------------------------------
+@dataclass
+class RearScene:
+    title: str
+    lanes: int
+    d: float                 # [m] host car's lateral offset
+    speed: float             # [m/s] host car's speed
+    cars: tuple              # ((gap along s [m] centre to centre, d [m], length [m], speed [m/s]), ...)
+
+
+REAR_SCENES = [
+    RearScene("3 lanes, host in the centre lane", 3, 0.2, 15.0,
+              ((-1.5, 4.1, 4.4, 16.0), (-26.0, 3.9, 4.6, 24.0), (-19.0, -4.0, 4.9, 21.0), (9.0, -4.1, 4.1, 12.0),
+               (-16.0, 0.1, 4.6, 15.0))),
+    RearScene("2 lanes, host in the left lane", 2, 2.1, 20.0, ((-110.0, -2.0, 4.6, 28.0), (8.0, -2.0, 4.4, 18.0))),
+]
+
+
+def draw_rear_panel(ax, s: RearScene) -> dict[str, float]:
+    track = demo_track(s.lanes)
+    cars = np.asarray(s.cars, dtype=float).reshape(-1, 4)
+    v = dict(zip(REAR, (float(x) for x in rear_indicators(
+        track, EGO_S, s.d, HOST_LENGTH, s.speed, EGO_S + cars[:, 0], cars[:, 1], cars[:, 2], cars[:, 3]))))
+    half = track.half_width + VERGE_WIDTH + 0.4
+    y0, y1 = -118.0, 14.0
+    draw_road(ax, track, y0, y1)
+    ax.axhspan(-HOST_LENGTH / 2, HOST_LENGTH / 2, color=HOST, alpha=0.12, zorder=1)
+    ax.axhline(-HOST_LENGTH / 2, color=HOST, lw=0.8, ls="--", zorder=2)
+    ax.axhline(-HOST_LENGTH / 2 - REAR_RANGE, color="black", lw=1.0, ls=(0, (5, 3)), zorder=2)
+    ax.text(half - 0.2, -HOST_LENGTH / 2 - REAR_RANGE + 0.8, f"{REAR_RANGE:.0f} m behind the rear bumper",
+            fontsize=8.5, ha="left", va="bottom", zorder=7, bbox=dict(boxstyle="round,pad=0.1", fc="white",
+                                                                      ec="none", alpha=0.8))
+    for ds, cd, length, speed in cars:
+        ax.add_patch(Rectangle((cd - 0.95, ds - length / 2), 1.9, length, fc=OTHER, ec="black", lw=1, zorder=4))
+        ax.text(cd + 1.15, ds, f"{speed:.0f} m/s", fontsize=8.5, ha="right", va="center", zorder=7)
+    ax.add_patch(Rectangle((s.d - 0.95, -HOST_LENGTH / 2), 1.9, HOST_LENGTH, fc=HOST, ec="black", lw=1.2, zorder=8))
+    ax.text(s.d - 1.15, 0.0, f"{s.speed:.0f} m/s", fontsize=8.5, ha="left", va="center", color=HOST, zorder=9,
+            bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.85))
+    k = track.lane_of(s.d)
+    for side, lane, name in ((+1, k - 1, "LB"), (-1, k + 1, "RB")):
+        gap, closing = v[f"dist_{name}"], v[f"closing_{name}"]
+        if not 0 <= lane < track.lanes:
+            ax.text(track.markings[0 if side > 0 else -1] + side * 1.0, -45.0,
+                    f"dist_{name} = {gap:.0f}, closing_{name} = {closing:+.0f} (no lane)", color="black", fontsize=9,
+                    ha="center", va="center", rotation=90, zorder=7)
+            continue
+        x = track.lane_centres[lane] - side * 1.35
+        if 0 < gap < REAR_RANGE:
+            top = -HOST_LENGTH / 2
+            ax.add_patch(FancyArrowPatch((x, top), (x, top - max(gap, 0.01)), arrowstyle="<|-|>",
+                                         mutation_scale=10, lw=1.8, color=IN_LANE, zorder=6, shrinkA=0, shrinkB=0))
+        text = (f"dist_{name} = {gap:.1f} m" + (" (alongside)" if gap == 0 else "") +
+                f"\nclosing_{name} = {closing:+.1f} m/s" if gap < REAR_RANGE else
+                f"dist_{name} = {gap:.0f}, closing_{name} = {closing:+.0f}\n(no car within {REAR_RANGE:.0f} m)")
+        ax.text(x - side * 0.2, -55.0, text, color=IN_LANE, fontsize=9, fontweight="bold", rotation=90,
+                ha="center", va="center", zorder=7, bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none",
+                                                              alpha=0.85))
+    ax.set_xlim(half, -half)
+    ax.set_ylim(y0, y1)
+    ax.set_xticks(track.lane_centres)
+    ax.set_xticklabels([f"lane {j}" for j in range(track.lanes)], fontsize=9)
+    ax.set_ylabel("along the centreline from the host's centre [m]", fontsize=9)
+    ax.tick_params(axis="y", labelsize=9)
+    ax.set_title(s.title, fontsize=11)
+    return v
+
+
+def draw_rear_labels() -> None:
+    fig, axes = plt.subplots(1, 3, figsize=(14.0, 8.2), dpi=DPI, gridspec_kw=dict(width_ratios=[1, 0.8, 0.9]))
+    values = [draw_rear_panel(ax, s) for ax, s in zip(axes[:2], REAR_SCENES)]
+    ax = axes[2]
+    ax.axis("off")
+    y = 0.98
+    for s, v in zip(REAR_SCENES, values):
+        ax.text(0.0, y, s.title, fontsize=11, fontweight="bold", va="top", transform=ax.transAxes)
+        y -= 0.055
+        for name in REAR:
+            unit = "m/s" if name.startswith("closing") else "m"
+            need = ""
+            if name.startswith("dist") and v[name] < REAR_RANGE:
+                need = f"  (lookout needs {safe_gap(v['closing_' + name[-2:]], s.speed):.1f} m)"
+            ax.text(0.0, y, f"{name:<11}{v[name]:+7.2f} {unit}{need}", family="monospace", fontsize=9.5,
+                    va="top", transform=ax.transAxes)
+            y -= 0.045
+        y -= 0.04
+    notes = ["For the lanes left and right of the host's lane",
+             "(lanes_left), the nearest car alongside or behind:",
+             "bumper-to-bumper gap along the centreline, 0 while",
+             "it overlaps the host's length (red band), and its",
+             "speed minus the host's. A car wholly ahead is a",
+             "dist_LL / dist_RR car, not one of these. No lane,",
+             f"or no car within {REAR_RANGE:.0f} m: {REAR_RANGE:.0f} m and 0 m/s.",
+             "The car 16 m behind in the host's own lane and",
+             "the cars wholly ahead count in no rear label; on",
+             "the left of the 3-lane host only the nearest car",
+             "counts (the faster one further back does not)."]
+    for line in notes:
+        ax.text(0.0, y, line, fontsize=9.5, va="top", transform=ax.transAxes)
+        y -= 0.04
+    fig.suptitle("The cars beside and behind: dist_LB, dist_RB, closing_LB, closing_RB (host red, other cars "
+                 "yellow with their speeds; driving direction up; along-track scale compressed)", fontsize=11.5)
+    fig.tight_layout()
+    save(fig, "affordances-rear.png")
+
+
+def draw_safe_gap() -> None:
+    p = LookoutParams()
+    c = np.linspace(-5.0, 25.0, 301)
+    fig, ax = plt.subplots(figsize=(10.0, 5.6), dpi=DPI)
+    for speed, col in ((8.0, HOST), (14.0, ON_MARKING), (20.0, IN_LANE)):
+        t = crossing(speed, p)
+        ax.plot(c, [safe_gap(x, speed, p) for x in c], color=col, lw=2.3,
+                label=f"host at {speed:g} m/s: crosses in {t:.2f} s; L1 (start) allows {t + p.margin_time:.2f} s")
+        ax.plot(c, [safe_gap(x, speed, p, abort=True) for x in c], color=col, lw=1.4, ls="--",
+                label=f"host at {speed:g} m/s: L2 (abort) below this, {t:.2f} s")
+    ax.axhline(REAR_RANGE, color="black", lw=1, ls=(0, (5, 3)))
+    ax.text(24.8, REAR_RANGE + 1, f"rear labels reach {REAR_RANGE:.0f} m", fontsize=10, va="bottom", ha="right")
+    ax.set_xlabel("c: closing speed of the car beside or behind in the target lane [m/s] "
+                  "(its speed minus the host's, plus what L3 takes off the host)", fontsize=10)
+    ax.set_ylabel("rear gap needed [m] (bumper to bumper)", fontsize=10)
+    ax.set_title(f"The lookout's safe gap need(c, T) = {p.min_gap:g} + c T + c^2 / {2 * p.follower_decel:g} "
+                 "(lookout.safe_gap): a change starts only above\nthe solid curve of the host's speed and is given up "
+                 "(until the centre crosses the marking) below the dashed one", fontsize=11)
+    ax.set_xlim(c[0], c[-1])
+    ax.set_ylim(0, 120)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8.5, bbox_to_anchor=(0.0, 0.8))
+    fig.tight_layout()
+    save(fig, "controller-safe-gap.png")
+
+
 def save(fig, name: str) -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / name
@@ -518,6 +651,8 @@ def main() -> None:
     draw_steering_curve()
     draw_overtakes()
     draw_state_machine()
+    draw_rear_labels()
+    draw_safe_gap()
 
 
 if __name__ == "__main__":

@@ -19,8 +19,8 @@ from drivestudio.numbers import positive
 def register(sub) -> None:
     p = sub.add_parser("drive", help="drive closed loop with a world's own driver or a trained model",
                        description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--model", default=None, help="'oracle' (highway), 'expert' (sidewalk) or a checkpoint "
-                                                 "(default: the world's own driver)")
+    p.add_argument("--model", default=None, help="'oracle' or 'oracle-extended' (highway), 'expert' (sidewalk) or a "
+                                                 "checkpoint (default: the world's own driver)")
     add_device_option(p)
     p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
                                  "world and its options come from there")
@@ -56,7 +56,7 @@ def run(args) -> int:
     out = run_dir(args.out, "drive")
     if args.model not in plugin.expert_names:
         from drivestudio.checkpoints import check_checkpoint_path
-        check_checkpoint_path(args.model)
+        check_checkpoint_path(args.model, plugin.expert_names)
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)
     return drive_session.run_both_sides(args, plugin, out)

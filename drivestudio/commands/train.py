@@ -26,6 +26,10 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="checkpoint file to write (and to continue from if it exists)")
     p.add_argument("--targets", help="comma-separated labels to learn (default: the world's); +NAME adds to the "
                                      "default, e.g. +fast,+lanes_left")
+    p.add_argument("--labels", metavar="SET", help="a named label set of the dataset's world as the targets; "
+                                                   "highway: paper (the default, the paper's 13) or extended (the "
+                                                   "14, lanes_left and the cars beside and behind: "
+                                                   "docs/affordances.md)")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--iterations", type=count(1, 10**8),
                         help="training iterations (default 10000 alexnet, 15000 vgg16)")

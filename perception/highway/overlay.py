@@ -13,6 +13,7 @@ Images are RGB throughout.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -26,6 +27,7 @@ from core.worlds.highway import (
     NEIGHBOUR_LANE,
     ON_MARKING_M,
     PAPER_INDICATORS,
+    REAR,
     lane_centres,
     markings,
 )
@@ -44,7 +46,8 @@ ROAD, GRASS, WHITE, TEXT = (70, 70, 74), (46, 96, 46), (240, 240, 240), (20, 20,
 
 # error bar scales: an error this large fills the bar
 ERROR_SCALE = {"angle": 0.2, **{n: 2.0 for n in PAPER_INDICATORS if n.startswith("toMarking")},
-               **{n: 20.0 for n in PAPER_INDICATORS if n.startswith("dist")}}
+               **{n: 20.0 for n in PAPER_INDICATORS + REAR if n.startswith("dist")},
+               **{n: 5.0 for n in REAR if n.startswith("closing")}}   # closing speeds [m/s]
 
 
 @dataclass
@@ -189,13 +192,17 @@ def draw_topdown(lanes: int, lane_width: float, ego_s: float, ego_d: float, angl
     return img
 
 
-def draw_error_bars(truth: np.ndarray, est: np.ndarray | None, size=(RIGHT, 240)) -> np.ndarray:
+Extra = Sequence[tuple[str, float, float]]   # (label, truth, estimate or NaN) rows after the paper's 13
+
+
+def draw_error_bars(truth: np.ndarray, est: np.ndarray | None, size=(RIGHT, 240), extra: Extra = ()) -> np.ndarray:
     """One row per paper indicator: the true value, the estimate and a bar of |estimate - truth| against its
-    scale (angle 0.2 rad, markings 2 m, gaps 20 m). Without an estimate (the oracle) the rows hold the truth."""
+    scale (angle 0.2 rad, markings 2 m, gaps 20 m). Without an estimate (the oracle) the rows hold the truth.
+    `extra` rows (e.g. the cars beside and behind) follow; an estimate of NaN there is one the model lacks."""
     w, h = size
     img = np.full((h, w, 3), 250, np.uint8)
     names = PAPER_INDICATORS
-    row = (h - 22) / len(names)
+    row = (h - 22) / (len(names) + len(extra))
     font, scale = cv2.FONT_HERSHEY_SIMPLEX, 0.38
     heads = (("truth", 110), ("estimate", 170), ("|error|", 250)) if est is not None else (("truth", 110),)
     for text, x in heads:
@@ -210,26 +217,41 @@ def draw_error_bars(truth: np.ndarray, est: np.ndarray | None, size=(RIGHT, 240)
             continue
         e = float(est[INDEX[name]])
         err = abs(e - t)
-        frac = min(1.0, err / ERROR_SCALE[name])
-        colour = (60, 160, 60) if frac < 0.25 else (230, 160, 0) if frac < 0.75 else (220, 40, 40)
         cv2.putText(img, fmt(e), (170, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
         cv2.putText(img, fmt(err), (250, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
-        cv2.rectangle(img, (310, y + 2), (310 + int(240 * frac), y + int(row) - 3), colour, -1)
-        cv2.rectangle(img, (310, y + 2), (550, y + int(row) - 3), (180, 180, 180), 1)
+        _bar(img, y, row, err / ERROR_SCALE[name])
+    for i, (name, t, e) in enumerate(extra):
+        y = int(20 + (len(names) + i) * row)
+        cv2.putText(img, name, (6, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, f"{t:.2f}", (110, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        if est is None or not np.isfinite(e):
+            continue
+        cv2.putText(img, f"{e:.2f}", (170, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        cv2.putText(img, f"{abs(e - t):.2f}", (250, y + 11), font, scale, TEXT, 1, cv2.LINE_AA)
+        _bar(img, y, row, abs(e - t) / ERROR_SCALE.get(name, 1.0))
     return img
+
+
+def _bar(img: np.ndarray, y: int, row: float, share: float) -> None:
+    """An error bar filled to `share` of its scale: green below a quarter, orange below three quarters, red."""
+    frac = min(1.0, share)
+    colour = (60, 160, 60) if frac < 0.25 else (230, 160, 0) if frac < 0.75 else (220, 40, 40)
+    cv2.rectangle(img, (310, y + 2), (310 + int(240 * frac), y + int(row) - 3), colour, -1)
+    cv2.rectangle(img, (310, y + 2), (550, y + int(row) - 3), (180, 180, 180), 1)
 
 
 def compose(frame: np.ndarray, truth: np.ndarray, estimate: np.ndarray | None, lanes: int, lane_width: float,
             ego_s: float, ego_d: float, cars, title: str = "", lanes_left: float | None = None,
-            label: str = "estimate") -> np.ndarray:
+            label: str = "estimate", extra: Extra = ()) -> np.ndarray:
     """The whole overlay (RGB, 880x660): top-down view | camera frame over the error bars.
 
-    truth/estimate: the 14 indicators (estimate None draws the truth alone); cars: true (gap, d) pairs."""
+    truth/estimate: the 14 indicators (estimate None draws the truth alone); cars: true (gap, d) pairs; extra:
+    more rows of error bars (draw_error_bars)."""
     host = None if estimate is None else estimate_host(estimate, lanes, lane_width, lanes_left, hint_d=ego_d)
     top = draw_topdown(lanes, lane_width, ego_s, ego_d, float(truth[INDEX["angle"]]), cars, host)
     cam = cv2.resize(frame, (RIGHT, int(RIGHT * frame.shape[0] / frame.shape[1])), interpolation=cv2.INTER_NEAREST)
     cam = cam[:420] if cam.shape[0] >= 420 else np.vstack([cam, np.zeros((420 - cam.shape[0], RIGHT, 3), np.uint8)])
-    bars = draw_error_bars(truth, estimate)
+    bars = draw_error_bars(truth, estimate, extra=extra)
     right = np.vstack([cam, bars])
     out = np.hstack([top, right])
     lines = [title] if title else []

@@ -208,6 +208,7 @@ class SumoTraffic:
         idx = np.array(present_idx)
         front = np.array([ls.vehicle.getPosition(self._ids[i]) for i in idx])
         yaw = np.radians(90.0 - np.array([ls.vehicle.getAngle(self._ids[i]) for i in idx]))
+        speed = np.array([ls.vehicle.getSpeed(self._ids[i]) for i in idx])
         half = self.length[idx] / 2
         x, y = front[:, 0] - half * np.cos(yaw), front[:, 1] - half * np.sin(yaw)
         hint = None if self._last_s is None else self._last_s[idx]
@@ -216,7 +217,7 @@ class SumoTraffic:
             self._last_s = np.zeros(self.n_cars)
         self._last_s[idx] = s
         return CarStates(x, y, yaw, np.atleast_1d(s), np.atleast_1d(d), self.length[idx], self.width[idx],
-                         self.models[idx], self.paints[idx])
+                         self.models[idx], self.paints[idx], speed)
 
     def lane_index(self, i: int) -> int:
         """Our lane (0 = leftmost) that SUMO has AI car i on."""

@@ -25,11 +25,12 @@ class CarStates:
     width: np.ndarray   # [m]
     models: np.ndarray  # index into car_models()
     paints: np.ndarray  # index into PAINTS
+    speed: np.ndarray   # [m/s] along the car's heading
 
     @classmethod
     def empty(cls) -> CarStates:
         z = np.zeros(0)
-        return cls(z, z, z, z, z, z, z, np.zeros(0, int), np.zeros(0, int))
+        return cls(z, z, z, z, z, z, z, np.zeros(0, int), np.zeros(0, int), z)
 
     def __len__(self) -> int:
         return len(self.s)
@@ -73,7 +74,7 @@ class ScriptedTraffic:
             return CarStates.empty()
         x, y, yaw = self.track.pose(self.s, self.d)
         return CarStates(x, y, yaw, self.s.copy(), self.d.copy(), self.length, self.width, self.models,
-                         self.paints)
+                         self.paints, self.speed.copy())
 
     def close(self) -> None:
         pass

@@ -10,7 +10,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.worlds.highway import GAP_INACTIVE, GAP_MAX, HIGHWAY, INACTIVE, INDEX, INDICATORS, indicators_to_dict
+from core.worlds.highway import (
+    CLOSING_INACTIVE,
+    GAP_INACTIVE,
+    GAP_MAX,
+    HIGHWAY,
+    HOST_LENGTH,
+    INACTIVE,
+    INDEX,
+    INDICATORS,
+    REAR,
+    REAR_RANGE,
+    indicators_to_dict,
+)
 from sim.track import Track, wrap_angle
 
 IN_LANE_MARGIN = 0.5           # [m] in-lane system: |d - c_k| <= w/2 - margin
@@ -37,6 +49,37 @@ def lane_gaps(track: Track, ego_s: float, cars_s, cars_d) -> np.ndarray:
             if m.any():
                 gaps[k] = min(GAP_MAX, float(ds[m].min()))
     return gaps
+
+
+def rear_indicators(track: Track, ego_s: float, ego_d: float, host_length: float, host_speed: float, cars_s=(),
+                    cars_d=(), cars_length=(), cars_speed=()) -> np.ndarray:
+    """dist_LB, dist_RB, closing_LB, closing_RB (core/worlds/highway.py REAR order): for the lanes left and right of
+    the host car's lane k = lanes_left, the bumper-to-bumper gap [m] to the nearest car alongside or behind the
+    host, and that car's closing speed [m/s] (its speed minus the host's).
+
+    A car counts when it is not wholly ahead (s_car - s_host < (host_length + car_length) / 2) and its gap,
+    s_host - s_car - (host_length + car_length) / 2 along the centreline, is below REAR_RANGE; the gap is 0 while
+    it overlaps the host's length. Of equal gaps the faster car counts. A lane that does not exist, or holds no such
+    car, reads REAR_RANGE and CLOSING_INACTIVE."""
+    out = np.array([REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE, CLOSING_INACTIVE])
+    cars_s = np.asarray(cars_s, dtype=np.float64)
+    if not cars_s.size:
+        return out
+    half = (host_length + np.asarray(cars_length, dtype=np.float64)) / 2
+    behind = -track.gap(ego_s, cars_s) - half            # bumper gap; negative: overlapping or ahead
+    near = np.flatnonzero((behind > -2 * half) & (behind < REAR_RANGE))   # -2 half: its rear at the host's front
+    if not near.size:
+        return out
+    lanes = track.lane_of(np.asarray(cars_d, dtype=np.float64)[near])
+    gap = np.maximum(behind[near], 0.0)
+    close = np.asarray(cars_speed, dtype=np.float64)[near] - host_speed
+    k = track.lane_of(ego_d)
+    for i, lane in enumerate((k - 1, k + 1)):
+        m = np.flatnonzero(lanes == lane)   # no car is in a lane that does not exist
+        if m.size:
+            j = m[np.lexsort((-close[m], gap[m]))[0]]
+            out[i], out[2 + i] = gap[j], close[j]
+    return out
 
 
 def on_marking_index(track: Track, d: float) -> int | None:
@@ -104,6 +147,7 @@ class GroundTruth:
 
     indicators: the 14 in canonical order. ego: [x, y, yaw, s, d] (m, m, rad, m, m). cars: (n, 5) with the
     same columns for every other car. lanes_left: lanes to the left of the host car's lane (Liu and Wang, section 6.5).
+    rear: dist_LB, dist_RB, closing_LB, closing_RB (ours: the cars beside and behind, docs/affordances.md).
     """
 
     indicators: np.ndarray
@@ -115,27 +159,34 @@ class GroundTruth:
     on_marking: bool
     ego: np.ndarray
     cars: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
+    rear: np.ndarray = field(default_factory=lambda: np.array([REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE,
+                                                               CLOSING_INACTIVE]))
 
     def as_dict(self) -> dict:
-        return {**indicators_to_dict(self.indicators), "lanes_left": self.lanes_left, "lanes": self.lanes,
+        return {**indicators_to_dict(self.indicators), "lanes_left": self.lanes_left,
+                **{n: float(v) for n, v in zip(REAR, self.rear)}, "lanes": self.lanes,
                 "lane_width": self.lane_width, "speed": self.speed, "in_lane": self.in_lane,
                 "on_marking": self.on_marking, "ego": self.ego.tolist(), "cars": self.cars.tolist()}
 
 
-def ground_truth(track: Track, ego: np.ndarray, ego_heading: float, speed: float, cars: np.ndarray) -> GroundTruth:
-    """Assemble the full ground truth from poses ([x, y, yaw, s, d] rows) and the host car's relative heading."""
+def ground_truth(track: Track, ego: np.ndarray, ego_heading: float, speed: float, cars: np.ndarray,
+                 cars_length, cars_speed, host_length: float = HOST_LENGTH) -> GroundTruth:
+    """Assemble the full ground truth from poses ([x, y, yaw, s, d] rows), the host car's relative heading, speed
+    [m/s] and length [m], and the other cars' lengths [m] and speeds [m/s]."""
     cars = np.asarray(cars, dtype=np.float64).reshape(-1, 5)
     s, d = float(ego[3]), float(ego[4])
+    rear = rear_indicators(track, s, d, host_length, float(speed), cars[:, 3], cars[:, 4], cars_length, cars_speed)
     return GroundTruth(
         indicators=affordances(track, s, d, ego_heading, cars[:, 3], cars[:, 4]),
         lanes_left=track.lane_of(d), lanes=track.lanes, lane_width=track.lane_width, speed=float(speed),
         in_lane=bool(in_lane_active(track, d)), on_marking=on_marking_index(track, d) is not None,
-        ego=np.asarray(ego, dtype=np.float64), cars=cars)
+        ego=np.asarray(ego, dtype=np.float64), cars=cars, rear=rear)
 
 
-# the truth record after the 14 indicators, in the declaration's order (checked at import)
+# the truth record after the 14 indicators, in the declaration's order (checked at import); the rear labels came
+# last, so that every field before them kept its position
 _RECORD_TAIL = ("lanes_left", "lanes", "lane_width", "speed", "in_lane", "on_marking", "x", "y", "yaw", "s", "d",
-                "collision", "off_road")
+                "collision", "off_road") + REAR
 assert HIGHWAY.truth_names == INDICATORS + _RECORD_TAIL, \
     "sim/highway/truth.py packs the highway's truth record by position"
 
@@ -145,5 +196,5 @@ def truth_record(truth: GroundTruth, collision: bool, off_road: bool) -> np.ndar
     out = np.empty(len(INDICATORS) + len(_RECORD_TAIL))
     out[:len(INDICATORS)] = truth.indicators
     out[len(INDICATORS):] = (truth.lanes_left, truth.lanes, truth.lane_width, truth.speed, truth.in_lane,
-                             truth.on_marking, *truth.ego, collision, off_road)
+                             truth.on_marking, *truth.ego, collision, off_road, *truth.rear)
     return out

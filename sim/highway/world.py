@@ -167,8 +167,9 @@ class World:
         t0 = time.perf_counter()
         ego = self.ego_pose()
         cars = self._live_traffic().states()
-        truth = ground_truth(self.track, ego, self.ego.heading, self.ego.speed, cars.poses())
         p = self.config.vehicle
+        truth = ground_truth(self.track, ego, self.ego.heading, self.ego.speed, cars.poses(), cars.length,
+                             cars.speed, p.length)
         collision = bool(overlaps((ego[0], ego[1], ego[2], p.length, p.width), cars.boxes()).any())
         off_road = not self.track.on_road(self.ego.d)
         lost = not self.track.on_road(self.ego.d, margin=LOST_MARGIN)

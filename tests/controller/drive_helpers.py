@@ -1,4 +1,5 @@
-"""Closed-loop driving for the controller tests: the Chen controller on the exact indicators at 10 Hz."""
+"""Closed-loop driving for the controller tests: the Chen controller (or the lookout controller, which also reads
+the exact rear labels) on the exact indicators at 10 Hz."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -6,9 +7,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controller.highway import ChenController
+from controller.highway.lookout import LookoutController
 from sim.highway.traffic import ScriptedTraffic
-from sim.highway.truth import affordances
-from sim.highway.vehicle import VehicleState, step_vehicle
+from sim.highway.truth import affordances, rear_indicators
+from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
 from sim.track import Track
 
 DT = 0.1  # [s] the controller's 10 Hz frame
@@ -40,7 +42,14 @@ def drive(track: Track, ctrl: ChenController, start: VehicleState, seconds: floa
         cars_s = traffic.s if traffic is not None else np.zeros(0)
         cars_d = traffic.d if traffic is not None else np.zeros(0)
         ind = affordances(track, state.s, state.d, state.heading, cars_s, cars_d)
-        action = ctrl.act(ind, state.speed)
+        if isinstance(ctrl, LookoutController):
+            length = traffic.length if traffic is not None else np.zeros(0)
+            speed = traffic.speed if traffic is not None else np.zeros(0)
+            rear = rear_indicators(track, state.s, state.d, VehicleParams().length, state.speed, cars_s, cars_d,
+                                   length, speed)
+            action = ctrl.act(ind, state.speed, rear)
+        else:
+            action = ctrl.act(ind, state.speed)
         trace.s.append(state.s)
         trace.d.append(state.d)
         trace.heading.append(state.heading)

@@ -24,9 +24,10 @@ from drivestudio.worlds.highway.benchmark import (
     driving_score,
     load_suite,
 )
-from drivestudio.worlds.highway.benchmark.models import parse_model
+from drivestudio.worlds.highway.benchmark.draw import draw_routes
+from drivestudio.worlds.highway.benchmark.models import check_models, parse_model
 from drivestudio.worlds.highway.benchmark.route import RouteMetrics, run_route
-from drivestudio.worlds.highway.benchmark.suite import parse_suite
+from drivestudio.worlds.highway.benchmark.suite import SUITES_DIR, parse_suite
 from perception.checkpoint import save_checkpoint
 from perception.models import build
 
@@ -148,6 +149,10 @@ BAD_SUITES = [
     (json.dumps({"routes": [ROUTE_A, ROUTE_A]}), "two routes are named 'a'"),
     (json.dumps({"routes": [{**ROUTE_A, "name": "../x"}]}), "'name' must be 1 to 64 letters"),
     (json.dumps({"routes": [{k: v for k, v in ROUTE_A.items() if k != "seconds"}]}), "missing 'seconds'"),
+    (json.dumps({"generator": {"seed": 1}, "routes": [ROUTE_A]}), "generator: missing 'routes'"),
+    (json.dumps({"generator": {"seed": 1, "routes": 2, "lanes": [3, 1], "cars": [1, 2], "seconds": 9},
+                 "routes": [ROUTE_A]}), "'lanes' must be [LO, HI]"),
+    (json.dumps({"generator": 7, "routes": [ROUTE_A]}), "'generator' must be an object"),
     ("[1, 2]", "a suite must be a JSON object"),
 ]
 
@@ -177,7 +182,62 @@ def test_a_route_without_lanes_takes_the_tracks_and_without_start_lane_the_seeds
     assert r.lanes == 3 and r.start_lane is None
 
 
+# --- the suites nobody picked ----------------------------------------------------------------------------------
+def test_the_random_suite_is_what_its_generator_seed_draws():
+    """Nobody swapped a route: drawing again from the seed written in the file gives the file's routes."""
+    suite = load_suite(SUITES_DIR / "random.json")
+    gen = suite.generator
+    assert gen == {"seed": 19, "routes": 12, "lanes": [1, 4], "cars": [12, 60], "seconds": 240.0}
+    drawn = draw_routes(gen["seed"], gen["routes"], tuple(gen["lanes"]), tuple(gen["cars"]), gen["seconds"])
+    assert [r.as_dict() | {"length_m": 0.0} for r in suite.routes] == [
+        {**d, "length_m": 0.0} for d in drawn]
+    assert len(suite.routes) >= 10 and {r.lanes for r in suite.routes} <= {1, 2, 3, 4}
+    assert all(12 <= r.cars <= 60 and int(r.track.split(":")[1]) % 1000 >= 3 for r in suite.routes)
+
+
+def test_drawing_is_deterministic_and_follows_the_documented_rule():
+    a, b = draw_routes(5, 6), draw_routes(5, 6)
+    assert a == b and a != draw_routes(6, 6)
+    rng = np.random.default_rng(5)   # the first route by hand: lanes, track (redrawn while unusable), cars, ...
+    lanes = int(rng.integers(1, 5))
+    assert a[0]["lanes"] == lanes and a[0]["name"].startswith("r01-p") and a[0]["seconds"] == 240.0
+
+
+def test_the_draw_command_writes_a_suite_and_refuses_bad_input_in_one_line(tmp_path):
+    out = tmp_path / "r.json"
+    cmd = [sys.executable, "-m", "drivestudio.worlds.highway.benchmark.draw"]
+    r = subprocess.run(cmd + ["--seed", "3", "--routes", "2", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    suite = load_suite(out)
+    assert suite.name == "r" and suite.generator["seed"] == 3 and len(suite.routes) == 2
+    for args, message in ((["--seed", "3", "--lanes", "3", "1"], "LO <= HI"), (["--seed", "x"], "--seed"),
+                          (["--seed", "3", "--out", str(tmp_path / "r.txt")], "must end in .json"),
+                          (["--seed", "3", "--lanes", "1", "5"], "--lanes")):
+        r = subprocess.run(cmd + (args if "--out" in args else args + ["--out", str(tmp_path / "x.json")]),
+                           capture_output=True, text=True)
+        assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_controller_hard_holds_the_four_routes_the_paper_controller_crashed_on():
+    suite = load_suite(SUITES_DIR / "controller-hard.json")
+    assert [(r.track, r.lanes, r.cars, r.seed, r.start_lane, r.seconds) for r in suite.routes] == [
+        ("procedural:13", 2, 24, 103, 0, 240), ("procedural:13", 2, 24, 123, 0, 240),
+        ("procedural:4", 2, 48, 104, 1, 240), ("procedural:4", 2, 48, 134, 1, 240)]
+
+
 # --- models ---------------------------------------------------------------------------------------------------
+def test_the_extended_oracle_is_a_model_of_its_own():
+    assert parse_model("oracle-extended") == ("oracle-extended", {})
+    with pytest.raises(UsageError, match="oracle-extended reads the exact labels"):
+        parse_model("oracle-extended@gap_hold=0.5")
+    rows = check_models(["oracle-extended"])
+    assert [(m.label, m.key, m.is_oracle, m.exact, m.lookout) for m in rows] == [
+        ("oracle", "oracle", True, True, False), ("oracle-extended", "oracle-extended", False, True, True)]
+    with pytest.raises(UsageError, match="same model"):
+        check_models(["oracle-extended", "oracle-extended"])
+
+
 def test_model_options_after_an_at_sign():
     assert parse_model("oracle") == ("oracle", {})
     assert parse_model("runs/a.pt@smoothing=0.5") == ("runs/a.pt", {"smoothing": 0.5})
@@ -226,8 +286,9 @@ def test_help_explains_the_verb():
 def test_a_route_drives_the_same_twice(tmp_path, blind):
     route = load_suite(write_suite(tmp_path / "s.json", [ROUTE_A])).routes[0]
     oracle = ModelSpec("oracle", None)
+    extended = check_models(["oracle-extended"])[1]
     model = ModelSpec(str(blind), str(blind), label="blind", family="gist")
-    for spec in (oracle, model):
+    for spec in (oracle, extended, model):
         a = run_route(route, spec, RunOptions(clips=0))
         b = run_route(route, spec, RunOptions(clips=0))
         for key in ("wall_s",):
@@ -293,3 +354,17 @@ def test_the_oracle_drives_the_default_suite_cleanly(tmp_path):
     o = json.loads((tmp_path / "leaderboard.json").read_text())["models"][0]["overall"]
     assert o["route_completion"] == 1.0 and o["collisions"] == 0 and o["off_road_events"] == 0
     assert load_suite(DEFAULT_SUITE).name == "default"
+
+
+@pytest.mark.slow
+def test_the_extended_oracle_drives_controller_hard_cleanly_and_the_oracles_clips_name_the_rule(tmp_path):
+    r = ds("benchmark", "--suite", SUITES_DIR / "controller-hard.json", "--model", "oracle-extended", "--workers", "2",
+           "--out", tmp_path, "--quiet", timeout=1800)
+    assert r.returncode == 0, r.stderr
+    oracle, extended = json.loads((tmp_path / "leaderboard.json").read_text())["models"]
+    assert extended["model"] == "oracle-extended"
+    assert extended["overall"]["collisions"] == 0 and extended["overall"]["off_road_events"] == 0
+    assert oracle["overall"]["collisions"] == 5   # docs/benchmark.md: the paper's controller on these routes
+    rules = [c["rule"] for route in oracle["routes"] for c in route["clips"]]
+    assert len(rules) == 5 and all(x.startswith(("rule 2 (overtake)", "rule 3 (lane preference)")) for x in rules)
+    assert all(route["controller_agreed"] for e in (oracle, extended) for route in e["routes"])

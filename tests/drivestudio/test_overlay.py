@@ -164,3 +164,20 @@ def test_drive_records_a_video(tmp_path):
     cap = cv2.VideoCapture(str(video))
     assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == 30 and cap.get(cv2.CAP_PROP_FRAME_WIDTH) == 880
     assert not list(tmp_path.glob(".*tmp*"))
+
+
+def test_compose_draws_extra_rows_for_the_cars_beside_and_behind():
+    """The rear labels get error-bar rows like the 13: a large error fills its bar red, a missing estimate none."""
+    tr = load_track("oval", lanes=3)
+    truth = affordances(tr, 100.0, 0.3, 0.05)
+    frame = np.zeros((210, 280, 3), np.uint8)
+    rows = [("dist_LB", 4.0, 30.0), ("dist_RB", 100.0, float("nan")), ("closing_LB", 2.0, 2.0),
+            ("closing_RB", 0.0, float("nan"))]
+    img = compose(frame, truth, truth.copy(), 3, 4.0, 100.0, 0.3, [], extra=rows)
+    bars = img[420:, CANVAS[0]:]
+    red = np.all(bars == (220, 40, 40), axis=-1)
+    assert red.any() and not np.all(compose(frame, truth, truth.copy(), 3, 4.0, 100.0, 0.3, [])[420:, CANVAS[0]:]
+                                    == (220, 40, 40), axis=-1).any()
+    row = (240 - 22) / 17     # 13 rows and 4 extra: the red bar is the first extra row's
+    ys = np.flatnonzero(red.any(axis=1))
+    assert int(20 + 13 * row) <= ys.min() and ys.max() < int(20 + 14 * row) + 2

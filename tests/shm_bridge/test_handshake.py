@@ -97,7 +97,7 @@ def test_frames_are_copies_and_mapping_is_refused(name):
             world.publish(_frame(0, 4, 5), np.zeros(5))
         with pytest.raises(ValueError, match="lacks"):
             world.publish(_frame(0, 4, 5), {"speed": 1.0})
-        with pytest.raises(ValueError, match="estimate must hold 15 values"):
+        with pytest.raises(ValueError, match="estimate must hold 19 values"):
             driver.send_action(3, Action(), np.zeros(13))
         with pytest.raises(ValueError, match=r"action must hold 3 values \(steer, accel, brake\)"):
             driver.send_action(3, [0.0, 1.0])
@@ -166,7 +166,7 @@ def test_attach_waits_for_a_world_that_comes_later(name):
     code = ("import sys, time; from shm_bridge.endpoints import WorldEndpoint; time.sleep(0.3)\n"
             "from tests.shm_bridge.records import small\n"
             "with WorldEndpoint(sys.argv[1], small(2, 2)) as w:\n"
-            "    w.wait_for_driver(5); w.publish(__import__('numpy').zeros((2, 2, 3), 'u1'), [0.0] * 27)\n"
+            "    w.wait_for_driver(5); w.publish(__import__('numpy').zeros((2, 2, 3), 'u1'), [0.0] * 31)\n"
             "    w.wait_action(1, 5)\n")
     proc = subprocess.Popen([sys.executable, "-c", code, name], cwd=REPO)
     try:

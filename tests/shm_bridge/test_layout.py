@@ -44,10 +44,11 @@ def test_highway_layout_places_one_frame_and_the_records():
     lay = layout_for(HIGHWAY)
     cam = lay.cameras[0]
     assert (cam.name, cam.height, cam.width, cam.channels, cam.size) == ("front", 210, 280, 3, 176400)
-    assert lay.slot_header_size == 256 and cam.offset == 256           # 24 + 27 * 8 = 240, rounded up to 64
-    assert lay.slot_size == 176704 and lay.layout_size == lay.header_size + 2 * 176704
+    assert lay.slot_header_size == 320 and cam.offset == 320           # 24 + 31 * 8 = 272, rounded up to 64
+    assert lay.slot_size == 176768 and lay.layout_size == lay.header_size + 2 * 176768
     assert [n for n, _ in lay.truth] == list(HIGHWAY.truth_names)
-    assert [n for n, _ in lay.estimate] == list(INDICATORS) + ["lanes_left"]
+    assert [n for n, _ in lay.estimate] == list(INDICATORS) + ["lanes_left", "dist_LB", "dist_RB", "closing_LB",
+                                                               "closing_RB"]
     assert [a[0] for a in lay.action] == ["steer", "accel", "brake"]
     assert lay.action_offset % 64 == 0 and lay.header_size % 64 == 0
     assert lay.declaration_offset + len(lay.declaration) <= lay.action_offset

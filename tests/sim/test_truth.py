@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from core.worlds.highway import INACTIVE, INDICATORS, indicators_to_dict
-from sim.highway.truth import affordances, ground_truth
+from core.worlds.highway import HIGHWAY, INACTIVE, INDICATORS, LABEL_SETS, PAPER_INDICATORS, indicators_to_dict
+from sim.highway.truth import affordances, ground_truth, rear_indicators, truth_record
 from sim.track import load_track
 
 # oval: straight 500 m from s = 0, then a 150 m radius half circle (s 500..971.2), straight, half circle
@@ -267,8 +267,128 @@ def test_ground_truth_extras(tracks):
     tr = tracks[3]
     x, y, h = tr.pose(S_STRAIGHT, -4.0)
     gt = ground_truth(tr, np.array([x, y, h + 0.05, S_STRAIGHT, -4.0]), 0.05, 17.5,
-                      np.array([[0, 0, 0, S_STRAIGHT + 30, -4.0]]))
+                      np.array([[0, 0, 0, S_STRAIGHT + 30, -4.0]]), [4.6], [12.0])
     assert gt.lanes_left == 2 and gt.lanes == 3 and gt.speed == 17.5
     assert gt.in_lane and not gt.on_marking
     assert gt.indicators[6] == pytest.approx(30.0)   # dist_MM
     assert gt.as_dict()["angle"] == pytest.approx(-0.05)
+
+
+# --- beside and behind (the extended label set) ------------------------------------------------------------------
+HOST = 4.6    # [m] the host car's length
+V_HOST = 20.0  # [m/s]
+
+
+def rear(track, d, cars=(), s=S_STRAIGHT, host_length=HOST, speed=V_HOST):
+    """{dist_LB, dist_RB, closing_LB, closing_RB} for cars given as (s, d, length, speed)."""
+    cars = np.asarray(cars, dtype=float).reshape(-1, 4)
+    v = rear_indicators(track, s, d, host_length, speed, cars[:, 0], cars[:, 1], cars[:, 2], cars[:, 3])
+    return dict(zip(("dist_LB", "dist_RB", "closing_LB", "closing_RB"), v.tolist()))
+
+
+def test_rear_labels_are_declared_after_everything_else_with_their_maps():
+    assert HIGHWAY.truth_names[-4:] == ("dist_LB", "dist_RB", "closing_LB", "closing_RB")
+    assert HIGHWAY.truth_names[:len(INDICATORS)] == INDICATORS and HIGHWAY.index("off_road") == 26
+    assert LABEL_SETS["paper"] == PAPER_INDICATORS == HIGHWAY.targets
+    assert LABEL_SETS["extended"] == INDICATORS + ("lanes_left", "dist_LB", "dist_RB", "closing_LB", "closing_RB")
+    assert HIGHWAY.label_set("extended") == LABEL_SETS["extended"]
+    # rear gaps 0 .. 100 m and closing speeds -20 .. 20 m/s both map to 0.1 .. 0.9
+    assert HIGHWAY.normalise([0.0, 100.0, -20.0, 20.0], ["dist_LB", "dist_RB", "closing_LB", "closing_RB"]) == \
+        pytest.approx([0.1, 0.9, 0.1, 0.9], abs=1e-6)
+    assert HIGHWAY.label("dist_LB").inactive == 100.0 and HIGHWAY.label("closing_RB").inactive == 0.0
+
+
+def test_rear_a_car_exactly_alongside_reads_0_and_its_closing_speed(tracks):
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT, 4.0, 4.1, 23.0), (S_STRAIGHT, -4.0, 4.9, 18.5)])
+    assert v == pytest.approx({"dist_LB": 0.0, "dist_RB": 0.0, "closing_LB": 3.0, "closing_RB": -1.5})
+
+
+def test_rear_a_car_overlapping_the_hosts_length_reads_0_whether_its_centre_is_ahead_or_behind(tracks):
+    half = (HOST + 4.4) / 2   # 4.5 m: centres closer than this overlap along the track
+    for ds in (half - 0.01, 2.0, -2.0, -(half - 0.01)):
+        assert rear(tracks[3], 0.0, cars=[(S_STRAIGHT + ds, 4.0, 4.4, 20.0)])["dist_LB"] == 0.0, ds
+
+
+def test_rear_a_car_just_behind_reads_the_bumper_gap(tracks):
+    # rear bumper of the host at s - 2.3, front bumper of a 4.1 m car at its s + 2.05: 0.5 m apart
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 2.3 - 2.05 - 0.5, -4.0, 4.1, 26.0)])
+    assert v["dist_RB"] == pytest.approx(0.5) and v["closing_RB"] == pytest.approx(6.0)
+    assert v["dist_LB"] == 100.0 and v["closing_LB"] == 0.0
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 30.0, 4.0, 4.6, 15.0)])
+    assert v["dist_LB"] == pytest.approx(30.0 - 4.6) and v["closing_LB"] == pytest.approx(-5.0)
+
+
+def test_rear_a_car_wholly_ahead_does_not_count(tracks):
+    half = (HOST + 4.4) / 2
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT + half, 4.0, 4.4, 30.0), (S_STRAIGHT + 20, -4.0, 4.4, 30.0)])
+    assert v == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
+
+
+def test_rear_range_is_100_m_beyond_it_the_inactive_values(tracks):
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 99.9, 4.0, 4.6, 30.0)])
+    assert v["dist_LB"] == pytest.approx(99.9) and v["closing_LB"] == pytest.approx(10.0)
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 4.6 - 100.1, 4.0, 4.6, 30.0)])
+    assert (v["dist_LB"], v["closing_LB"]) == (100.0, 0.0)
+
+
+def test_rear_nearest_car_per_lane_and_the_faster_of_two_alongside(tracks):
+    cars = [(S_STRAIGHT - 20, 4.0, 4.6, 25.0), (S_STRAIGHT - 10, 4.0, 4.6, 21.0), (S_STRAIGHT - 40, 4.0, 4.6, 35.0),
+            (S_STRAIGHT - 1, -4.0, 4.6, 19.0), (S_STRAIGHT + 1, -4.0, 4.6, 24.0)]
+    v = rear(tracks[3], 0.0, cars=cars)
+    assert v == pytest.approx({"dist_LB": 10.0 - 4.6, "closing_LB": 1.0, "dist_RB": 0.0, "closing_RB": 4.0})
+
+
+def test_rear_only_the_lanes_beside_count_not_the_hosts_own_or_two_away(tracks):
+    cars = [(S_STRAIGHT - 10, 0.0, 4.6, 30.0), (S_STRAIGHT - 10, -6.0, 4.6, 30.0)]   # 4 lanes: lanes 2 and 3
+    v = rear(tracks[4], 1.5, cars=cars)   # host in lane 1 (d 1.5): left lane 0, right lane 2
+    assert v["dist_RB"] == pytest.approx(10.0 - 4.6) and v["dist_LB"] == 100.0
+    v = rear(tracks[4], 1.5, cars=[(S_STRAIGHT - 10, 2.0, 4.6, 30.0)])                # same lane as the host
+    assert v == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
+
+
+def test_rear_lanes_that_do_not_exist_read_the_inactive_values(tracks):
+    cars = [(S_STRAIGHT - 10, 4.0, 4.6, 30.0), (S_STRAIGHT - 10, -4.0, 4.6, 30.0)]
+    left = rear(tracks[3], 4.0, cars=cars)     # leftmost lane: no lane to the left
+    assert (left["dist_LB"], left["closing_LB"]) == (100.0, 0.0) and left["dist_RB"] == 100.0
+    right = rear(tracks[3], -4.0, cars=cars)   # rightmost lane
+    assert (right["dist_RB"], right["closing_RB"]) == (100.0, 0.0) and right["dist_LB"] == 100.0
+    one = rear(tracks[1], 0.0, cars=[(S_STRAIGHT - 5, 0.5, 4.6, 30.0)])
+    assert one == {"dist_LB": 100.0, "dist_RB": 100.0, "closing_LB": 0.0, "closing_RB": 0.0}
+    two = rear(tracks[2], -2.0, cars=[(S_STRAIGHT - 10, 2.0, 4.6, 22.0)])
+    assert two["dist_LB"] == pytest.approx(5.4) and two["closing_LB"] == pytest.approx(2.0)
+    assert (two["dist_RB"], two["closing_RB"]) == (100.0, 0.0)
+
+
+def test_rear_lanes_follow_lanes_left_on_a_marking_too(tracks):
+    cars = [(S_STRAIGHT - 10, 4.0, 4.6, 30.0), (S_STRAIGHT - 10, 0.0, 4.6, 25.0)]
+    v = rear(tracks[3], 2.3, cars=cars)   # astride m_1 = 2, centre in lane 0: the lane to its right is lane 1
+    assert v["dist_LB"] == 100.0 and v["dist_RB"] == pytest.approx(5.4) and v["closing_RB"] == pytest.approx(5.0)
+    v = rear(tracks[3], 2.0, cars=cars)   # exactly on m_1: in lane 1, lane 0 on its left
+    assert v["dist_LB"] == pytest.approx(5.4) and v["closing_LB"] == pytest.approx(10.0)
+
+
+def test_rear_gaps_wrap_across_the_seam_and_off_road_cars_count_outermost(tracks):
+    tr = tracks[3]
+    v = rear(tr, 0.0, s=3.0, cars=[(tr.length - 12.0, 4.0, 4.6, 25.0)])   # 15 m behind across the seam
+    assert v["dist_LB"] == pytest.approx(15.0 - 4.6)
+    v = rear(tr, 0.0, cars=[(S_STRAIGHT - 8.0, -7.5, 4.6, 25.0)])         # on the right verge: lane 2
+    assert v["dist_RB"] == pytest.approx(8.0 - 4.6)
+
+
+def test_rear_uses_the_hosts_own_length(tracks):
+    v = rear(tracks[3], 0.0, cars=[(S_STRAIGHT - 10.0, 4.0, 4.0, 20.0)], host_length=6.0)
+    assert v["dist_LB"] == pytest.approx(10.0 - 5.0)
+
+
+def test_ground_truth_carries_the_rear_labels_into_the_record(tracks):
+    tr = tracks[3]
+    x, y, h = tr.pose(S_STRAIGHT, 0.0)
+    cars = np.array([[0, 0, 0, S_STRAIGHT - 12.0, 4.0], [0, 0, 0, S_STRAIGHT + 1.0, -4.0]])
+    gt = ground_truth(tr, np.array([x, y, h, S_STRAIGHT, 0.0]), 0.0, 18.0, cars, [4.4, 4.9], [24.0, 17.0])
+    d = gt.as_dict()
+    assert (d["dist_LB"], d["dist_RB"]) == pytest.approx((12.0 - 4.5, 0.0))
+    assert (d["closing_LB"], d["closing_RB"]) == pytest.approx((6.0, -1.0))
+    rec = HIGHWAY.unpack(truth_record(gt, False, False))
+    assert {n: rec[n] for n in ("dist_LB", "dist_RB", "closing_LB", "closing_RB")} == pytest.approx(
+        {n: d[n] for n in ("dist_LB", "dist_RB", "closing_LB", "closing_RB")})
+    assert rec["lanes_left"] == 1 and rec["dist_RR"] == pytest.approx(1.0)   # the same car is ahead, 1 m

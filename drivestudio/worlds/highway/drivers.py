@@ -1,5 +1,6 @@
 """The highway's drivers: the Chen controller on perception (the oracle: the exact indicators; or a trained
-regressor's estimates, optionally smoothed) and the perturbed data-collection expert."""
+regressor's estimates, optionally smoothed), the extended oracle (the lookout controller on the exact extended
+labels) and the perturbed data-collection expert."""
 from __future__ import annotations
 
 import time
@@ -8,13 +9,34 @@ import numpy as np
 
 from controller.highway import ChenController
 from controller.highway.expert import PerturbedExpert
-from core.worlds.highway import HIGHWAY, INDICATORS
+from controller.highway.lookout import NOTHING_BEHIND, LookoutController
+from core.worlds.highway import HIGHWAY, INDICATORS, REAR
 from drivestudio.loop import Percept
 from perception.history import History
 
 ESTIMATE = tuple(HIGHWAY.estimate_names)
 ESTIMATE_INDEX = {n: i for i, n in enumerate(ESTIMATE)}
 _GAPS = [i for i, n in enumerate(ESTIMATE) if n.startswith("dist_")]
+_TRUTH_OF_ESTIMATE = [HIGHWAY.index(n) for n in ESTIMATE]   # every label is a field of the truth record
+_REAR = [ESTIMATE_INDEX[n] for n in REAR]
+
+# the drivers on exact labels, by --model name: whether each looks beside and behind (controller/highway/lookout.py)
+ORACLES = {"oracle": False, "oracle-extended": True}
+
+
+def make_controller(lanes: int, lookout: bool) -> ChenController:
+    """The controller of a driver: the Chen controller, or the lookout controller (rules L1-L3 on top)."""
+    return LookoutController(lanes) if lookout else ChenController(lanes)
+
+
+def act_on(controller: ChenController, estimate: np.ndarray, speed: float):
+    """The controller's command for an estimate record: the 14 indicators (NaN as 0: a 13-output model has no
+    `fast`) and, for the lookout, the rear labels (NaN: nothing known beside or behind)."""
+    indicators = np.nan_to_num(estimate[:len(INDICATORS)], nan=0.0)
+    if isinstance(controller, LookoutController):
+        rear = np.where(np.isfinite(estimate[_REAR]), estimate[_REAR], NOTHING_BEHIND)
+        return controller.act(indicators, speed, rear)
+    return controller.act(indicators, speed)
 
 
 class ChenDriver:
@@ -22,28 +44,29 @@ class ChenDriver:
     every network is compared with) and the Chen controller. The controller is made on the first frame, when the
     lane count is known."""
 
-    def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0):
+    def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0, lookout: bool = False):
         self.predictor = predictor
+        self.lookout = lookout
         self.smoothing, self.gap_hold = smoothing, gap_hold
         self.timings = {"perception": 0.0, "control": 0.0}
-        self.controller = None
+        self.controller: ChenController | None = None
         self._i_speed, self._i_lanes = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
         self._slots = [] if predictor is None else [(i, ESTIMATE_INDEX[n]) for i, n in
                                                     enumerate(predictor.outputs) if n in ESTIMATE_INDEX]
-        self._smoothed = self._held = None
+        self._smoothed: np.ndarray | None = None
+        self._held: np.ndarray | None = None
         self.history = History(predictor.instants if predictor is not None else (0,))   # a temporal model's frames
 
     @property
     def name(self) -> str:
-        return "oracle" if self.predictor is None else self.predictor.name
+        if self.predictor is None:
+            return "oracle-extended" if self.lookout else "oracle"
+        return self.predictor.name
 
     def estimate(self, percept: Percept) -> np.ndarray:
-        """The estimate record (the 14 indicators and lanes_left; NaN where the model has no output)."""
+        """The estimate record (every label of the declaration; NaN where the model has no output)."""
         if self.predictor is None:
-            est = np.full(len(ESTIMATE), np.nan)
-            est[:len(INDICATORS)] = percept.record[:len(INDICATORS)]
-            est[ESTIMATE_INDEX["lanes_left"]] = percept.record[HIGHWAY.index("lanes_left")]
-            return est
+            return np.asarray(percept.record, dtype=np.float64)[_TRUTH_OF_ESTIMATE]
         values = self.predictor(self.history.push(percept.frames))
         est = np.full(len(ESTIMATE), np.nan)
         for i, j in self._slots:
@@ -64,10 +87,10 @@ class ChenDriver:
         est = self.estimate(percept)
         t1 = time.perf_counter()
         lanes = int(percept.record[self._i_lanes])
-        if self.controller is None or self.controller.lanes != lanes:
-            self.controller = ChenController(lanes)
-        indicators = np.nan_to_num(est[:len(INDICATORS)], nan=0.0)   # a 13-output model: fast = 0
-        action = self.controller.act(indicators, float(percept.record[self._i_speed]))
+        controller = self.controller
+        if controller is None or controller.lanes != lanes:
+            controller = self.controller = make_controller(lanes, self.lookout)
+        action = act_on(controller, est, float(percept.record[self._i_speed]))
         self.timings["perception"] += t1 - t0
         self.timings["control"] += time.perf_counter() - t1
         return action.as_array(), est
@@ -88,6 +111,4 @@ class ExpertDriver:
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
         r = percept.record
         action, self.label = self.expert.act(r[:len(INDICATORS)], float(r[self._i_speed]), float(r[self._i_d]))
-        est = np.full(len(ESTIMATE), np.nan)
-        est[:len(INDICATORS)] = r[:len(INDICATORS)]
-        return action.as_array(), est
+        return action.as_array(), np.asarray(r, dtype=np.float64)[_TRUTH_OF_ESTIMATE]

@@ -6,6 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from core.worlds.highway import REAR
 from perception.highway.overlay import compose
 from sim.track import Track, TrackError, load_track
 
@@ -27,15 +28,26 @@ def car_gaps(track: Track, ego_s: float, cars: np.ndarray) -> np.ndarray:
     return np.stack([track.gap(ego_s, cars[:, 3]), cars[:, 4]], axis=1) if len(cars) else np.zeros((0, 2))
 
 
+def rear_rows(truth, estimate) -> list[tuple[str, float, float]]:
+    """Error-bar rows of the cars beside and behind: (name, truth, estimate or NaN), for the labels the truth has
+    (a dataset recorded before them has none)."""
+    est = np.full(len(REAR), np.nan) if estimate is None else np.asarray(estimate, dtype=np.float64)
+    return [(n, float(t), float(e)) for n, t, e in zip(REAR, truth, est) if t is not None and np.isfinite(t)]
+
+
 def overlay_observation(obs, estimate: np.ndarray | None, track: Track, title: str = "",
-                        lanes_left: float | None = None, label: str = "estimate") -> np.ndarray:
+                        lanes_left: float | None = None, label: str = "estimate",
+                        rear: np.ndarray | None = None) -> np.ndarray:
+    """The overlay of a world's observation; estimate: the 14 indicators, rear: the 4 rear labels (NaN: none)."""
     t = obs.truth
     return compose(obs.frame, t.indicators, estimate, t.lanes, t.lane_width, float(t.ego[3]), float(t.ego[4]),
-                   car_gaps(track, t.ego[3], t.cars), title, lanes_left, label)
+                   car_gaps(track, t.ego[3], t.cars), title, lanes_left, label, rear_rows(t.rear, rear))
 
 
 def overlay_record(image: np.ndarray, record: dict, truth: np.ndarray, estimate: np.ndarray | None,
-                   title: str = "", lanes_left: float | None = None, label: str = "estimate") -> np.ndarray:
+                   title: str = "", lanes_left: float | None = None, label: str = "estimate",
+                   rear: np.ndarray | None = None) -> np.ndarray:
     track = track_of(record["track"], int(record["lanes"]))
     return compose(image, truth, estimate, int(record["lanes"]), float(record["lane_width"]), float(record["s"]),
-                   float(record["d"]), car_gaps(track, record["s"], record["cars"]), title, lanes_left, label)
+                   float(record["d"]), car_gaps(track, record["s"], record["cars"]), title, lanes_left, label,
+                   rear_rows([record.get(n) for n in REAR], rear))

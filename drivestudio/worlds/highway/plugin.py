@@ -6,14 +6,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES
+from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import load_predictor_for
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode, WorldOptions
-from drivestudio.worlds.highway.drivers import ChenDriver, ExpertDriver
+from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.overlays import overlay_record
 from drivestudio.worlds.highway.video import OverlayRecorder
@@ -33,7 +33,7 @@ START_SPEED = 15.0          # [m/s]
 # --- the plugin ----------------------------------------------------------------------------------------------------
 class Plugin(base.Plugin):
     declaration = HIGHWAY
-    expert_names = ("oracle", "expert")
+    expert_names = ("oracle", "oracle-extended", "expert")
 
     def add_options(self, options: WorldOptions) -> None:
         verb = options.verb
@@ -104,8 +104,8 @@ class Plugin(base.Plugin):
             return {"front": obs.frame}, obs.truth.as_dict()
 
     def driver(self, model: str, args, declaration=None) -> Driver:
-        if model in ("oracle", "expert"):
-            return ChenDriver(None)
+        if model in ORACLES or model == "expert":
+            return ChenDriver(None, lookout=ORACLES.get(model, False))
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
                           gap_hold=getattr(args, "gap_hold", None) or 0.0)
@@ -133,7 +133,8 @@ class Plugin(base.Plugin):
         truth = np.array([record[n] for n in INDICATORS], dtype=np.float64)
         est, ll = self._estimate(estimate)
         title = f"episode {record['episode']} frame {record['step']}  {record['track']}, {record['lanes']} lanes"
-        return overlay_record(images[0], record, truth, est, title, ll, label)
+        rear = None if estimate is None else np.array([estimate.get(n, np.nan) for n in REAR], dtype=np.float64)
+        return overlay_record(images[0], record, truth, est, title, ll, label, rear)
 
     def overlay_error(self, record: dict, estimate: dict | None) -> float:
         est, _ = self._estimate(estimate)

@@ -5,10 +5,10 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from core.worlds.highway import INDICATORS
+from core.worlds.highway import INDICATORS, REAR
 from drivestudio.loop import StepRecord
 from drivestudio.outputs import VideoWriter
-from drivestudio.worlds.highway.drivers import ESTIMATE_INDEX
+from drivestudio.worlds.highway.drivers import ESTIMATE_INDEX, ORACLES
 from drivestudio.worlds.highway.overlays import overlay_observation
 
 if TYPE_CHECKING:
@@ -27,11 +27,13 @@ class OverlayRecorder:
             obs = cast("Observation", rec.obs)   # the highway plugin records only its own world's runs
             t = obs.truth
             title = f"t {rec.obs.t:5.1f} s  {self.world.track.name}, {t.lanes} lanes, {t.speed:4.1f} m/s"
-            estimate = None if self.label == "oracle" else np.asarray(rec.estimate)[:len(INDICATORS)]
-            ll = None if self.label == "oracle" else rec.estimate[ESTIMATE_INDEX["lanes_left"]]
+            exact = self.label in ORACLES   # an oracle's estimate is the truth: nothing to draw beside it
+            estimate = None if exact else np.asarray(rec.estimate)[:len(INDICATORS)]
+            ll = None if exact else rec.estimate[ESTIMATE_INDEX["lanes_left"]]
+            rear = None if exact else np.asarray(rec.estimate)[[ESTIMATE_INDEX[n] for n in REAR]]
             self.writer.write(overlay_observation(obs, estimate, self.world.track, title,
                                                   None if ll is None or not np.isfinite(ll) else float(ll),
-                                                  label=self.label))
+                                                  label=self.label, rear=rear))
 
     def close(self, ok: bool) -> None:
         if self.writer is not None:

@@ -8,10 +8,15 @@ text panel with the Chen controller's state and command. The indicator whose err
 (perception/highway/overlay.py ERROR_SCALE: 0.2 rad, 2 m for the markings, 20 m for the gaps; one lane for lanes_left),
 was largest on average over the seconds before the event is named in the panel and in the leaderboard.
 
-The controller's state is read from a shadow Chen controller fed exactly what the driver's controller was fed
-(the estimate record, NaN as 0, and the speed): the controller is deterministic, so the shadow holds the same state
-whether the driver ran in this process or in another one over the bridge. Its command is checked against the
-action the driver sent every step (`agreed`).
+The controller's state is read from a shadow controller (the Chen controller, or the lookout controller of the
+extended oracle) fed exactly what the driver's controller was fed (the estimate record and the speed): the
+controller is deterministic, so the shadow holds the same state whether the driver ran in this process or in
+another one over the bridge. Its command is checked against the action the driver sent every step (`agreed`).
+
+For a collision the panel also names the controller rule that led to it (`rule`): the rule that started the lane
+change the host car was in (rule 2's overtake or rule 3's lane preference) with what the target lane held beside
+and behind the host at that moment and the safe gap the lookout would have asked for, or the follow law of rule 2
+when the host ran into the car ahead in its lane.
 """
 from __future__ import annotations
 
@@ -22,15 +27,21 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS
+from controller.highway import ChenController
+from controller.highway.lookout import LookoutController, safe_gap
+from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, REAR, REAR_RANGE
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
+from drivestudio.worlds.highway.drivers import act_on, make_controller
 
-PANEL_HEIGHT = 118
+PANEL_HEIGHT = 184
 LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
 GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller reacts to cars within 20 m (rule 1)
                            # and 15 m (rule 2; its follow speed is 97 % of v_max at 30 m), so 60 read as 40 is no fault
+CHANGE_BLAME = 2.0         # [s] a lane change over longer than this before a collision is not its cause (as the
+                           # route metrics' CHANGE_MARGIN)
 _I_LANES_LEFT_EST = HIGHWAY.estimate_names.index("lanes_left")
+_I_REAR_EST = [HIGHWAY.estimate_names.index(n) for n in REAR]
 _I_SPEED, _I_LANES = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
 
 
@@ -54,28 +65,31 @@ class _Pending:
 
 
 class ShadowController:
-    """The driver's Chen controller, replayed on the world side from the estimates the driver reported."""
+    """The driver's controller, replayed on the world side from the estimates the driver reported."""
 
-    def __init__(self):
-        self.ctrl = None
+    def __init__(self, lookout: bool = False):
+        self.ctrl: ChenController | None = None
+        self.lookout = lookout
         self.agreed = True
 
     def __call__(self, rec) -> dict:
-        from controller.highway import ChenController
         record = rec.obs.record
         lanes = int(record[_I_LANES])
-        if self.ctrl is None or self.ctrl.lanes != lanes:
-            self.ctrl = ChenController(lanes)
-        est = np.nan_to_num(np.asarray(rec.estimate, dtype=np.float64)[:len(INDICATORS)], nan=0.0)
-        action = self.ctrl.act(est, float(record[_I_SPEED])).as_array()
+        c = self.ctrl
+        if c is None or c.lanes != lanes:
+            c = self.ctrl = make_controller(lanes, self.lookout)
+        estimate = np.asarray(rec.estimate, dtype=np.float64)
+        action = act_on(c, estimate, float(record[_I_SPEED])).as_array()
         same = bool(np.allclose(action, np.asarray(rec.action, dtype=np.float64), rtol=0, atol=1e-9))
         self.agreed &= same
-        c = self.ctrl
-        follow = c.follow_speed(est[INDEX["dist_MM"]]) if (c.state == "keep" and
-                                                          est[INDEX["dist_MM"]] < c.params.follow_gap) else None
-        return {"state": c.state, "left_clear": c.left_clear, "right_clear": c.right_clear,
-                "steer_trend": round(c.steer_trend, 4), "follow_mps": None if follow is None else round(follow, 2),
-                "agrees": same}
+        dist_mm = float(np.nan_to_num(estimate[INDEX["dist_MM"]], nan=0.0))
+        follow = c.follow_speed(dist_mm) if c.state == "keep" and dist_mm < c.params.follow_gap else None
+        out = {"state": c.state, "left_clear": c.left_clear, "right_clear": c.right_clear,
+               "steer_trend": round(c.steer_trend, 4), "follow_mps": None if follow is None else round(follow, 2),
+               "reason": c.change_reason, "agrees": same}
+        if isinstance(c, LookoutController):
+            out.update(refused=c.refused, aborts=c.aborts)
+        return out
 
 
 def largest_error(entries: list[Entry]) -> dict | None:
@@ -143,6 +157,46 @@ def describe_contact(entries: list[Entry], track) -> str:
     return text + ("; " + ", ".join(changed) if changed else "")
 
 
+def rear_text(rear, speed: float) -> str:
+    """The rear labels as a line: "left 3.2 m closing +4.1 m/s (safe gap 11.2 m), right none within 100 m", the
+    safe gap (the lookout's L1) for a host at `speed` [m/s]."""
+    v = dict(zip(REAR, np.asarray(rear, dtype=np.float64).tolist()))
+    parts = []
+    for side, k in (("left", "L"), ("right", "R")):
+        gap, closing = v[f"dist_{k}B"], v[f"closing_{k}B"]
+        parts.append(f"{side} none within {REAR_RANGE:.0f} m" if gap >= REAR_RANGE else
+                     f"{side} {gap:.1f} m closing {closing:+.1f} m/s (safe gap {safe_gap(closing, speed):.1f} m)")
+    return ", ".join(parts)
+
+
+def rule_at_fault(entries: list[Entry], dt: float) -> str:
+    """The controller rule that led to a collision: the rule that started the lane change the host was in (with
+    what the target lane held beside and behind at that moment), or the follow law when it kept its lane."""
+    states = [e.control["state"] if e.control else "keep" for e in entries]
+    t_event = float(entries[-1].obs.t)
+    for i in range(len(entries) - 1, 0, -1):
+        if states[i] in ("left-1", "right-1") and states[i - 1] == "keep":
+            done = next((j for j in range(i, len(entries)) if states[j] == "keep"), None)
+            if done is not None and t_event - float(entries[done].obs.t) > CHANGE_BLAME:
+                break   # that change was over well before the collision
+            e = entries[i]
+            side = states[i].split("-")[0]
+            rule = {"overtake": "rule 2 (overtake)", "preference": "rule 3 (lane preference)"}.get(
+                (e.control or {}).get("reason", ""), "a forced change")
+            k = "L" if side == "left" else "R"
+            rear = dict(zip(REAR, e.obs.truth.rear.tolist()))
+            gap, closing = rear[f"dist_{k}B"], rear[f"closing_{k}B"]
+            held = f"nothing within {REAR_RANGE:.0f} m" if gap >= REAR_RANGE else \
+                (f"a car {gap:.1f} m behind closing at {closing:+.1f} m/s (safe gap "
+                 f"{safe_gap(closing, float(e.obs.truth.speed)):.1f} m)")
+            ahead = e.obs.truth.indicators[INDEX["dist_LL" if side == "left" else "dist_RR"]]
+            return (f"{rule} started a change to the {side} {t_event - float(e.obs.t):.1f} s before; beside and "
+                    f"behind in that lane: {held}; ahead in it: {ahead:.1f} m")
+    if states[-1] != "keep":
+        return f"a lane change ({states[-1]}) that started more than {len(entries) * dt:.0f} s before"
+    return "lane keeping (rule 4) and the follow law (rule 2): no lane change in the seconds before"
+
+
 class ClipRecorder:
     """on_step callback of a route: the ring buffer, event detection and the clips (at most opts.clips)."""
 
@@ -153,7 +207,7 @@ class ClipRecorder:
         self.before_n = int(round(opts.clip_before / world.dt))
         self.after_n = int(round(opts.clip_after / world.dt))
         self.buffer: deque = deque(maxlen=self.before_n + 1)
-        self.shadow = ShadowController()
+        self.shadow = ShadowController(model.lookout)
         self.pending: list[_Pending] = []
         self.clips: list[dict] = []
         self.skipped = 0
@@ -205,6 +259,7 @@ class ClipRecorder:
                 [round(float(v), 4) for v in event_entry.action]}
         if p.event == "collision":
             info["contact"] = describe_contact(p.before, self.world.track)
+            info["rule"] = rule_at_fault(p.before, self.world.dt)
         else:
             d = float(event_entry.obs.truth.ego[4])
             info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
@@ -212,7 +267,7 @@ class ClipRecorder:
         writer = VideoWriter(self.dir / name)
         try:
             for entry in p.before + p.after:
-                writer.write(self._frame(entry, t, info))
+                writer.write(self.frame(entry, t, info))
             writer.close()
         except BaseException:
             writer.abort()
@@ -220,23 +275,25 @@ class ClipRecorder:
         info["file"] = name
         self.clips.append(info)
 
-    def _frame(self, entry: Entry, t_event: float, info: dict) -> np.ndarray:
+    def frame(self, entry: Entry, t_event: float, info: dict, mark: bool = True) -> np.ndarray:
+        """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""
         from drivestudio.worlds.highway.overlays import overlay_observation
         obs = entry.obs
         truth = obs.truth
         title = (f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, "
                  f"{self.route.cars} cars")
-        if self.model.is_oracle or not np.isfinite(entry.estimate[:len(PAPER_INDICATORS)]).all():
-            est, ll = None, None
+        if self.model.exact or not np.isfinite(entry.estimate[:len(PAPER_INDICATORS)]).all():
+            est, ll, rear = None, None, None
         else:
             est = entry.estimate[:len(INDICATORS)]
             ll = entry.estimate[_I_LANES_LEFT_EST]
             ll = float(ll) if np.isfinite(ll) else None
-        label = "oracle" if self.model.is_oracle else (self.model.family or "estimate")
-        top = overlay_observation(obs, est, self.world.track, title, ll, label=label)
+            rear = entry.estimate[_I_REAR_EST]
+        label = self.model.family if self.model.exact else (self.model.family or "estimate")
+        top = overlay_observation(obs, est, self.world.track, title, ll, label=label, rear=rear)
         panel = self._panel(entry, obs.t - t_event, info, top.shape[1])
         frame = np.vstack([top, panel])
-        if obs.t >= t_event - 1e-6:   # from the event on: a red frame
+        if mark and obs.t >= t_event - 1e-6:   # from the event on: a red frame
             cv2.rectangle(frame, (0, 0), (frame.shape[1] - 1, frame.shape[0] - 1), (230, 30, 30), 6)
         return frame
 
@@ -250,9 +307,11 @@ class ClipRecorder:
             lines.append(("controller: (the route's last step: no command)", (235, 235, 235)))
         else:
             follow = f"   following: at most {c['follow_mps']:.1f} m/s" if c["follow_mps"] is not None else ""
+            lookout = "" if "refused" not in c else \
+                f"   lookout: {'refused ' + c['refused'] if c['refused'] else 'no refusal'}, {c['aborts']} aborts"
             lines.append((f"controller: state {c['state']}   left lane clear {'yes' if c['left_clear'] else 'no'}"
                           f"   right lane clear {'yes' if c['right_clear'] else 'no'}   steer trend "
-                          f"{c['steer_trend']:+.2f}{follow}", (235, 235, 235)))
+                          f"{c['steer_trend']:+.2f}{follow}{lookout}", (235, 235, 235)))
         a = entry.action
         cmd = "-" if not np.isfinite(a).all() else f"steer {a[0]:+.3f}  accel {a[1]:.2f}  brake {a[2]:.2f}"
         lines.append((f"command: {cmd}   speed {truth.speed:4.1f} m/s   lane {truth.lanes_left + 1} of {truth.lanes} "
@@ -265,7 +324,13 @@ class ClipRecorder:
             lines.append((f"largest error in the 5 s before: {blame['indicator']} (mean |error| "
                           f"{blame['mean_error']:g}, {blame['normalised']:.2f} of its scale; then {then})",
                           (255, 140, 140)))
+        lines.append((f"beside and behind (truth): {rear_text(truth.rear, float(truth.speed))}", (235, 235, 235)))
         lines.append((f"contact: {info['contact']}", (235, 235, 235)))
+        if info.get("rule"):
+            head, _, tail = info["rule"].partition("; ")   # the rule, then what the target lane held
+            lines.append((f"rule: {head}" + (";" if tail else ""), (255, 210, 90)))
+            if tail:
+                lines.append((f"      {tail}", (255, 210, 90)))
         for i, (text, colour) in enumerate(lines):
             cv2.putText(img, text[:150], (10, 20 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
         return img

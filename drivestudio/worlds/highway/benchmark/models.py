@@ -1,7 +1,10 @@
-"""The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound) or a
-checkpoint of the highway world, optionally with the controller-side filters of its estimates.
+"""The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound),
+`oracle-extended` (the lookout controller, controller/highway/lookout.py, on the exact extended labels: it also
+sees the cars beside and behind) or a checkpoint of the highway world, optionally with the controller-side filters
+of its estimates.
 
     --model oracle
+    --model oracle-extended
     --model runs/alexnet.pt
     --model runs/alexnet.pt@smoothing=0.5      e = 0.5 e_previous + 0.5 e_now before the Chen controller
     --model runs/alexnet.pt@gap_hold=0.8       gaps: g = min(g_now, 0.8 g_held + 0.2 g_now)
@@ -20,6 +23,8 @@ from pathlib import Path
 from drivestudio.errors import UsageError
 
 ORACLE = "oracle"
+EXTENDED = "oracle-extended"
+EXACT = (ORACLE, EXTENDED)   # the drivers on exact labels; the plain oracle's row is the upper bound
 MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
 FILTERS = ("smoothing", "gap_hold")
 OPTION = re.compile(r"([a-z_]+)=(.*)")
@@ -28,17 +33,19 @@ OPTION = re.compile(r"([a-z_]+)=(.*)")
 @dataclass(frozen=True)
 class ModelSpec:
     text: str                  # as given on the command line
-    path: str | None           # the checkpoint; None: the oracle
+    path: str | None           # the checkpoint; None: an oracle (exact labels)
     smoothing: float = 0.0
     label: str = ORACLE        # the row's name in the leaderboard
-    family: str = ORACLE       # "oracle", "alexnet", "gist", "vgg16", ...
+    family: str = ORACLE       # "oracle", "oracle-extended", "alexnet", "gist", "vgg16", ...
     outputs: tuple = ()
     gap_hold: float = 0.0
+    lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
 
     @property
     def key(self) -> str:
         """What identifies the row: the same checkpoint with other filters is another row."""
-        return ORACLE if self.path is None else f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
+        return self.family if self.path is None else \
+            f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
 
     def filters(self) -> dict[str, float]:
         """The controller-side filters in use, by name."""
@@ -46,6 +53,12 @@ class ModelSpec:
 
     @property
     def is_oracle(self) -> bool:
+        """The plain oracle: the paper's controller on the exact indicators, the row every other is compared with."""
+        return self.path is None and self.family == ORACLE
+
+    @property
+    def exact(self) -> bool:
+        """Drives on exact labels (either oracle): no perception, so no estimate to compare with the truth."""
         return self.path is None
 
     def as_dict(self) -> dict:
@@ -69,9 +82,10 @@ def _factor(name: str, value: str, text: str) -> float:
 
 
 def parse_model(text: str) -> tuple[str, dict[str, float]]:
-    """(checkpoint or 'oracle', {filter: factor}) of a --model value: PATH or PATH@smoothing=A,gap_hold=B."""
+    """(checkpoint, 'oracle' or 'oracle-extended', {filter: factor}) of a --model value: a name, PATH or
+    PATH@smoothing=A,gap_hold=B."""
     if not text.strip():
-        raise UsageError("--model: empty; give 'oracle' or a checkpoint file")
+        raise UsageError("--model: empty; give 'oracle', 'oracle-extended' or a checkpoint file")
     path, filters = text, {}
     head, at, tail = text.rpartition("@")
     if at and not Path(text).is_file():   # a file whose name holds '@' is still a file
@@ -84,8 +98,8 @@ def parse_model(text: str) -> tuple[str, dict[str, float]]:
             value = _factor(m[1], m[2], text)
             if value:
                 filters[m[1]] = value
-    if path == ORACLE and filters:
-        raise UsageError(f"--model {text}: the oracle reads the exact indicators; {', '.join(filters)} applies to "
+    if path in EXACT and filters:
+        raise UsageError(f"--model {text}: {path} reads the exact labels; {', '.join(filters)} applies to "
                          "checkpoints")
     return path, filters
 
@@ -93,23 +107,24 @@ def parse_model(text: str) -> tuple[str, dict[str, float]]:
 def check_model(text: str) -> ModelSpec:
     """The model of a --model value, its checkpoint opened and checked (a model of the highway world)."""
     path, filters = parse_model(text)
-    if path == ORACLE:
-        return ModelSpec(text, None)
+    if path in EXACT:
+        return ModelSpec(text, None, label=path, family=path, lookout=path == EXTENDED)
     from drivestudio.checkpoints import check_checkpoint_path
     from perception.checkpoint import load_checkpoint
     from perception.models import check_spec, describe
-    check_checkpoint_path(path)
+    check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]
     check_spec(spec, path)
     label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
                                                                for f, a in filters.items())
-    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]), **filters)
+    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
+                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0))
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:
     """The rows of a benchmark, the oracle first (added when not asked for: it is the upper bound every other row
-    is compared with); a model given twice is refused."""
+    is compared with), then the extended oracle when asked for; a model given twice is refused."""
     models = [check_model(t) for t in (texts or [ORACLE])]
     seen: dict[str, str] = {}
     for m in models:
@@ -117,13 +132,13 @@ def check_models(texts: list[str] | None) -> list[ModelSpec]:
             raise UsageError(f"--model {m.text} is the same model as --model {seen[m.key]}; give each once")
         seen[m.key] = m.text
     oracle = [m for m in models if m.is_oracle] or [ModelSpec(ORACLE, None)]
-    return oracle + [m for m in models if not m.is_oracle]
+    return oracle + [m for m in models if m.exact and not m.is_oracle] + [m for m in models if not m.exact]
 
 
 def slug(model: ModelSpec, taken: set[str]) -> str:
     """A file-name-safe short name of the model, unique among `taken` (clip folders)."""
-    if model.is_oracle:
-        base = ORACLE
+    if model.exact:
+        base = model.family
     else:
         base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(model.path).stem).strip("-.") or "model"
         for f, a in model.filters().items():

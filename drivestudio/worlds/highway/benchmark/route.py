@@ -153,20 +153,21 @@ _PREDICTORS: dict = {}
 
 
 def driver_for(model: ModelSpec, device: str):
-    """The driver `drive --model` makes: the Chen controller on the truth (oracle) or on a checkpoint's
-    estimates, smoothed as the model asks. A worker keeps each checkpoint's predictor for its next routes."""
+    """The driver `drive --model` makes: the Chen controller on the truth (oracle), the lookout controller on the
+    truth (oracle-extended) or the Chen controller on a checkpoint's estimates, smoothed as the model asks. A worker
+    keeps each checkpoint's predictor for its next routes."""
     from drivestudio.worlds.highway.drivers import ChenDriver
     if model.path is None:
-        return ChenDriver(None)
+        return ChenDriver(None, lookout=model.lookout)
     key = (model.path, device)
     if key not in _PREDICTORS:
         from drivestudio.checkpoints import load_predictor_for
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
-    return ChenDriver(_PREDICTORS[key], **model.filters())
+    return ChenDriver(_PREDICTORS[key], smoothing=model.smoothing, gap_hold=model.gap_hold)
 
 
 def _driver_command(name: str, model: ModelSpec, device: str) -> list[str]:
-    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or "oracle",
+    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or model.family,
            "--device", device]
     for f, a in model.filters().items():
         cmd += [f"--{f.replace('_', '-')}", repr(a)]

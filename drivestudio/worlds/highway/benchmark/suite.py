@@ -1,6 +1,7 @@
 """The suite file format (docs/benchmark.md): the fixed routes a benchmark drives every model on.
 
 {"name": str (optional, default: the file's name), "description": str (optional),
+ "generator": {"seed", "routes", "lanes", "cars", "seconds"} (optional: how draw.py drew the routes),
  "routes": [{"name": str, "track": preset | "procedural:SEED" | track file (relative to the suite file),
              "lanes": 1..4 (optional, default the track's), "cars": AI cars 0..300, "seed": traffic seed,
              "start_lane": 0..lanes-1 counted from the left (optional, default drawn from the seed),
@@ -25,7 +26,8 @@ from sim.track import MAX_LANES, TrackError, load_track
 SUITES_DIR = ASSETS_DIR / "suites"
 DEFAULT_SUITE = SUITES_DIR / "default.json"
 
-SUITE_KEYS = ("name", "description", "routes")
+SUITE_KEYS = ("name", "description", "generator", "routes")
+GENERATOR_KEYS = ("seed", "routes", "lanes", "cars", "seconds")
 ROUTE_KEYS = ("name", "track", "lanes", "cars", "seed", "start_lane", "seconds")
 MAX_ROUTES = 200
 MAX_SECONDS = 7200.0          # [s] two simulated hours per route
@@ -65,6 +67,7 @@ class Suite:
     routes: tuple[Route, ...]
     path: str
     sha256: str
+    generator: dict | None = None   # a drawn suite's generator (draw.py): seed, routes, lanes, cars, seconds
 
     @property
     def seconds(self) -> float:
@@ -78,10 +81,11 @@ class Suite:
             raise SuiteError(f"--routes: no route {show(unknown[0])} in suite '{self.name}' (routes: "
                              f"{', '.join(r.name for r in self.routes)})")
         return Suite(self.name, self.description, tuple(r for r in self.routes if r.name in names), self.path,
-                     self.sha256)
+                     self.sha256, self.generator)
 
     def as_dict(self) -> dict:
         return {"name": self.name, "description": self.description, "path": self.path, "sha256": self.sha256,
+                **({"generator": self.generator} if self.generator else {}),
                 "routes": [r.as_dict() for r in self.routes]}
 
 
@@ -133,6 +137,28 @@ def _route(obj, i: int, base: Path) -> Route:
     return Route(name, track, tr.lanes, cars, seed, start, seconds, ref, round(float(tr.length), 1))
 
 
+def _range(obj: dict, key: str, where: str, lo: int, hi: int) -> list[int]:
+    v = obj.get(key)
+    if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, int) and not isinstance(x, bool) for x in v)
+            and lo <= v[0] <= v[1] <= hi):
+        raise SuiteError(f"{where}: '{key}' must be [LO, HI], integers with {lo} <= LO <= HI <= {hi}, got {show(v)}")
+    return list(v)
+
+
+def _generator(obj, where: str = "generator") -> dict:
+    """The optional record of how a suite was drawn (draw.py): checked, so that it can be drawn again."""
+    if not isinstance(obj, dict):
+        raise SuiteError(f"'generator' must be an object with {', '.join(GENERATOR_KEYS)}, got {show(obj)}")
+    check_keys(obj, GENERATOR_KEYS, where, SuiteError)
+    missing = [k for k in GENERATOR_KEYS if k not in obj]
+    if missing:
+        raise SuiteError(f"{where}: missing '{missing[0]}'")
+    return {"seed": number(obj, "seed", where, lo=0, hi=MAX_SEED, integer=True, error=SuiteError),
+            "routes": number(obj, "routes", where, lo=1, hi=MAX_ROUTES, integer=True, error=SuiteError),
+            "lanes": _range(obj, "lanes", where, 1, MAX_LANES), "cars": _range(obj, "cars", where, 0, MAX_CARS),
+            "seconds": number(obj, "seconds", where, lo=MIN_SECONDS, hi=MAX_SECONDS, unit="s", error=SuiteError)}
+
+
 def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: str = "suite") -> Suite:
     """A Suite from the parsed JSON of a suite file (`source` names it in messages; `base` is its folder)."""
     try:
@@ -141,6 +167,7 @@ def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: st
         check_keys(obj, SUITE_KEYS, "suite", SuiteError)
         name = _text(obj, "name", "suite", default=default_name, pattern=NAME, limit=64)
         description = _text(obj, "description", "suite", default="-")
+        gen = _generator(obj["generator"]) if "generator" in obj else None
         routes = obj.get("routes")
         if not isinstance(routes, list) or not routes or len(routes) > MAX_ROUTES:
             raise SuiteError(f"'routes' must be a list of 1 to {MAX_ROUTES} routes, got "
@@ -153,7 +180,7 @@ def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: st
             seen.add(r.name)
     except SuiteError as e:
         raise SuiteError(f"{source}: {e}") from None
-    return Suite(name, description, parsed, source, sha256)
+    return Suite(name, description, parsed, source, sha256, gen)
 
 
 def load_suite(path=None) -> Suite:
