@@ -38,7 +38,7 @@ from core.declaration import DeclarationError, WorldDeclaration
 from core.processes import pid_alive
 from core.signals import Terminated, exit_on_sigterm
 from shm_bridge import futex, layout
-from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
+from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch, Refused
 from shm_bridge.layout import (
     ACTION_OFFSET,
     ACTION_VALUES,
@@ -551,8 +551,8 @@ def _create(name: str, size: int) -> Segment:
         except FileExistsError:
             problem = _stale_or_busy(name)
             if problem is not None:
-                raise BridgeError(problem) from None
-    raise BridgeError(f"cannot create shared memory {name!r}: the name keeps being taken")
+                raise Refused(problem) from None
+    raise Refused(f"cannot create shared memory {name!r}: the name keeps being taken")
 
 
 def _stale_or_busy(name: str) -> str | None:
@@ -646,7 +646,7 @@ class DriverEndpoint(_Endpoint):
                 fcntl.flock(seg.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 pid = seg.i32[_U32["driver_pid"]]
-                raise BridgeError(f"shared memory {name!r} already has a driver (pid {pid})") from None
+                raise Refused(f"shared memory {name!r} already has a driver (pid {pid})") from None
             seg.i32[_U32["driver_pid"]] = os.getpid()
             seg.u64[_U64["driver_heartbeat_ns"]] = time.monotonic_ns()
             seg.u32[_U32["driver_state"]] = DRIVER_ATTACHED
