@@ -29,6 +29,15 @@ def check_checkpoint_path(model: str) -> Path:
     return path
 
 
+def check_checkpoint(model: str, world: str | None) -> Path:
+    """Open a checkpoint and check it before any work starts: a model (of `world`, when given) whose weights are
+    intact, finite and fit it; else one line and exit status 2 (CheckpointError)."""
+    path = check_checkpoint_path(model)
+    from perception.models import load_model  # lazy: torch
+    load_model(path, world=world)
+    return path
+
+
 def load_predictor_for(model: str, world: str, device: str = "cpu"):
     """The predictor of a checkpoint, which must be a model of `world`."""
     check_checkpoint_path(model)

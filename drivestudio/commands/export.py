@@ -1,15 +1,14 @@
 """drivestudio export --model CKPT --onnx out.onnx: a trained model as ONNX, checked against PyTorch."""
 from __future__ import annotations
 
-TOLERANCE = 1e-4   # largest |ONNX Runtime - PyTorch| accepted, in the labels' units
-
 
 def register(sub) -> None:
     p = sub.add_parser("export", help="export a trained model to ONNX (checked by running it)",
                        description="Write the model of a checkpoint as an ONNX graph that takes uint8 images "
                                    "(batch, channels, height, width) and int64 behavioural modes (batch,) and returns "
                                    "the outputs in the labels' units; then run it with ONNX Runtime and compare with "
-                                   "PyTorch. Prints the parameter count and the size in MB.")
+                                   "PyTorch: the file is written only when they agree. Prints the parameter count "
+                                   "and the size in MB.")
     p.add_argument("--model", required=True, help="checkpoint written by `drivestudio train`")
     p.add_argument("--onnx", required=True, help="the .onnx file to write")
     p.set_defaults(func=run)
@@ -18,7 +17,6 @@ def register(sub) -> None:
 def run(args) -> int:
     from core.files import check_output
     from drivestudio.checkpoints import check_checkpoint_path
-    from drivestudio.errors import RunError
     from perception.export import export_onnx
 
     check_checkpoint_path(args.model)
@@ -28,7 +26,4 @@ def run(args) -> int:
           f"{r['bytes'] / 1e6:.2f} MB file; inputs images {r['inputs']['images']} uint8 and modes int64; "
           f"{len(r['outputs'])} outputs")
     print(f"ONNX Runtime vs PyTorch on 4 random samples: largest difference {r['max_abs_difference']:.2e}")
-    if r["max_abs_difference"] > TOLERANCE:
-        raise RunError(f"the exported model differs from PyTorch by {r['max_abs_difference']:.2e} "
-                       f"(more than {TOLERANCE:g})")
     return 0

@@ -96,8 +96,12 @@ def run(args) -> int:
         raise UsageError("--modes, --mtl and --trials go with --model z2color")
     if args.history and not fam.temporal:
         raise UsageError(f"--history goes with a model that reads earlier frames (mobilenet), not {args.model}")
-    if args.init is not None and not Path(args.init).is_file():
-        raise UsageError(f"--init: no such file: {args.init}")
+    if args.init is not None:   # opened now: a damaged or foreign checkpoint is refused before any work
+        from drivestudio.checkpoints import check_checkpoint
+        from perception.shards import Dataset
+        if not Path(args.init).is_file():
+            raise UsageError(f"--init: no such file: {args.init}")
+        check_checkpoint(args.init, Dataset(Path(args.data)).world)
     if args.weights:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
