@@ -35,6 +35,19 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def check_combination(args) -> None:
+    """Options that would be ignored with the others given are refused (a given option is never dropped)."""
+    if args.video and args.out:
+        raise UsageError("--out FOLDER (PNGs) and --video FILE.mp4 (one episode as a video) are alternatives: "
+                         "give one")
+    if args.video and args.select != "first":
+        raise UsageError("--select goes with PNGs (--out); --video draws one episode in order")
+    if not args.video and args.episode is not None:
+        raise UsageError("--episode goes with --video")
+    if args.select != "random" and args.seed != 0:
+        raise UsageError("--seed goes with --select random")
+
+
 def run(args) -> int:
     import numpy as np
     from tqdm import tqdm
@@ -46,6 +59,7 @@ def run(args) -> int:
     from perception.shards import DatasetError
 
     check_device(args.device)
+    check_combination(args)
     if args.video:
         check_output(args.video, (".mp4",), "video")
     elif not args.out:
@@ -98,7 +112,8 @@ def run(args) -> int:
         for k, i in enumerate(batch):
             images, record = ds.record(i)
             record["targets"] = dict(zip(ds.outputs, ds.raw_targets(i).tolist()))   # the sample's true outputs
-            items.append((images, record, None if est is None else dict(zip(predictor.outputs, est[k]))))
+            items.append((images, record, None if est is None or predictor is None
+                          else dict(zip(predictor.outputs, est[k]))))
         batch.clear()
 
     for i in tqdm(wanted, desc="estimating", unit="sample", disable=len(wanted) < 200, file=sys.stderr,

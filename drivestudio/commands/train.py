@@ -8,6 +8,18 @@ from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
 
+# The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a
+# family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
+TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "weight_decay",
+                   "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights", "regressor", "modes",
+                   "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze", "batch_norm")
+APPLIES = {
+    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials"},
+    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init"},
+    "closed-form": {"regressor", "val_frames"},
+}
+_DEFAULTS: dict[str, object] = {}
+
 FAMILIES = ("alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), mobilenet (MobileNetV2 blocks, half resolution, "
             "optionally with earlier frames), z2color (Z2Color: MultiNet and its MTL baseline)")
 
@@ -77,6 +89,22 @@ def register(sub) -> None:
                    help="decode every frame every epoch instead of once into DATA/.frames (the frame cache)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")
     p.set_defaults(func=run)
+    _DEFAULTS.update({a.dest: a.default for a in p._actions})
+
+
+def check_applies(args, trainer: str) -> None:
+    """UsageError naming the options given (other than their defaults) that the family's trainer does not read."""
+    given = [o for o in TRAINER_OPTIONS if o not in APPLIES[trainer] and getattr(args, o) != _DEFAULTS.get(o)]
+    if given:
+        flags = ", ".join(_flag(o) for o in given)
+        takes = ", ".join(_flag(o) for o in TRAINER_OPTIONS if o in APPLIES[trainer])
+        raise UsageError(f"{flags} {'does' if len(given) == 1 else 'do'} not apply to --model {args.model} "
+                         f"({trainer} training takes {takes})")
+
+
+def _flag(dest: str) -> str:
+    return {"amp": "--no-amp", "channels_last": "--no-channels-last", "cache": "--no-cache"}.get(
+        dest, "--" + dest.replace("_", "-"))
 
 
 def run(args) -> int:
@@ -86,6 +114,7 @@ def run(args) -> int:
     check_device(args.device)
     check_output(args.out, (".pt", ".pth", ".ckpt"), "checkpoint")   # before any work, not after the fit
     fam = family(args.model)
+    check_applies(args, fam.trainer)
     if args.model != "vgg16" and (args.unfreeze or args.batch_norm):
         raise UsageError("--unfreeze and --batch-norm go with --model vgg16")
     if args.model == "gist" and args.weights:
@@ -102,6 +131,8 @@ def run(args) -> int:
         if not Path(args.init).is_file():
             raise UsageError(f"--init: no such file: {args.init}")
         check_checkpoint(args.init, Dataset(Path(args.data)).world)
+    if args.modes is not None and not [m for m in args.modes.split(",") if m.strip()]:
+        raise UsageError(f"--modes {args.modes!r} names no mode (leave it out for all the dataset has)")
     if args.weights:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
