@@ -647,6 +647,10 @@ class DriverEndpoint(_Endpoint):
             except BlockingIOError:
                 pid = seg.i32[_U32["driver_pid"]]
                 raise Refused(f"shared memory {name!r} already has a driver (pid {pid})") from None
+            if seg.u32[_U32["driver_state"]] != DRIVER_NONE:   # one driver per run: the world is ending this one
+                pid = seg.i32[_U32["driver_pid"]]
+                raise Refused(f"shared memory {name!r} has already served a driver (pid {pid}) in this run; "
+                              "the world ends the run when its driver leaves") from None
             seg.i32[_U32["driver_pid"]] = os.getpid()
             seg.u64[_U64["driver_heartbeat_ns"]] = time.monotonic_ns()
             seg.u32[_U32["driver_state"]] = DRIVER_ATTACHED
@@ -831,15 +835,23 @@ def _attach(name: str, timeout: float) -> tuple[Segment, Layout]:
         delay = min(delay * 2, 0.05)
 
 
+def _byteswap32(v: int) -> int:
+    return int.from_bytes(int(v).to_bytes(4, "little"), "big")
+
+
 def _check_header(seg: Segment):
     """The Layout when the header is a consistent version-2 header, "stale" for a dead world's leftover (removed),
     else the mismatch in one line."""
     u32, name = seg.u32, seg.name
-    if u32[_U32["byte_order"]] != layout.BYTE_ORDER_MARK:
-        return f"shared memory {name!r} was written with the other byte order"
+    # the version word is at offset 8 in every version; byte_order moved (offset 60 in version 1, 24 in 2), so
+    # it is read only once the version says where it is
     version = u32[_U32["version"]]
     if version != VERSION:
+        if _byteswap32(version) in (1, VERSION):
+            return f"shared memory {name!r} was written with the other byte order"
         return f"shared memory {name!r} has protocol version {version}, this driver speaks {VERSION}"
+    if u32[_U32["byte_order"]] != layout.BYTE_ORDER_MARK:
+        return f"shared memory {name!r} was written with the other byte order"
     try:
         lay = Layout.read(seg.buf)
     except ValueError as e:
