@@ -37,12 +37,15 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from core.files import check_output
     from perception.checkpoint import CheckpointError  # lazy: torch
-    from perception.evaluate import evaluate
+    from perception.evaluate import REPORT_FILES, evaluate
     from perception.shards import Dataset
 
     check_device(args.device)
     check_output_dir(args.out)
+    for name in REPORT_FILES:   # each file of the report, not only the folder: before any model is evaluated
+        check_output(Path(args.out) / name, None, "report file")
     world = Dataset(Path(args.data)).world
     for path in args.model:   # every model, before any is evaluated: intact, finite, of the dataset's world
         try:

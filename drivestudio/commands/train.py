@@ -109,10 +109,13 @@ def _flag(dest: str) -> str:
 
 def run(args) -> int:
     from core.files import check_output
+    from perception.curves import curve_paths
     from perception.models import family
 
     check_device(args.device)
     check_output(args.out, (".pt", ".pth", ".ckpt"), "checkpoint")   # before any work, not after the fit
+    for side in curve_paths(args.out):   # the loss curves written beside it
+        check_output(side, None, "loss-curve file")
     fam = family(args.model)
     check_applies(args, fam.trainer)
     if args.model != "vgg16" and (args.unfreeze or args.batch_norm):

@@ -61,3 +61,20 @@ def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path
 def test_overlay_refuses_options_it_would_ignore(tmp_path, capsys, extra, words):
     _refused(capsys, ["overlay", "--data", V1, *[e.format(tmp=tmp_path) for e in extra]], words)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("verb, blocked", [
+    (["train", "--data", V1, "--model", "gist", "--out", "{tmp}/m.pt"], "m.pt.loss.png"),
+    (["evaluate", "--data", V1, "--model", "{tmp}/model.pt", "--out", "{tmp}"], "mae.png"),
+    (["benchmark", "--model", "oracle", "--out", "{tmp}", "--quiet"], "leaderboard.md"),
+])
+def test_every_file_a_verb_will_write_is_checked_before_work(tmp_path, capsys, verb, blocked):
+    """A side output that cannot be written (here: a folder stands where the file goes) is found before any work,
+    not after hours of it."""
+    torch.manual_seed(0)
+    model = Regressor(make_spec("gist", HIGHWAY))
+    save_checkpoint(tmp_path / "model.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    (tmp_path / blocked).mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    _refused(capsys, [a.format(tmp=tmp_path) for a in verb], f"{blocked}: it is a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
