@@ -21,7 +21,7 @@ _INPUT = (("core.inputs", "InputError"), ("sim.highway.errors", "RendererError")
           ("perception.checkpoint", "CheckpointError"), ("perception.training", "TrainingError"),
           ("core.files", "OutputError"), ("core.declaration", "DeclarationError"),
           ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"),
-          ("shm_bridge.errors", "Refused"))
+          ("shm_bridge.errors", "Refused"), ("perception.memory", "BatchTooLarge"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 

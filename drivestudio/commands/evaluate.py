@@ -40,6 +40,7 @@ def run(args) -> int:
     from core.files import check_output
     from perception.checkpoint import CheckpointError  # lazy: torch
     from perception.evaluate import REPORT_FILES, evaluate
+    from perception.memory import check_batch
     from perception.shards import Dataset
 
     check_device(args.device)
@@ -49,9 +50,10 @@ def run(args) -> int:
     world = Dataset(Path(args.data)).world
     for path in args.model:   # every model, before any is evaluated: intact, finite, of the dataset's world
         try:
-            check_checkpoint(path, world)
+            spec = check_checkpoint(path, world)
         except CheckpointError as e:
             raise CheckpointError(f"{e} (the dataset {args.data} is of the {world} world)") from None
+        check_batch(args.batch_size, spec["input"])   # before a batch is allocated
     layout = worlds.get(world).evaluation_layout()
     ev = evaluate(args.data, args.model, split=args.split, device=args.device, batch_size=args.batch_size,
                   workers=args.workers, latency_frames=args.latency_frames, layout=layout)

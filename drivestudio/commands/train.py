@@ -102,6 +102,18 @@ def check_applies(args, trainer: str) -> None:
                          f"({trainer} training takes {takes})")
 
 
+def check_batch_for(args) -> None:
+    from perception.memory import check_batch
+    from perception.models import make_spec
+    from perception.shards import Dataset
+    from perception.training import history_moment
+
+    decl = Dataset(Path(args.data)).declaration
+    moment = history_moment(decl, args.history)
+    spec = make_spec(args.model, decl, instants=None if moment is None else moment.instants)
+    check_batch(args.batch_size, spec["input"])
+
+
 def _flag(dest: str) -> str:
     return {"amp": "--no-amp", "channels_last": "--no-channels-last", "cache": "--no-cache"}.get(
         dest, "--" + dest.replace("_", "-"))
@@ -139,6 +151,9 @@ def run(args) -> int:
     if args.weights:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
+
+    if args.batch_size is not None:   # a batch whose inputs cannot fit is refused before anything is allocated
+        check_batch_for(args)
 
     from perception.train import train
     from perception.training import config_from

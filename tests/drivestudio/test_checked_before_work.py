@@ -78,3 +78,9 @@ def test_every_file_a_verb_will_write_is_checked_before_work(tmp_path, capsys, v
     before = sorted(p.name for p in tmp_path.iterdir())
     _refused(capsys, [a.format(tmp=tmp_path) for a in verb], f"{blocked}: it is a folder")
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_batch_that_cannot_fit_in_memory_is_refused_before_allocating(tmp_path, capsys):
+    _refused(capsys, ["train", "--data", V1, "--model", "alexnet", "--batch-size", "65536", "--out",
+                      str(tmp_path / "m.pt")], "--batch-size 65536: its inputs (3 x 210 x 280 a sample) alone need")
+    assert list(tmp_path.iterdir()) == []
