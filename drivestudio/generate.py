@@ -121,7 +121,7 @@ def record_episode(plugin, ep: Episode, cfg: GenerateConfig, out: str, progress=
 
 # --- the run -------------------------------------------------------------------------------------------------
 def _software() -> dict:
-    out = {"python": platform.python_version()}
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for pkg in ("drivestudio", "pybullet", "libsumo", "numpy", "opencv-python-headless", "pyarrow", "trimesh"):
         try:
             out[pkg] = importlib.metadata.version(pkg)

@@ -167,6 +167,7 @@ class _Link:
 class _Endpoint:
     _role = "?"
     _peer_role = "?"
+    _peer_heartbeat: int   # index of the peer's heartbeat word (set by each side's constructor)
 
     def _setup(self, segment: Segment, layout_: Layout, link: _Link, own_bell: str, peer_timeout: float | None,
                spin: float):
@@ -324,6 +325,7 @@ class _Endpoint:
     def _gone_again(self) -> PeerGone:
         """A fresh PeerGone like the first one (re-raising one instance would pile up tracebacks)."""
         g = self._gone
+        assert g is not None
         return PeerGone(str(g), pid=g.pid, orderly=g.orderly)
 
     def _peer_state(self):
@@ -339,8 +341,9 @@ class _Endpoint:
             return
         self._closed = True
         self._before_close()
-        self._slot_truth = self._slot_images = self._slot_t = self._action_block = None
-        self._u32 = self._i32 = self._u64 = None
+        # released views: a later use fails loudly instead of touching an unmapped segment
+        self._slot_truth = self._slot_images = self._slot_t = self._action_block = None  # type: ignore[assignment]
+        self._u32 = self._i32 = self._u64 = None  # type: ignore[assignment]
         self._finalizer()
 
     @property
@@ -591,7 +594,7 @@ def world_of(seg: Segment) -> tuple[int, bool]:
 def reclaim(prefix: str) -> list[str]:
     """Remove the bridge segments named PREFIX* whose world process is dead or closed (left by a run killed
     with SIGKILL, whose peer died too); returns the names removed. Segments of live worlds stay."""
-    removed = []
+    removed: list[str] = []
     try:
         entries = os.listdir(SHM_DIR)
     except OSError:

@@ -123,7 +123,7 @@ class Segment:
         self._closed = True
         for view in (self.u32, self.i32, self.u64):
             view.release()
-        self.buf = None
+        self.buf = None  # type: ignore[assignment]  # released: a later use fails loudly
         try:
             self.mm.close()
         except BufferError:
