@@ -140,17 +140,21 @@ def run_in_process(args, plugin, out: Path) -> int:
         driver = plugin.driver(args.model, args, world.declaration)
         metrics = plugin.metrics(world)
         recorder = plugin.recorder(world, args.record, _label(args))
-        ok = False
+        ok, end, stopped = False, "finished", None
         try:
             last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
                             render=plugin.needs_frames(args), metrics=metrics, realtime=args.realtime,
                             on_step=recorder)
-            ok = True
+            end, ok = "host lost" if last.end is not None else "finished", True
+        except (KeyboardInterrupt, Terminated) as signal_:   # as over the bridge: metrics of what was driven
+            end, stopped, ok = "interrupted", signal_, True
         finally:
             recorder.close(ok)
         extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
-                 "end": "host lost" if last.end is not None else "finished", **plugin.describe_run(world, args)}
+                 "end": end, **plugin.describe_run(world, args)}
     for stage, seconds in getattr(driver, "timings", {}).items():
         metrics.add_time(stage, seconds)
     _finish(metrics, out, extra)
+    if stopped is not None:
+        raise stopped
     return 0

@@ -149,3 +149,20 @@ def test_serve_stopped_while_waiting_for_a_driver_still_saves_its_metrics(name, 
     assert serve.returncode == 143 and len(_errors(err)) == 1, err
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["end"] == "interrupted" and metrics["simulated_time_s"] == 0.0
+
+
+def test_a_signalled_in_process_drive_saves_its_metrics_too(tmp_path):
+    proc = subprocess.Popen(DS + ["drive", "--world", "sidewalk", "--in-process", "--seconds", "3600", "--realtime",
+                                  "--record", str(tmp_path / "run.mp4"), "--out", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    while not list(tmp_path.glob(".run.mp4.*.tmp.mp4")):   # the video's first frames: it is driving
+        assert proc.poll() is None and time.time() - t0 < 60
+        time.sleep(0.1)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and _errors(err) == ["drivestudio drive: terminated by SIGTERM"], err
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["end"] == "interrupted" and 0 < metrics["simulated_time_s"] < 3600
+    assert (tmp_path / "run.mp4").stat().st_size > 0 and not list(tmp_path.glob(".run.mp4.*"))   # kept, whole
