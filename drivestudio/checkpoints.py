@@ -34,6 +34,14 @@ def check_checkpoint_path(model: str, drivers: tuple[str, ...] = ("oracle", "exp
     return path
 
 
+def check_checkpoint(model: str, world: str | None) -> dict:
+    """Open a checkpoint and check it before any work starts: a model (of `world`, when given) whose weights are
+    intact, finite and fit it; else one line and exit status 2 (CheckpointError). Returns its spec."""
+    path = check_checkpoint_path(model)
+    from perception.models import load_model  # lazy: torch
+    return load_model(path, world=world)[1]["spec"]
+
+
 def load_predictor_for(model: str, world: str, device: str = "cpu") -> Predictor:
     """The predictor of a checkpoint, which must be a model of `world`."""
     check_checkpoint_path(model)

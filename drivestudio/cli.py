@@ -6,6 +6,7 @@ import importlib
 import os
 import sys
 
+from core.signals import Terminated
 from drivestudio.errors import input_errors, runtime_errors
 from drivestudio.parsing import Parser
 
@@ -42,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"drivestudio {args.verb}: interrupted", file=sys.stderr)
         return 130
+    except Terminated as e:   # SIGTERM or SIGHUP inside exit_on_sigterm(): what was saved has been said
+        print(f"drivestudio {args.verb}: {e}", file=sys.stderr)
+        return 128 + e.signum
     except BrokenPipeError:  # the reader of our output went away (e.g. `| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

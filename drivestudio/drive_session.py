@@ -13,7 +13,7 @@ from pathlib import Path
 from core import worlds as declared
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
-from drivestudio.errors import UsageError
+from drivestudio.errors import RunError, UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
 from shm_bridge.endpoints import BridgeTimeout, DriverEndpoint, PeerGone, WorldEndpoint, reclaim
@@ -40,7 +40,7 @@ def _wait_for_driver(ep: WorldEndpoint, timeout: float, proc: subprocess.Popen |
             return
         except BridgeTimeout:
             if proc is not None and proc.poll() is not None:
-                raise UsageError(f"the driver process exited (status {proc.returncode}) before attaching") from None
+                raise RunError(f"the driver process exited (status {proc.returncode}) before attaching") from None
             if proc is None or time.monotonic() - t0 > timeout:
                 raise BridgeTimeout(f"no driver attached to '{ep.name}' within {timeout:.0f} s") from None
 
@@ -52,20 +52,21 @@ def _label(args) -> str:
 def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
     """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
-    (finished, host lost, interrupted, driver finished)."""
+    (finished, host lost, interrupted, driver finished). Ctrl-C or SIGTERM, also while waiting for a driver, ends
+    the run in order: metrics.json records "interrupted" and the signal is raised again afterwards (exit 128 + N)."""
     seconds = args.seconds if args.seconds is not None else math.inf
-    exchange, reason = None, "finished"
+    exchange, reason, stopped = None, "finished", None
     with exit_on_sigterm(), plugin.world(args, render=True) as world:
         metrics = plugin.metrics(world)
         with WorldEndpoint(args.shm, world.declaration, lockstep=not args.free_running) as ep:
             print(f"world '{world.declaration.name}' on shared memory '{args.shm}' "
                   f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
                   file=sys.stderr, flush=True)
-            _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
             exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
             recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
             ok = False
             try:
+                _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
                 last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
                                 on_step=recorder)
                 reason = "host lost" if last.end is not None else "finished"
@@ -75,11 +76,8 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                     raise
                 reason, ok = "driver finished", True
                 print(str(gone), file=sys.stderr)
-            except (KeyboardInterrupt, Terminated):
-                reason = "interrupted"
-                if args.seconds is not None:
-                    raise  # a bounded run was cut short
-                ok = True
+            except (KeyboardInterrupt, Terminated) as signal_:
+                reason, stopped, ok = "interrupted", signal_, True   # what was driven until now is kept
             finally:
                 recorder.close(ok)
                 ep.end(reason if reason != "finished" or ok else "error")
@@ -95,6 +93,8 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                 driver_time += value
     metrics.add_time("transfer", max(0.0, exchange.round_trip - driver_time))
     _finish(metrics, out, extra)
+    if stopped is not None:
+        raise stopped   # the CLI says how the run ended, in one line, with status 128 + N
     return 0
 
 
@@ -140,17 +140,21 @@ def run_in_process(args, plugin, out: Path) -> int:
         driver = plugin.driver(args.model, args, world.declaration)
         metrics = plugin.metrics(world)
         recorder = plugin.recorder(world, args.record, _label(args))
-        ok = False
+        ok, end, stopped = False, "finished", None
         try:
             last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
                             render=plugin.needs_frames(args), metrics=metrics, realtime=args.realtime,
                             on_step=recorder)
-            ok = True
+            end, ok = "host lost" if last.end is not None else "finished", True
+        except (KeyboardInterrupt, Terminated) as signal_:   # as over the bridge: metrics of what was driven
+            end, stopped, ok = "interrupted", signal_, True
         finally:
             recorder.close(ok)
         extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
-                 "end": "host lost" if last.end is not None else "finished", **plugin.describe_run(world, args)}
+                 "end": end, **plugin.describe_run(world, args)}
     for stage, seconds in getattr(driver, "timings", {}).items():
         metrics.add_time(stage, seconds)
     _finish(metrics, out, extra)
+    if stopped is not None:
+        raise stopped
     return 0

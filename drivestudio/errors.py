@@ -1,4 +1,5 @@
-"""Errors that mean bad input (one line on stderr, exit status 2) or a failed run (one line, exit status 1)."""
+"""Errors that mean a refusal of what the user asked for (one line on stderr, exit status 2) or a run that failed on
+its way because a peer died or stopped answering (one line, exit status 1); docs/errors.md has the table."""
 from __future__ import annotations
 
 import sys
@@ -9,7 +10,7 @@ class UsageError(ValueError):
 
 
 class RunError(RuntimeError):
-    """A run that failed on its way (a worker died, a peer went away): one line, exit status 1."""
+    """A run that failed on its way (a worker died, a peer went away or never answered): one line, exit status 1."""
 
 
 # (module, class) of the errors that are the user's to fix; looked up only among modules already imported,
@@ -19,7 +20,8 @@ _INPUT = (("core.inputs", "InputError"), ("sim.highway.errors", "RendererError")
           ("sim.highway.errors", "TrafficError"), ("perception.shards", "DatasetError"),
           ("perception.checkpoint", "CheckpointError"), ("perception.training", "TrainingError"),
           ("core.files", "OutputError"), ("core.declaration", "DeclarationError"),
-          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"))
+          ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"),
+          ("shm_bridge.errors", "Refused"), ("perception.memory", "BatchTooLarge"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 

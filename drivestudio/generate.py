@@ -163,19 +163,34 @@ def _open_manifest(out: Path, cfg: GenerateConfig, plugin: Plugin) -> dict:
 
 def _check_listed(out: Path, manifest: dict, log) -> None:
     """Shards the manifest lists but that are missing or damaged (truncated, changed): forget them, so that their
-    episodes are recorded again."""
+    episodes are recorded again. A whole shard (its checksum the manifest's) that is not one of this dataset's
+    (another world's columns, another length) is refused: the manifest was made for other files."""
     if not manifest["shards"]:
         return
+    decl = manifest_declaration(manifest)
     keep = []
     for entry in manifest["shards"]:
         info = ShardInfo.from_entry(entry)
         problem = verify_shard(out, info)
         if problem is None:
+            _check_fits(out, info, decl)
             keep.append(entry)
             continue
         log(f"shard {info.file} is damaged ({problem}): recording episode {info.episode} again")
         (out / info.file).unlink(missing_ok=True)
     manifest["shards"] = keep
+
+
+def _check_fits(out: Path, info: ShardInfo, decl) -> None:
+    try:
+        frames = len(ShardReader(out / info.file, decl))
+    except DatasetError as e:
+        raise DatasetError(f"{e}, yet {out}/{MANIFEST} lists it with its checksum: not a dataset this command can "
+                           "continue (give a new --out)") from None
+    if frames != info.frames:
+        raise DatasetError(f"shard {out / info.file} holds {frames} frames, yet {out}/{MANIFEST} lists it with "
+                           f"{info.frames} and its checksum: not a dataset this command can continue (give a new "
+                           "--out)")
 
 
 def _adopt_orphans(out: Path, manifest: dict, episodes: list[Episode]) -> None:

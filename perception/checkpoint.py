@@ -6,12 +6,15 @@ temporary left by a killed save is removed by the next save to the same place).
     spec              the model (perception/models.py): family, world, labels and outputs, options, input,
                       normalisation
     state_dict        the model's tensors
+    state_sha256      SHA-256 of the tensors (names, dtypes, shapes, bytes), checked at load: a byte flipped inside
+                      a tensor is refused (absent from checkpoints written before it existed, which still load)
     train             progress and settings: config (JSON-able), iteration, epoch, step_in_epoch, history
     optimizer, scheduler, rng    what resuming needs (absent from fitted GIST models)
     data              the training data's manifest summary: root, frames per split, manifest fields
 """
 from __future__ import annotations
 
+import hashlib
 import pickle
 from pathlib import Path
 
@@ -30,10 +33,47 @@ class CheckpointError(ValueError):
     """A checkpoint (or weights file) that cannot be used: missing, not ours, truncated, or not the model asked for."""
 
 
+DIGEST = "state_sha256"
+
+
 def save_checkpoint(path, payload: dict) -> None:
-    """Write atomically; a SIGTERM or Ctrl-C during the write takes effect once it is complete."""
+    """Write atomically, with the digest of the weights; a SIGTERM or Ctrl-C during the write takes effect once it
+    is complete."""
+    if isinstance(payload.get("state_dict"), dict):
+        payload = {**payload, DIGEST: tensor_digest(payload["state_dict"])}
     with deferred():
         atomic_write(path, lambda f: torch.save({"format": FORMAT, "version": VERSION, **payload}, f))
+
+
+def tensor_digest(state: dict) -> str:
+    """SHA-256 over a state dict's tensors in name order: each name, dtype and shape, then its bytes."""
+    h = hashlib.sha256()
+    for key in sorted(state):
+        t = state[key]
+        if not isinstance(t, torch.Tensor):
+            raise CheckpointError(f"the weights hold a {type(t).__name__} under '{key}', not a tensor")
+        t = t.detach().cpu().contiguous()
+        h.update(f"{key}\0{t.dtype}\0{tuple(t.shape)}\0".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()
+
+
+def check_weights(path, ckpt: dict) -> None:
+    """Refuse weights that are not the ones saved (their digest differs) or that are not finite (a diverged or
+    damaged model would drive, or be exported, with NaN outputs)."""
+    state = ckpt["state_dict"]
+    try:
+        digest = tensor_digest(state)
+    except CheckpointError as e:
+        raise CheckpointError(f"{path} is damaged: {e}") from None
+    stored = ckpt.get(DIGEST)
+    if stored is not None and stored != digest:
+        raise CheckpointError(f"{path} is damaged: its weights are not the ones that were saved (the SHA-256 of "
+                              "its tensors differs from the one stored with them)")
+    for key, t in state.items():
+        if t.is_floating_point() and not bool(torch.isfinite(t).all()):
+            raise CheckpointError(f"{path} holds weights that are not finite (NaN or infinity in '{key}'): a "
+                                  "diverged or damaged model is refused")
 
 
 def load_checkpoint(path, model: str | None = None, labels=None, map_location="cpu", world: str | None = None) -> dict:
@@ -63,6 +103,7 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
     if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
             not {"name", "labels", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
+    check_weights(path, ckpt)
     spec = ckpt["spec"] = upgrade_spec(spec)
     if world is not None and spec["world"] != world:
         raise CheckpointError(f"{path} is a model of the {spec['world']} world, not of the {world} world")

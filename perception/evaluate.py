@@ -26,6 +26,10 @@ from perception.models import describe, load_model
 from perception.predictor import Predictor
 from perception.shards import Dataset, DatasetError
 
+# the files of a report, which the CLI checks can be written before evaluating anything
+REPORT_FILES = ("mae.md", "mae.csv", "mae_by_regime.csv", "mae_by_lanes.csv", "speed.csv", "mae.png",
+                "evaluation.json")
+
 
 def _sync(device: torch.device) -> None:
     if device.type == "cuda":
@@ -117,6 +121,7 @@ def evaluate(data, checkpoints, split: str = "test", device: str = "cpu", batch_
     ev.files = {"mae.md": ev.markdown, "mae.csv": mae_csv(ev), "mae_by_regime.csv": breakdown_csv(ev, "regime"),
                 "mae_by_lanes.csv": breakdown_csv(ev, "lanes"), "speed.csv": speed_csv(ev),
                 "mae.png": bar_chart(ev), "evaluation.json": summary(ev)}
+    assert tuple(ev.files) == REPORT_FILES
     return ev
 
 

@@ -17,9 +17,14 @@ from torch import nn
 
 from core.files import atomic_write, temporary_for
 from perception.checkpoint import CheckpointError
-from perception.models import load_model
+from perception.models import family, load_model
 
 OPSET = 17
+TOLERANCE = 1e-4   # largest |ONNX Runtime - PyTorch| accepted, in the labels' units
+
+
+class ExportError(CheckpointError):
+    """The exported graph does not compute what the model computes (exit status 2: nothing is written)."""
 
 
 class Deployable(nn.Module):
@@ -45,15 +50,20 @@ def example_inputs(spec: dict, batch: int = 1, seed: int = 0) -> tuple[torch.Ten
     return images, modes.to(torch.int64)
 
 
-def export_onnx(checkpoint, path, check_batch: int = 4) -> dict:
-    """Write the model of `checkpoint` as ONNX to `path` (atomically); run it with ONNX Runtime on random inputs
-    and compare with PyTorch. Returns sizes, parameter count and the largest difference."""
+def export_onnx(checkpoint, path, check_batch: int = 4, tolerance: float = TOLERANCE) -> dict:
+    """Write the model of `checkpoint` as ONNX to `path`, only once ONNX Runtime's outputs on random inputs agree
+    with PyTorch's within `tolerance` (a NaN difference does not): nothing is written otherwise, and a family whose
+    operators ONNX cannot express is refused before anything is traced. Returns sizes, parameter count and the
+    largest difference."""
     try:
         import onnxruntime as ort  # lazy: an optional extra; without it, one clear line instead of an ImportError
     except ImportError:
         raise CheckpointError("exporting needs onnx and onnxruntime: pip install 'drivestudio[export]'") from None
     model, ckpt = load_model(checkpoint)
     spec = ckpt["spec"]
+    fam = family(spec["name"])
+    if fam.onnx is not None:
+        raise CheckpointError(f"{checkpoint} holds a {fam.title} model, which cannot be exported to ONNX: {fam.onnx}")
     net = Deployable(model).eval()
     images, modes = example_inputs(spec)
     path = Path(path)
@@ -65,15 +75,19 @@ def export_onnx(checkpoint, path, check_batch: int = 4) -> dict:
                               output_names=["outputs"], opset_version=OPSET, dynamo=False,
                               dynamic_axes={"images": {0: "batch"}, "modes": {0: "batch"}, "outputs": {0: "batch"}})
         data = tmp.read_bytes()
+        session = ort.InferenceSession(data, providers=["CPUExecutionProvider"])
     finally:
         tmp.unlink(missing_ok=True)
-    atomic_write(path, data)
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     x, m = example_inputs(spec, check_batch, seed=1)
     got = session.run(["outputs"], {"images": x.numpy(), "modes": m.numpy()})[0]
     with torch.no_grad():
         want = net(x, m).numpy()
-    diff = float(np.abs(got - want).max())
+    with np.errstate(invalid="ignore"):   # inf - inf: a NaN difference, refused below
+        diff = float(np.abs(got - want).max())
+    if not diff <= tolerance:   # NaN compares false: a NaN difference fails too
+        raise ExportError(f"the ONNX graph of {checkpoint} differs from PyTorch by {diff:.2e} on {check_batch} random "
+                          f"samples (more than {tolerance:g}); nothing written")
+    atomic_write(path, data)
     params = sum(p.numel() for p in model.parameters())
     return {"onnx": str(path), "bytes": len(data), "parameters": params, "float32_mb": params * 4 / 1e6,
             "max_abs_difference": diff, "outputs": list(spec["outputs"]), "inputs": {

@@ -179,4 +179,5 @@ def _build(inp: ModelInput, outputs: int, options: dict) -> GistRegressor:
 
 register(Family("gist", "GIST", _build, one_camera_now, trainer="closed-form",
                 defaults={"batch_size": 32},
+                onnx="its anti-aliased resize of the frame (and its 2-D Fourier transforms) have no ONNX operator",
                 describe=lambda spec: f"GIST + {spec['options'].get('regressor', 'ridge')}"))

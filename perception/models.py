@@ -56,6 +56,7 @@ class Family:
     trainer: "sgd" (iterations of SGD/Adam on the Euclidean loss), "closed-form" (GIST + ridge) or "multinet"
     (epochs of Adadelta, MultiNet's losses and trials). defaults: the trainer's settings for this family.
     temporal: the family takes frames of earlier steps beside the current one (3 channels per instant).
+    onnx: None when the family can be exported as ONNX (`drivestudio export`), else why not (one line).
     """
 
     name: str
@@ -68,6 +69,7 @@ class Family:
     defaults: dict = field(default_factory=dict)
     describe: Callable[[dict], str] | None = None
     temporal: bool = False     # reads several instants of a one-instant world (train --history K)
+    onnx: str | None = None    # None: exportable to ONNX; else why not, e.g. an operator ONNX cannot express
 
 
 _FAMILIES: dict[str, Family] = {}

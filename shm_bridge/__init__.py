@@ -5,7 +5,7 @@ Modules (import them directly; this package file imports nothing):
               prints the C declarations
   endpoints   WorldEndpoint (creates /dev/shm/NAME, publishes frames, reads actions) and DriverEndpoint
               (attaches, takes frames, sends actions); FrameMsg, ActionMsg; lock-step and free-running modes
-  errors      BridgeError, PeerGone, ProtocolMismatch, BridgeTimeout
+  errors      BridgeError, PeerGone, ProtocolMismatch, Refused, BadName, BridgeTimeout
   segment     the /dev/shm file (0600, O_EXCL, inode-checked unlink)
   futex       FUTEX_WAIT / FUTEX_WAKE on words of the segment, through ctypes
 

@@ -38,7 +38,7 @@ from core.declaration import DeclarationError, WorldDeclaration
 from core.processes import pid_alive
 from core.signals import Terminated, exit_on_sigterm
 from shm_bridge import futex, layout
-from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch
+from shm_bridge.errors import BridgeError, BridgeTimeout, PeerGone, ProtocolMismatch, Refused
 from shm_bridge.layout import (
     ACTION_OFFSET,
     ACTION_VALUES,
@@ -341,10 +341,9 @@ class _Endpoint:
             return
         self._closed = True
         self._before_close()
-        # drop this endpoint's views of the mapping, so that the segment can unmap it (a closed endpoint reads
-        # nothing: using one is an AttributeError)
-        del self._slot_truth, self._slot_images, self._slot_t, self._action_block
-        del self._u32, self._i32, self._u64
+        # released views: a later use fails loudly instead of touching an unmapped segment
+        self._slot_truth = self._slot_images = self._slot_t = self._action_block = None  # type: ignore[assignment]
+        self._u32 = self._i32 = self._u64 = None  # type: ignore[assignment]
         self._finalizer()
 
     @property
@@ -554,8 +553,8 @@ def _create(name: str, size: int) -> Segment:
         except FileExistsError:
             problem = _stale_or_busy(name)
             if problem is not None:
-                raise BridgeError(problem) from None
-    raise BridgeError(f"cannot create shared memory {name!r}: the name keeps being taken")
+                raise Refused(problem) from None
+    raise Refused(f"cannot create shared memory {name!r}: the name keeps being taken")
 
 
 def _stale_or_busy(name: str) -> str | None:
@@ -649,7 +648,11 @@ class DriverEndpoint(_Endpoint):
                 fcntl.flock(seg.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 pid = seg.i32[_U32["driver_pid"]]
-                raise BridgeError(f"shared memory {name!r} already has a driver (pid {pid})") from None
+                raise Refused(f"shared memory {name!r} already has a driver (pid {pid})") from None
+            if seg.u32[_U32["driver_state"]] != DRIVER_NONE:   # one driver per run: the world is ending this one
+                pid = seg.i32[_U32["driver_pid"]]
+                raise Refused(f"shared memory {name!r} has already served a driver (pid {pid}) in this run; "
+                              "the world ends the run when its driver leaves") from None
             seg.i32[_U32["driver_pid"]] = os.getpid()
             seg.u64[_U64["driver_heartbeat_ns"]] = time.monotonic_ns()
             seg.u32[_U32["driver_state"]] = DRIVER_ATTACHED
@@ -837,15 +840,23 @@ def _attach(name: str, timeout: float) -> tuple[Segment, Layout]:
         delay = min(delay * 2, 0.05)
 
 
+def _byteswap32(v: int) -> int:
+    return int.from_bytes(int(v).to_bytes(4, "little"), "big")
+
+
 def _check_header(seg: Segment):
     """The Layout when the header is a consistent version-2 header, "stale" for a dead world's leftover (removed),
     else the mismatch in one line."""
     u32, name = seg.u32, seg.name
-    if u32[_U32["byte_order"]] != layout.BYTE_ORDER_MARK:
-        return f"shared memory {name!r} was written with the other byte order"
+    # the version word is at offset 8 in every version; byte_order moved (offset 60 in version 1, 24 in 2), so
+    # it is read only once the version says where it is
     version = u32[_U32["version"]]
     if version != VERSION:
+        if _byteswap32(version) in (1, VERSION):
+            return f"shared memory {name!r} was written with the other byte order"
         return f"shared memory {name!r} has protocol version {version}, this driver speaks {VERSION}"
+    if u32[_U32["byte_order"]] != layout.BYTE_ORDER_MARK:
+        return f"shared memory {name!r} was written with the other byte order"
     try:
         lay = Layout.read(seg.buf)
     except ValueError as e:

@@ -24,6 +24,11 @@ class ProtocolMismatch(BridgeError):
     """The segment is not a bridge segment, or speaks another protocol version or layout."""
 
 
+class Refused(BridgeError):
+    """What was asked cannot be done with this segment: the name is taken, another driver is attached, the file
+    belongs to another user, is a symbolic link or not a regular file. The user's to fix (exit status 2)."""
+
+
 class BridgeTimeout(BridgeError, TimeoutError):
     """A wait with a timeout ran out (no driver attached, no frame, no action)."""
 

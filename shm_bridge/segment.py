@@ -7,6 +7,7 @@ shm_open("/NAME", ...) opens.
 """
 from __future__ import annotations
 
+import errno
 import mmap
 import os
 import re
@@ -14,7 +15,7 @@ import stat
 
 import numpy as np
 
-from shm_bridge.errors import BadName, BridgeError
+from shm_bridge.errors import BadName, Refused
 
 SHM_DIR = "/dev/shm"
 MODE = 0o600
@@ -74,21 +75,24 @@ class Segment:
     @classmethod
     def open(cls, name: str, min_size: int) -> Segment | None:
         """Open an existing segment of at least `min_size` bytes (mapping all of it); None when it does not
-        exist or is still shorter (being created). BridgeError when the file is not the user's own."""
+        exist or is still shorter (being created). Refused when the file is a symbolic link, not a regular file or
+        not the user's own."""
         path = shm_path(name)
         try:
             fd = os.open(path, os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC)
         except FileNotFoundError:
             return None
         except OSError as e:
-            raise BridgeError(f"cannot open shared memory {name!r}: {e.strerror}") from None
+            if e.errno == errno.ELOOP:
+                raise Refused(f"shared memory {name!r} is a symbolic link ({path}); refusing to follow it") from None
+            raise Refused(f"cannot open shared memory {name!r}: {e.strerror}") from None
         keep = False
         try:
             st = os.fstat(fd)
             if not stat.S_ISREG(st.st_mode):
-                raise BridgeError(f"shared memory {name!r} is not a regular file")
+                raise Refused(f"shared memory {name!r} is not a regular file")
             if st.st_uid != os.geteuid():
-                raise BridgeError(f"shared memory {name!r} belongs to uid {st.st_uid}, not to this user "
+                raise Refused(f"shared memory {name!r} belongs to uid {st.st_uid}, not to this user "
                                   f"(uid {os.geteuid()}); refusing to attach")
             if st.st_size < min_size:
                 return None
@@ -119,7 +123,7 @@ class Segment:
         self._closed = True
         for view in (self.u32, self.i32, self.u64):
             view.release()
-        del self.buf   # the array is a view of the mapping: drop it so that the mapping can close
+        self.buf = None  # type: ignore[assignment]  # released: a later use fails loudly
         try:
             self.mm.close()
         except BufferError:

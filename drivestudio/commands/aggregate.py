@@ -59,12 +59,15 @@ def _cars(text: str) -> tuple[int, int]:
 def run(args) -> int:
     from core.files import check_output_dir
     from perception.checkpoint import load_checkpoint  # lazy: torch
+    from perception.memory import check_batch
     from perception.shards import Dataset
 
     check_device(args.device)
     check_output_dir(args.out, "aggregation folder")
     check_checkpoint_path(args.model)
-    load_checkpoint(args.model, world="highway")
+    spec = load_checkpoint(args.model, world="highway")["spec"]
+    if args.batch_size is not None:
+        check_batch(args.batch_size, spec["input"])   # before a batch is allocated
     if Dataset(Path(args.data)).world != "highway":
         raise UsageError(f"--data {args.data} is a dataset of the {Dataset(Path(args.data)).world} world; "
                          "aggregation rounds are the highway's")

@@ -32,8 +32,9 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
-from core.files import check_output_dir
+from core.files import check_output, check_output_dir
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.errors import UsageError
@@ -62,12 +63,14 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    # lazy: the benchmark's wiring adds 20 ms to every `drivestudio --help`; only this verb needs it
     from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
-    from drivestudio.worlds.highway.benchmark.report import write_board
+    from drivestudio.worlds.highway.benchmark.report import BOARD_FILES, CLIPS, write_board
 
-    if args.out is not None:
-        check_output_dir(args.out)          # before any work
+    if args.out is not None:   # the folder and every file the run will write into it, before any work
+        check_output_dir(args.out)
+        check_output_dir(Path(args.out) / CLIPS, "clips folder")
+        for name in BOARD_FILES:
+            check_output(Path(args.out) / name, None, "leaderboard file")
     check_device(args.device)
     suite = load_suite(args.suite)
     if args.routes is not None:
@@ -77,6 +80,10 @@ def run(args) -> int:
         suite = suite.select(names)
     models = check_models(args.model)
     out = run_dir(args.out, "benchmark")
+    if args.shm:   # segments of earlier benchmarks whose whole process group was killed (nobody left to clean up)
+        from drivestudio.worlds.highway.benchmark.route import SHM_PREFIX
+        from shm_bridge.endpoints import reclaim
+        reclaim(SHM_PREFIX)
     opts = RunOptions(transport="shm" if args.shm else "in-process", device=args.device, renderer=args.renderer,
                       clips=args.clips)
     workers = min(args.workers or os.cpu_count() or 1, len(suite.routes) * len(models))

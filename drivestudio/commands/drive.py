@@ -9,8 +9,9 @@ M is one of the world's own drivers (highway: oracle; sidewalk: expert) or a che
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from drivestudio.checkpoints import check_device
+from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
@@ -48,15 +49,16 @@ def run(args) -> int:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name
         validate_name(args.shm)
+        if args.model is not None and Path(args.model).is_file():   # a checkpoint: checked before attaching
+            check_checkpoint(args.model, None)
         return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
     plugin = plugin_for(args)
     args.model = args.model or plugin.expert_names[0]
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    out = run_dir(args.out, "drive")
     if args.model not in plugin.expert_names:
-        from drivestudio.checkpoints import check_checkpoint_path
-        check_checkpoint_path(args.model, plugin.expert_names)
+        check_checkpoint(args.model, plugin.name)   # before the world starts: one line, exit 2
+    out = run_dir(args.out, "drive")
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)
     return drive_session.run_both_sides(args, plugin, out)

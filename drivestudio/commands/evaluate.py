@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.files import check_output_dir
+from core.files import check_output, check_output_dir
 from drivestudio import worlds
-from drivestudio.checkpoints import check_checkpoint_path, check_device
+from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.numbers import count
 from drivestudio.outputs import write_json, write_png, write_text
@@ -37,14 +37,23 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from perception.evaluate import evaluate  # lazy: torch
+    from perception.checkpoint import CheckpointError  # lazy: torch
+    from perception.evaluate import REPORT_FILES, evaluate
+    from perception.memory import check_batch
     from perception.shards import Dataset  # lazy: pyarrow (80 ms) only when a dataset is read
 
     check_device(args.device)
     check_output_dir(args.out)
-    for path in args.model:
-        check_checkpoint_path(path)
-    layout = worlds.get(Dataset(Path(args.data)).world).evaluation_layout()
+    for name in REPORT_FILES:   # each file of the report, not only the folder: before any model is evaluated
+        check_output(Path(args.out) / name, None, "report file")
+    world = Dataset(Path(args.data)).world
+    for path in args.model:   # every model, before any is evaluated: intact, finite, of the dataset's world
+        try:
+            spec = check_checkpoint(path, world)
+        except CheckpointError as e:
+            raise CheckpointError(f"{e} (the dataset {args.data} is of the {world} world)") from None
+        check_batch(args.batch_size, spec["input"])   # before a batch is allocated
+    layout = worlds.get(world).evaluation_layout()
     ev = evaluate(args.data, args.model, split=args.split, device=args.device, batch_size=args.batch_size,
                   workers=args.workers, latency_frames=args.latency_frames, layout=layout)
     out = Path(args.out)

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from core.files import check_output
 from drivestudio.checkpoints import check_checkpoint_path
-from drivestudio.errors import RunError
 
 TOLERANCE = 1e-4   # largest |ONNX Runtime - PyTorch| accepted, in the labels' units
 
@@ -13,7 +12,8 @@ def register(sub) -> None:
                        description="Write the model of a checkpoint as an ONNX graph that takes uint8 images "
                                    "(batch, channels, height, width) and int64 behavioural modes (batch,) and returns "
                                    "the outputs in the labels' units; then run it with ONNX Runtime and compare with "
-                                   "PyTorch. Prints the parameter count and the size in MB.")
+                                   "PyTorch: the file is written only when they agree. Prints the parameter count "
+                                   "and the size in MB.")
     p.add_argument("--model", required=True, help="checkpoint written by `drivestudio train`")
     p.add_argument("--onnx", required=True, help="the .onnx file to write")
     p.set_defaults(func=run)
@@ -29,7 +29,4 @@ def run(args) -> int:
           f"{r['bytes'] / 1e6:.2f} MB file; inputs images {r['inputs']['images']} uint8 and modes int64; "
           f"{len(r['outputs'])} outputs")
     print(f"ONNX Runtime vs PyTorch on 4 random samples: largest difference {r['max_abs_difference']:.2e}")
-    if r["max_abs_difference"] > TOLERANCE:
-        raise RunError(f"the exported model differs from PyTorch by {r['max_abs_difference']:.2e} "
-                       f"(more than {TOLERANCE:g})")
     return 0

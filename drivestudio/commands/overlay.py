@@ -48,12 +48,26 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def check_combination(args) -> None:
+    """Options that would be ignored with the others given are refused (a given option is never dropped)."""
+    if args.video and args.out:
+        raise UsageError("--out FOLDER (PNGs) and --video FILE.mp4 (one episode as a video) are alternatives: "
+                         "give one")
+    if args.video and args.select != "first":
+        raise UsageError("--select goes with PNGs (--out); --video draws one episode in order")
+    if not args.video and args.episode is not None:
+        raise UsageError("--episode goes with --video")
+    if args.select != "random" and args.seed != 0:
+        raise UsageError("--seed goes with --select random")
+
+
 def run(args) -> int:
     # lazy: perception's readers import torch and pyarrow (seconds); only drawing overlays needs them
     from perception.datasets import FrameDataset
     from perception.shards import Dataset, DatasetError
 
     check_device(args.device)
+    check_combination(args)
     if args.video:
         check_output(args.video, (".mp4",), "video")
     elif not args.out:

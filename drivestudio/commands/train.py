@@ -8,6 +8,18 @@ from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
 
+# The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a
+# family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
+TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "weight_decay",
+                   "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights", "regressor", "modes",
+                   "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze", "batch_norm")
+APPLIES = {
+    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials"},
+    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init"},
+    "closed-form": {"regressor", "val_frames"},
+}
+_DEFAULTS: dict[str, object] = {}
+
 FAMILIES = ("alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), mobilenet (MobileNetV2 blocks, half resolution, "
             "optionally with earlier frames), z2color (Z2Color: MultiNet and its MTL baseline)")
 
@@ -81,15 +93,47 @@ def register(sub) -> None:
                    help="decode every frame every epoch instead of once into DATA/.frames (the frame cache)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")
     p.set_defaults(func=run)
+    _DEFAULTS.update({a.dest: a.default for a in p._actions})
+
+
+def check_applies(args, trainer: str) -> None:
+    """UsageError naming the options given (other than their defaults) that the family's trainer does not read."""
+    given = [o for o in TRAINER_OPTIONS if o not in APPLIES[trainer] and getattr(args, o) != _DEFAULTS.get(o)]
+    if given:
+        flags = ", ".join(_flag(o) for o in given)
+        takes = ", ".join(_flag(o) for o in TRAINER_OPTIONS if o in APPLIES[trainer])
+        raise UsageError(f"{flags} {'does' if len(given) == 1 else 'do'} not apply to --model {args.model} "
+                         f"({trainer} training takes {takes})")
+
+
+def check_batch_for(args) -> None:
+    from perception.memory import check_batch
+    from perception.models import make_spec
+    from perception.shards import Dataset
+    from perception.training import history_moment
+
+    decl = Dataset(Path(args.data)).declaration
+    moment = history_moment(decl, args.history)
+    spec = make_spec(args.model, decl, instants=None if moment is None else moment.instants)
+    check_batch(args.batch_size, spec["input"])
+
+
+def _flag(dest: str) -> str:
+    return {"amp": "--no-amp", "channels_last": "--no-channels-last", "cache": "--no-cache"}.get(
+        dest, "--" + dest.replace("_", "-"))
 
 
 def run(args) -> int:
     from core.files import check_output
+    from perception.curves import curve_paths
     from perception.models import family
 
     check_device(args.device)
     check_output(args.out, (".pt", ".pth", ".ckpt"), "checkpoint")   # before any work, not after the fit
+    for side in curve_paths(args.out):   # the loss curves written beside it
+        check_output(side, None, "loss-curve file")
     fam = family(args.model)
+    check_applies(args, fam.trainer)
     if args.model != "vgg16" and (args.unfreeze or args.batch_norm):
         raise UsageError("--unfreeze and --batch-norm go with --model vgg16")
     if args.model == "gist" and args.weights:
@@ -100,11 +144,20 @@ def run(args) -> int:
         raise UsageError("--modes, --mtl and --trials go with --model z2color")
     if args.history and not fam.temporal:
         raise UsageError(f"--history goes with a model that reads earlier frames (mobilenet), not {args.model}")
-    if args.init is not None and not Path(args.init).is_file():
-        raise UsageError(f"--init: no such file: {args.init}")
+    if args.init is not None:   # opened now: a damaged or foreign checkpoint is refused before any work
+        from drivestudio.checkpoints import check_checkpoint
+        from perception.shards import Dataset
+        if not Path(args.init).is_file():
+            raise UsageError(f"--init: no such file: {args.init}")
+        check_checkpoint(args.init, Dataset(Path(args.data)).world)
+    if args.modes is not None and not [m for m in args.modes.split(",") if m.strip()]:
+        raise UsageError(f"--modes {args.modes!r} names no mode (leave it out for all the dataset has)")
     if args.weights:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
+
+    if args.batch_size is not None:   # a batch whose inputs cannot fit is refused before anything is allocated
+        check_batch_for(args)
 
     from perception.train import train
     from perception.training import config_from

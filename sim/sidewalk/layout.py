@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.inputs import read_json
+from core.inputs import read_json, show
 from sim.sidewalk.car import CAR
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.paths import SidewalkPath
@@ -158,8 +158,9 @@ def obstacles_from_file(path: SidewalkPath, file, start_s: float | None = None) 
         unknown = set(item) - {"kind", "s", "d", "yaw_deg"}
         if unknown:
             raise PathError(f"{at}: unknown field {sorted(unknown)[0]!r}; the fields are kind, s, d, yaw_deg")
-        if item.get("kind") not in OBSTACLE_SIZES:
-            raise PathError(f"{at}: 'kind' must be one of {', '.join(OBSTACLE_KINDS)}, got {item.get('kind')!r}")
+        kind = item.get("kind")
+        if not isinstance(kind, str) or kind not in OBSTACLE_SIZES:   # (a list is unhashable: no dict lookup)
+            raise PathError(f"{at}: 'kind' must be one of {', '.join(OBSTACLE_KINDS)}, got {show(kind)}")
         values = {}
         for key, lo, hi, default in (("s", 0.0, path.length, None), ("d", -path.half_width, path.half_width, None),
                                      ("yaw_deg", -180.0, 180.0, 0.0)):

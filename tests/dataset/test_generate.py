@@ -1,6 +1,7 @@
 """Dataset generation with real workers, real SUMO and real rendering; kill and resume with real processes."""
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -207,3 +208,26 @@ def test_ray_backend_produces_the_same_shards(reference, tmp_path):
     r = generate(out, "--backend", "ray", check=False)
     assert r.returncode == 0, r.stderr
     assert content(out) == content(reference)
+
+
+def test_resuming_over_a_shard_of_another_world_is_refused(tmp_path):
+    """A manifest whose entry names a sidewalk shard with that shard's size and checksum: the shard is whole, so
+    only its columns tell; continuing would report success and leave an unreadable dataset."""
+    hw, sw = tmp_path / "hw", tmp_path / "sw"
+    gen = [sys.executable, "-m", "drivestudio", "generate", "--quiet", "--workers", "1"]
+    hw_args = ["--out", str(hw), "--frames", "20", "--episode-frames", "10", "--tracks", "oval", "--cars", "0-0",
+               "--width", "70", "--height", "52"]
+    subprocess.run(gen + hw_args, check=True, capture_output=True, timeout=300)
+    subprocess.run(gen + ["--world", "sidewalk", "--out", str(sw), "--frames", "10", "--episode-frames", "10"],
+                   check=True, capture_output=True, timeout=300)
+    manifest = json.loads((hw / "manifest.json").read_text())
+    foreign = json.loads((sw / "manifest.json").read_text())["shards"][0]
+    shutil.copy(sw / foreign["file"], hw / manifest["shards"][0]["file"])
+    manifest["shards"][0].update(size=foreign["size"], sha256=foreign["sha256"], frames=foreign["frames"])
+    manifest["complete"] = False
+    (hw / "manifest.json").write_text(json.dumps(manifest))
+    before = {p.name: p.read_bytes() for p in hw.iterdir() if p.is_file()}
+    r = subprocess.run(gen + hw_args, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "does not have the columns of a highway dataset" in r.stderr and "give a new --out" in r.stderr
+    assert {p.name: p.read_bytes() for p in hw.iterdir() if p.is_file()} == before

@@ -149,7 +149,7 @@ def test_overlay_pngs_and_video_from_a_dataset(data, tmp_path):
     assert len(pngs) == 3 and cv2.imread(str(pngs[0])).shape == (660, 880, 3)
     video = tmp_path / "ep.mp4"
     subprocess.run([sys.executable, "-m", "drivestudio", "overlay", "--data", str(data), "--model", "oracle",
-                    "--split", "all", "--video", str(video), "--episode", "1", "--out", str(tmp_path)],
+                    "--split", "all", "--video", str(video), "--episode", "1"],
                    capture_output=True, text=True, check=True)
     cap = cv2.VideoCapture(str(video))
     assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == 20

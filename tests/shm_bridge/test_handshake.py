@@ -346,3 +346,51 @@ def test_forked_child_does_not_end_the_parents_run(name):
         with DriverEndpoint(name, attach_timeout=1) as driver:
             world.publish(_frame(0, 2, 2), _truth(1))
             assert driver.wait_frame(timeout=1).seq == 1
+
+
+def version_1_segment(name: str, world_pid: int) -> None:
+    """/dev/shm/NAME as a world of protocol version 1 left it: the highway's 210 x 280 frame, its header fields at
+    their version-1 offsets (byte_order at 60, world_state at 68, world_pid at 72; offset 24 holds the height)."""
+    import struct
+    slot_size = -(-(256 + 210 * 280 * 3) // 64) * 64
+    header = bytearray(512)
+    header[0:8] = b"DSBRIDGE"
+    struct.pack_into("<IIQ", header, 8, 1, 512, 512 + 2 * slot_size)
+    struct.pack_into("<IIIIIIIIII", header, 24, 210, 280, 3, 210 * 280 * 3, 28, 14, 2, slot_size, 0, 0x01020304)
+    struct.pack_into("<Ii", header, 68, 1, world_pid)
+    fd = os.open(f"/dev/shm/{name}", os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        os.ftruncate(fd, 512 + 2 * slot_size)
+        os.pwrite(fd, bytes(header), 0)
+    finally:
+        os.close(fd)
+
+
+def test_a_real_version_1_segment_is_refused_naming_both_versions(name):
+    """The version word is read before byte_order, whose offset changed (24 now, 60 in version 1)."""
+    version_1_segment(name, os.getpid())
+    try:
+        with pytest.raises(ProtocolMismatch, match=f"^shared memory '{name}' has protocol version 1, this driver "
+                                                   "speaks 2$"):
+            DriverEndpoint(name, attach_timeout=1)
+        assert os.path.exists(f"/dev/shm/{name}")   # a live world's segment is not touched
+    finally:
+        os.unlink(f"/dev/shm/{name}")
+
+
+def test_the_other_byte_order_is_named_as_such(name):
+    with WorldEndpoint(name, small(2, 2)) as world:
+        world._u32[layout.OFFSET["version"] // 4] = 2 << 24   # version 2 as a big-endian writer stores it
+        with pytest.raises(ProtocolMismatch, match="written with the other byte order"):
+            DriverEndpoint(name, attach_timeout=1)
+        world._u32[layout.OFFSET["version"] // 4] = 2
+
+
+def test_a_run_serves_one_driver(name):
+    """After its driver has left, a world is ending the run: a second driver is refused, not attached."""
+    from shm_bridge.errors import Refused
+    with WorldEndpoint(name, small(2, 2)) as world:
+        with DriverEndpoint(name, attach_timeout=1):
+            world.wait_for_driver(timeout=1)
+        with pytest.raises(Refused, match="has already served a driver"):
+            DriverEndpoint(name, attach_timeout=1)

@@ -7,6 +7,9 @@ from pathlib import Path
 from drivestudio.outputs import write_json, write_text
 from drivestudio.worlds.highway.benchmark.score import csv_text, markdown, routes_csv_text
 
+BOARD_FILES = ("leaderboard.json", "leaderboard.csv", "routes.csv", "leaderboard.md")
+CLIPS = "clips"   # the folder of crash clips
+
 
 def write_board(out: Path, board: dict) -> str:
     """Write the leaderboard's four files into `out`; returns the Markdown."""

@@ -256,14 +256,19 @@ def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, sec
                 proc.kill()
                 proc.wait()
             log.close()
-    timings = {}
-    try:
-        timings = json.loads(stats.read_text()).get("timings", {})
-        stats.unlink()
-    except (OSError, ValueError):
-        pass
+            timings = _take_stats(stats)   # also when the run was cut short: nothing stays in the temp folder
     metrics.add_time("transfer", max(0.0, exchange.round_trip - sum(timings.values())))
     return last, timings
+
+
+def _take_stats(path: Path) -> dict:
+    """The driver's timings from its statistics file, which is removed (empty when it wrote none)."""
+    try:
+        return json.loads(path.read_text()).get("timings", {})
+    except (OSError, ValueError):
+        return {}
+    finally:
+        path.unlink(missing_ok=True)
 
 
 def completion(result: dict) -> float:
