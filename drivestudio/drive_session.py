@@ -49,6 +49,24 @@ def _label(args) -> str:
     return getattr(args, "model", None) or "driver"
 
 
+def _open_view(args, plugin, world, metrics):
+    """drive/serve --view: the run's steps published to a web page (docs/studio.md), or None."""
+    if getattr(args, "view_socket", None) is None:
+        return None
+    from drivestudio.studio.view import RunView  # lazy: the web server only when asked for
+    return RunView(args, plugin, world, metrics, _label(args))
+
+
+def _steps(*callbacks):
+    """One step callback of several (None: absent)."""
+    present = [c for c in callbacks if c is not None]
+
+    def on_step(rec) -> None:
+        for c in present:
+            c(rec)
+    return on_step
+
+
 def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
     """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
@@ -64,10 +82,11 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
             _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
             exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
             recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
+            view = _open_view(args, plugin, world, metrics)
             ok = False
             try:
                 last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
-                                on_step=recorder)
+                                on_step=_steps(recorder, view))
                 reason = "host lost" if last.end is not None else "finished"
                 ok = True
             except PeerGone as gone:
@@ -82,6 +101,8 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                 ok = True
             finally:
                 recorder.close(ok)
+                if view is not None:
+                    view.close()
                 ep.end(reason if reason != "finished" or ok else "error")
         extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": _label(args),
                  "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
@@ -136,18 +157,21 @@ def run_both_sides(args, plugin, out: Path) -> int:
 
 
 def run_in_process(args, plugin, out: Path) -> int:
-    with exit_on_sigterm(), plugin.world(args, render=plugin.needs_frames(args)) as world:
+    render = plugin.needs_frames(args) or getattr(args, "view_socket", None) is not None
+    with exit_on_sigterm(), plugin.world(args, render=render) as world:
         driver = plugin.driver(args.model, args, world.declaration)
         metrics = plugin.metrics(world)
         recorder = plugin.recorder(world, args.record, _label(args))
+        view = _open_view(args, plugin, world, metrics)
         ok = False
         try:
             last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
-                            render=plugin.needs_frames(args), metrics=metrics, realtime=args.realtime,
-                            on_step=recorder)
+                            render=render, metrics=metrics, realtime=args.realtime, on_step=_steps(recorder, view))
             ok = True
         finally:
             recorder.close(ok)
+            if view is not None:
+                view.close()
         extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
                  "end": "host lost" if last.end is not None else "finished", **plugin.describe_run(world, args)}
     for stage, seconds in getattr(driver, "timings", {}).items():

@@ -12,6 +12,7 @@ import argparse
 
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
+from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
 
@@ -34,6 +35,7 @@ def register(sub) -> None:
     p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/drive-TIME)")
     p.add_argument("--stats-out", help=argparse.SUPPRESS)  # driver side: timings for the parent
+    add_view_options(p)
     p.set_defaults(func=run)
 
 
@@ -43,7 +45,8 @@ def run(args) -> int:
 
     check_device(args.device)
     if args.shm is not None:
-        given = [f for f in ("--record", "--in-process", "--free-running") if getattr(args, f[2:].replace("-", "_"))]
+        given = [f for f in ("--record", "--in-process", "--free-running", "--view")
+                 if getattr(args, f[2:].replace("-", "_"))]
         if given:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name
@@ -53,10 +56,11 @@ def run(args) -> int:
     args.model = args.model or plugin.expert_names[0]
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    out = run_dir(args.out, "drive")
     if args.model not in plugin.expert_names:
         from drivestudio.checkpoints import check_checkpoint_path
         check_checkpoint_path(args.model)
+    bind_view(args)
+    out = run_dir(args.out, "drive")
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)
     return drive_session.run_both_sides(args, plugin, out)
