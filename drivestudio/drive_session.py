@@ -67,6 +67,32 @@ def _steps(*callbacks):
     return on_step
 
 
+def _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds: float, view) -> str:
+    """The loop over the bridge; returns why the run ended, which the driver is told."""
+    reason = "finished"
+    recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
+    ok = False
+    try:
+        last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
+                        on_step=_steps(recorder, view))
+        reason = "host lost" if last.end is not None else "finished"
+        ok = True
+    except PeerGone as gone:
+        if not gone.finished:
+            raise
+        reason, ok = "driver finished", True
+        print(str(gone), file=sys.stderr)
+    except (KeyboardInterrupt, Terminated):
+        reason = "interrupted"
+        if args.seconds is not None:
+            raise  # a bounded run was cut short
+        ok = True
+    finally:
+        recorder.close(ok)
+        ep.end(reason if reason != "finished" or ok else "error")
+    return reason
+
+
 def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
     """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
@@ -79,31 +105,14 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
             print(f"world '{world.declaration.name}' on shared memory '{args.shm}' "
                   f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
                   file=sys.stderr, flush=True)
-            _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
-            exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
-            recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
-            view = _open_view(args, plugin, world, metrics)
-            ok = False
+            view = _open_view(args, plugin, world, metrics)     # the page is there while the driver comes
             try:
-                last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
-                                on_step=_steps(recorder, view))
-                reason = "host lost" if last.end is not None else "finished"
-                ok = True
-            except PeerGone as gone:
-                if not gone.finished:
-                    raise
-                reason, ok = "driver finished", True
-                print(str(gone), file=sys.stderr)
-            except (KeyboardInterrupt, Terminated):
-                reason = "interrupted"
-                if args.seconds is not None:
-                    raise  # a bounded run was cut short
-                ok = True
+                _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
+                exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
+                reason = _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds, view)
             finally:
-                recorder.close(ok)
                 if view is not None:
                     view.close()
-                ep.end(reason if reason != "finished" or ok else "error")
         extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": _label(args),
                  "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
     driver_time = 0.0

@@ -79,12 +79,14 @@ class Session:
         self.world = self.plugin.world(self.args, render=True)
         self._use_driver(self.driver_name)
 
-    def run(self) -> None:
-        """Drive until interrupted (Ctrl-C, SIGTERM); a recording in progress is completed."""
+    def run(self, seconds: float = math.inf) -> None:
+        """Drive until interrupted (Ctrl-C, SIGTERM), or for `seconds` of simulated time of one scene; a recording
+        in progress is completed."""
         try:
             while True:
                 try:
-                    self._drive()
+                    self._drive(seconds)
+                    return
                 except Restart as r:
                     self._reset(r.changes)
         finally:
@@ -92,14 +94,14 @@ class Session:
             if self.world is not None:
                 self.world.close()
 
-    def _drive(self) -> None:
+    def _drive(self, seconds: float) -> None:
         world = self.world
         self.metrics = self.plugin.metrics(world)
         self.watch.restart(view_for(world, self.args), self.metrics)
         self.pacer.restart()
         self.tell("info", message=f"{world.declaration.name}: " + ", ".join(f"{k} {v}" for k, v in
                                                                              self._scene().items()))
-        run_loop(world, self.exchange, math.inf, render=True, metrics=self.metrics, on_step=self.on_step,
+        run_loop(world, self.exchange, seconds, render=True, metrics=self.metrics, on_step=self.on_step,
                  when_lost="recover")
 
     def _scene(self) -> dict:
