@@ -22,7 +22,7 @@ from drivestudio.numbers import count, positive
 
 LOCALHOST = "127.0.0.1"
 DEFAULT_PORT = 8765
-VIEW_FPS = 15.0           # frames a second a watched run publishes at most (docs/benchmarks.md: its cost)
+VIEW_FPS = 10.0           # frames a second a watched run publishes at most (docs/benchmarks.md: its cost)
 
 
 def register(sub) -> None:
