@@ -169,6 +169,22 @@ def rows_highway_env(j: dict) -> list[tuple]:
              f"x real time: ours {j['ours_realtime_factor']:.1f}, highway-env {j['theirs_realtime_factor']:.1f}", "")]
 
 
+def rows_studio(j: dict) -> list[tuple]:
+    targets = {"highway camera, as fast as it can": ">= 30 frames/s",
+               "sidewalk stereo pair, real time (30 Hz)": ">= 20 frames/s"}
+    out = [(f"studio: frames drawn in the page (headless Chromium), {name}",
+            f"**{r['frames_per_s']:.0f} frames/s** (loop {r['loop_hz']:.0f} Hz, {r['kb_per_frame']:.0f} kB a frame)",
+            targets.get(name, "")) for name, r in j["frames"].items()]
+    out += [(f"studio: key press to a changed command in the page, {w}, real time",
+             f"**median {r['median_ms']:.0f} ms**, p95 {r['p95_ms']:.0f}, max {r['max_ms']:.0f} ({r['measured']} "
+             "presses)", "<= 100 ms") for w, r in j["latency"].items()]
+    v = j["view"]
+    out.append(("`drive --view` with a page watching vs `drive`, highway oracle, lock-step, alternating",
+                f"**{v['median_slowdown']:.1%} slower** (median of {len(v['pairs'])} pairs; "
+                f"{v['range'][0]:.1%} to {v['range'][1]:.1%})", "<= 10 %"))
+    return out
+
+
 @dataclass
 class Bench:
     name: str
@@ -201,6 +217,9 @@ BENCHES = [
     Bench("multinet", "bench_multinet.py", ["--repeats", "100", "--seconds", "20"],
           ["--repeats", "5", "--seconds", "2"],
           rows_multinet),
+    Bench("studio", "bench_studio.py",
+          ["--seconds", "10", "--presses", "20", "--view-seconds", "300", "--rounds", "5"],
+          ["--seconds", "2", "--presses", "3", "--view-seconds", "30", "--rounds", "1"], rows_studio),
     Bench("highway-env", "bench_highway_env.py", ["--steps", "200", "--rounds", "5"],
           ["--steps", "20", "--rounds", "2"],
           rows_highway_env, group="highway-env"),
@@ -249,7 +268,7 @@ def uncovered() -> list[str]:
 
 
 def versions() -> dict:
-    out = {"python": platform.python_version()}
+    out: dict[str, str | None] = {"python": platform.python_version()}
     for name, pkg in (("torch", "torch"), ("pybullet", "pybullet"), ("libsumo", "libsumo"), ("numpy", "numpy"),
                       ("OpenCV", "opencv-python-headless"), ("pyarrow", "pyarrow"), ("gymnasium", "gymnasium")):
         try:

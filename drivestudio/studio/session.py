@@ -24,7 +24,7 @@ from drivestudio.studio.controls import Controls, Pacer
 from drivestudio.studio.human import HumanDriver, HumanInput, Keys, Pad
 from drivestudio.studio.protocol import Message
 from drivestudio.studio.recording import DEFAULT_SHARD_STEPS, DatasetRecorder
-from drivestudio.studio.views import SCENES, presets, scene, view_for
+from drivestudio.studio.views import SCENES, label_note, presets, scene, view_for
 from drivestudio.studio.watch import Watch
 
 HUMAN = "human"
@@ -70,7 +70,8 @@ class Session:
                 "action": [{"name": a.name, "low": a.low, "high": a.high, "neutral": a.neutral} for a in decl.action],
                 "drivers": self.drivers, "modes": list(decl.modes),
                 "operations": ["expert", "autonomous", "correctional"] if decl.modes else [],
-                "scene_key": self.scene_key, "scenes": self.scenes(), "out": str(self.out)}
+                "scene_key": self.scene_key, "scenes": self.scenes(), "out": str(self.out),
+                "labels_note": label_note(decl.name)}
 
     # --- the run -----------------------------------------------------------------------------------------------
     def open(self) -> None:

@@ -12,7 +12,7 @@ from drivestudio.loop import StepRecord
 from drivestudio.studio.controls import Controls
 from drivestudio.studio.publisher import Publisher
 from drivestudio.studio.server import Server, new_token
-from drivestudio.studio.views import SCENES, scene, view_for
+from drivestudio.studio.views import SCENES, label_note, scene, view_for
 from drivestudio.studio.watch import Watch
 
 
@@ -29,7 +29,7 @@ class RunView:
                  "action": [{"name": a.name, "low": a.low, "high": a.high, "neutral": a.neutral}
                             for a in decl.action],
                  "drivers": [label], "modes": [], "operations": [], "scene_key": SCENES[plugin.name][0],
-                 "scenes": []}
+                 "scenes": [], "labels_note": label_note(decl.name)}
         host = args.view_host or "127.0.0.1"
         self.server = Server(args.view_socket, self.watch.publisher, hello=lambda client: hello,
                              handle=self._handle, leave=self._left, token=new_token() if args.view_host else None,

@@ -43,6 +43,9 @@ class HighwayView:
     """The front camera, the top-down view with truth and estimate boxes (perception/highway/overlay.py), the 14
     indicators and lanes_left."""
 
+    note = (f"bars full at {ERROR_SCALE['angle']:g} rad (angle), {ERROR_SCALE['toMarking_M']:g} m (markings), "
+            f"{ERROR_SCALE['dist_MM']:g} m (gaps)")
+
     cameras = ("front",)
     units = {q.name: q.unit for q in HIGHWAY.truth}
 
@@ -103,6 +106,8 @@ class SidewalkView:
     cameras = ("left", "right")
     # an estimate this far from the expert fills its bar: the correction rule's deviation thresholds
     scales = {"steer": CorrectionParams.steer_dev, "motor": CorrectionParams.motor_dev}
+    note = f"truth: the expert's command on this frame; bars full at {scales['steer']:g} (steer), " \
+           f"{scales['motor']:g} (motor)"
 
     def __init__(self, world, path_ref: str):
         self.world, self.path_ref = world, path_ref
@@ -164,6 +169,11 @@ def presets(world_name: str) -> list[str]:
     else:
         from sim.track.library import preset_names
     return preset_names()
+
+
+def label_note(world_name: str) -> str:
+    """What the labels panel's truth and bars are, in a line for the page."""
+    return {"highway": HighwayView.note, "sidewalk": SidewalkView.note}[world_name]
 
 
 def view_for(world, args):

@@ -70,6 +70,7 @@ function onHello(h) {
   $("mode-label").hidden = !h.modes.length;
   $("operation-label").hidden = !h.operations.length;
   $("scene-key").textContent = h.scene_key;
+  $("labels-note").textContent = h.labels_note || "";
   fill($("scene"), ["(as started)"].concat(h.scenes));
   const cams = $("cameras");
   cams.innerHTML = "";
@@ -310,6 +311,13 @@ function pollGamepad() {
 
 // --- the bar's controls ----------------------------------------------------------------------------------------
 function wire() {
+  // a control keeps no focus once used, so that the arrows and Space drive the car and not a list or a button
+  for (const kind of ["change", "click"]) {
+    document.addEventListener(kind, (e) => {
+      const tag = e.target && e.target.tagName;
+      if (tag === "SELECT" || tag === "BUTTON" || (tag === "INPUT" && e.target.type === "checkbox")) e.target.blur();
+    });
+  }
   $("pause").onclick = () => send({ type: "pause" });
   $("resume").onclick = () => send({ type: "resume" });
   $("step").onclick = () => send({ type: "step" });
