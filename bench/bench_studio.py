@@ -11,7 +11,8 @@ Selenium) on this machine: the browser, the studio and its world share its cores
    steady command. Target: within 100 ms.
 3. --view's cost: `drivestudio drive --model oracle` (highway, two processes over shared memory, lock-step) for
    --view-seconds simulated seconds, without and with `--view` and a page watching, alternated --rounds times;
-   the loop rate of each run's metrics.json. Target: at most 10 % slower.
+   the loop rate of each run's metrics.json (target: at most 10 % slower), and, less sensitive to other work on
+   the machine, the CPU time the run's two processes spent a step and the browser's share of a core.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ import argparse
 import json
 import os
 import random
+import resource
 import statistics
 import sys
 import tempfile
@@ -77,9 +79,25 @@ def key_latency(page, world: str, presses: int, tmp: Path) -> dict:
             "p95_ms": round(lat[min(len(lat) - 1, int(0.95 * len(lat)))], 1), "max_ms": round(lat[-1], 1)}
 
 
-def drive_rate(page, view: bool, seconds: float, tmp: Path) -> float:
+def browser_cpu() -> float:
+    """CPU seconds Chromium's processes have used so far."""
+    total = 0
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            if b"chromium" not in Path(f"/proc/{pid}/cmdline").read_bytes():
+                continue
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            total += int(fields[11]) + int(fields[12])
+        except OSError:
+            continue
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+def drive_rate(page, view: bool, seconds: float, tmp: Path) -> dict:
+    """One `drive` run: its loop rate, the CPU its two processes spent a step, and the browser's CPU share."""
     out = Path(tempfile.mkdtemp(dir=tmp))
     args = ["drive", "--model", "oracle", "--seconds", str(seconds), "--out", str(out)]
+    cpu0, browser0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), browser_cpu(), time.perf_counter()
     if view:
         s = Studio(args + ["--view", "--view-port", "0"], out, marker="watch the run at ")
         page.get(s.url)
@@ -88,7 +106,12 @@ def drive_rate(page, view: bool, seconds: float, tmp: Path) -> float:
         s = Studio(args, out, marker="waiting for a driver")
     s.proc.wait(timeout=3600)
     s.stop()
-    return json.loads((out / "metrics.json").read_text())["loop_rate_hz"]
+    cpu1, browser1, t1 = resource.getrusage(resource.RUSAGE_CHILDREN), browser_cpu(), time.perf_counter()
+    m = json.loads((out / "metrics.json").read_text())
+    steps = m["simulated_time_s"] / 0.1
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    return {"loop_hz": m["loop_rate_hz"], "cpu_ms_per_step": round(cpu / steps * 1e3, 3),
+            "browser_cpu_share": round((browser1 - browser0) / (t1 - t0), 3)}
 
 
 def main() -> None:
@@ -122,17 +145,28 @@ def main() -> None:
                 print(f"| {world} | {r['measured']}/{r['presses']} | {r['median_ms']} | {r['p95_ms']} | "
                       f"{r['max_ms']} |", flush=True)
             pairs = []
-            print("\n| round | drive Hz | drive --view Hz (a page watching) | slowdown |\n|---|---|---|---|")
+            print("\n| round | drive Hz | drive --view Hz (a page watching) | slowdown | CPU ms a step (drive, --view) "
+                  "| browser CPU |\n|---|---|---|---|---|---|")
             for k in range(args.rounds):
                 plain = drive_rate(page, False, args.view_seconds, tmp)
                 viewed = drive_rate(page, True, args.view_seconds, tmp)
-                pairs.append({"plain_hz": plain, "view_hz": viewed, "slowdown": round(1 - viewed / plain, 4)})
-                print(f"| {k + 1} | {plain} | {viewed} | {1 - viewed / plain:.1%} |", flush=True)
-            slow = [p["slowdown"] for p in pairs]
-            out["view"] = {"seconds": args.view_seconds, "pairs": pairs, "median_slowdown": statistics.median(slow),
-                           "range": [min(slow), max(slow)]}
-            print(f"\n--view slows the lock-step loop by {statistics.median(slow):.1%} (median of {len(slow)} pairs; "
-                  f"{min(slow):.1%} to {max(slow):.1%})")
+                slow = round(1 - viewed["loop_hz"] / plain["loop_hz"], 4)
+                pairs.append({"plain": plain, "view": viewed, "slowdown": slow})
+                print(f"| {k + 1} | {plain['loop_hz']} | {viewed['loop_hz']} | {slow:.1%} | "
+                      f"{plain['cpu_ms_per_step']}, {viewed['cpu_ms_per_step']} | "
+                      f"{viewed['browser_cpu_share']:.0%} of a core |", flush=True)
+            slows = [p["slowdown"] for p in pairs]
+            extra = [p["view"]["cpu_ms_per_step"] - p["plain"]["cpu_ms_per_step"] for p in pairs]
+            out["view"] = {"seconds": args.view_seconds, "pairs": pairs, "median_slowdown": statistics.median(slows),
+                           "range": [min(slows), max(slows)],
+                           "median_extra_cpu_ms_per_step": round(statistics.median(extra), 3),
+                           "median_plain_cpu_ms_per_step": statistics.median(p["plain"]["cpu_ms_per_step"]
+                                                                             for p in pairs),
+                           "median_browser_cpu_share": statistics.median(p["view"]["browser_cpu_share"]
+                                                                         for p in pairs)}
+            print(f"\n--view slows the lock-step loop by {statistics.median(slows):.1%} (median of {len(slows)} "
+                  f"pairs; {min(slows):.1%} to {max(slows):.1%}); it adds "
+                  f"{out['view']['median_extra_cpu_ms_per_step']:.3f} ms of CPU a step to the run's processes")
     finally:
         close_browser(page)
     out["load_average_end"] = round(os.getloadavg()[0], 2)

@@ -181,7 +181,9 @@ def rows_studio(j: dict) -> list[tuple]:
     v = j["view"]
     out.append(("`drive --view` with a page watching vs `drive`, highway oracle, lock-step, alternating",
                 f"**{v['median_slowdown']:.1%} slower** (median of {len(v['pairs'])} pairs; "
-                f"{v['range'][0]:.1%} to {v['range'][1]:.1%})", "<= 10 %"))
+                f"{v['range'][0]:.1%} to {v['range'][1]:.1%}); CPU a step of its processes "
+                f"+{v['median_extra_cpu_ms_per_step']:.2f} ms on {v['median_plain_cpu_ms_per_step']:.2f}; the browser "
+                f"{v['median_browser_cpu_share']:.0%} of a core", "<= 10 %"))
     return out
 
 

@@ -50,7 +50,7 @@ def test_serve_view_publishes_the_world_side_read_only(tmp_path):
 
 
 def test_view_control_pauses_steps_and_resumes_a_drive(tmp_path):
-    s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "0", "--seconds", "30", "--realtime",
+    s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "0", "--seconds", "8", "--realtime",
                 "--view", "--view-port", "0", "--view-control", "--out", str(tmp_path)], tmp_path,
                marker="watch the run at ")
     try:
