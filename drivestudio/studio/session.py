@@ -211,6 +211,7 @@ class Session:
             self._switch_driver(f["name"])
         elif msg.type == "mode":
             self.world.set_mode(f["mode"])
+            self.args.mode = f["mode"]        # and a reset keeps it
         elif msg.type == "operation":
             self.operation = f["operation"]
             self._supervise()

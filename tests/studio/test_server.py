@@ -249,3 +249,35 @@ def test_the_hello_says_what_the_page_may_choose(sidewalk):
     assert [label["name"] for label in state["labels"]] == ["steer", "motor"]
     assert {i["name"] for i in state["images"]} == {"left", "right", "topdown"}
     json.dumps(state)
+
+
+def test_every_control_works_over_the_socket(sidewalk):
+    """Pause, step, pace, mode, driver, operation and reset, each seen in the published state."""
+    async def go():
+        async with aiohttp.ClientSession() as http:
+            c = await connect(http, sidewalk)
+            await c.receive(lambda c: c.states)
+            last = lambda c: c.states[-1]   # noqa: E731
+            await c.send({"type": "pause"})
+            await c.receive(lambda c: last(c)["paused"])
+            t = last(c)["t"]
+            await c.send({"type": "step"})
+            await c.receive(lambda c: last(c)["t"] > t)
+            assert abs(last(c)["t"] - t - 1 / 30) < 1e-3                   # one step of 33 ms
+            await c.send({"type": "pace", "realtime": True})
+            await c.send({"type": "mode", "mode": "follow"})
+            await c.send({"type": "driver", "name": "poor"})
+            await c.send({"type": "operation", "operation": "autonomous"})
+            await c.send({"type": "resume"})
+            await c.receive(lambda c: not last(c)["paused"] and last(c)["driver"] == "poor" and
+                            last(c)["controller"]["behavioural mode"] == "follow" and
+                            last(c)["controller"]["operation"] == "autonomous" and last(c)["realtime"])
+            await c.send({"type": "reset", "seed": 5, "path": "forest"})
+            await c.receive(lambda c: last(c)["scene"] == {"path": "forest", "seed": 5} and last(c)["t"] < 1.0)
+            # the page's choices outlive the reset: the mode, the driver, its operation
+            assert last(c)["controller"]["behavioural mode"] == "follow" and last(c)["driver"] == "poor"
+            await c.send({"type": "driver", "name": "expert"})
+            await c.send({"type": "pace", "realtime": False})
+            await c.receive(lambda c: last(c)["driver"] == "expert" and not last(c)["realtime"], timeout=60)
+            await c.ws.close()
+    run(go())
