@@ -1,7 +1,7 @@
 """The studio's targets (issue 22), measured in the page of a real browser (Debian's Chromium, headless, under
 Selenium) on this machine: the browser, the studio and its world share its cores.
 
-    python bench/bench_studio.py [--seconds 10] [--presses 20] [--view-seconds 600] [--rounds 3] [--json F]
+    python bench/bench_studio.py [--seconds 10] [--presses 20] [--windows 12] [--window 5] [--json F]
 
 1. Frames to the page: `drivestudio studio` with the world's own driver; frames drawn in the page per second
    over --seconds (after 3 s of warm-up), the 280x210 camera (highway, as fast as it can: its real time is 10 Hz)
@@ -9,31 +9,39 @@ Selenium) on this machine: the browser, the studio and its world share its cores
 2. Key to command: the person drives in real time; the page notes performance.now() at a key press and again when
    the first step whose command differs reaches it (window.studio.latencies); --presses presses, each from a
    steady command. Target: within 100 ms.
-3. --view's cost: `drivestudio drive --model oracle` (highway, two processes over shared memory, lock-step) for
-   --view-seconds simulated seconds, without and with `--view` and a page watching, alternated --rounds times;
-   the loop rate of each run's metrics.json (target: at most 10 % slower), and, less sensitive to other work on
-   the machine, the CPU time the run's two processes spent a step and the browser's share of a core.
+3. --view's cost: one long `drivestudio drive --model oracle --view` (highway, two processes over shared memory,
+   lock-step), watched and not watched in alternating windows of --window seconds (--windows of each), probed
+   from outside: the steps published (the bridge segment's frame_seq) give the loop rate of each window (target:
+   at most 10 % slower while watched), and /proc gives the CPU time a step of the loop's thread, of the process's
+   other threads (the server's) and of the driver process. Alternating windows of one run let the machine's other
+   work drift alike over both kinds. Once with a page in Chromium on the same two cores, once with a protocol
+   client that takes and acknowledges every frame and draws nothing (the publishing alone).
 """
 from __future__ import annotations
 
 import argparse
+import asyncio
 import json
+import mmap
 import os
 import random
-import resource
 import statistics
+import struct
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+import aiohttp  # noqa: E402
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.keys import Keys  # noqa: E402
 
-from tests.studio.helpers import Studio, browser, close_browser, wait_page  # noqa: E402
+from shm_bridge.layout import OFFSET  # noqa: E402
+from tests.studio.helpers import Studio, browser, close_browser, connect, wait_page  # noqa: E402
 
 WARMUP = 3.0     # [s] before counting frames
 
@@ -93,33 +101,132 @@ def browser_cpu() -> float:
     return total / os.sysconf("SC_CLK_TCK")
 
 
-def drive_rate(page, view: bool, seconds: float, tmp: Path) -> dict:
-    """One `drive` run: its loop rate, the CPU its two processes spent a step, and the browser's CPU share."""
+class ProtocolClient:
+    """A page without a browser: it takes and acknowledges every frame as the page does, and draws nothing; `t` is
+    the simulated time of the newest frame."""
+
+    def __init__(self, studio: Studio):
+        self.studio = studio
+        self.t: float | None = None
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=asyncio.run, args=(self._watch(),), daemon=True)
+        self.thread.start()
+
+    async def _watch(self) -> None:
+        async with aiohttp.ClientSession() as http:
+            c = await connect(http, self.studio)
+
+            def until(c) -> bool:
+                if c.states:
+                    self.t = c.states[-1]["t"]
+                return self._stop.is_set()
+            try:
+                await c.receive(until, timeout=3600)
+            finally:
+                await c.ws.close()
+
+    def close(self) -> None:
+        self._stop.set()
+        self.thread.join(timeout=10)
+
+
+TICK = os.sysconf("SC_CLK_TCK")
+
+
+def _cpu(stat: Path) -> float:
+    """CPU seconds (user + system) of a /proc stat file."""
+    fields = stat.read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICK
+
+
+class RunProbe:
+    """What a `drive` run does, read from outside it: the steps it has published (the bridge segment's frame_seq,
+    docs/shm-protocol.md) and the CPU time of its loop's thread, of its other threads (the server's) and of its
+    driver process."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        end = time.monotonic() + 30
+        path = Path(f"/dev/shm/drivestudio-{pid}")
+        while not path.exists() and time.monotonic() < end:
+            time.sleep(0.1)
+        self._file = open(path, "rb")
+        self._map = mmap.mmap(self._file.fileno(), 0, access=mmap.ACCESS_READ)
+        children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+        self.driver = int(children[0])
+
+    def read(self) -> tuple[float, int, float, float, float]:
+        """(wall seconds, steps, loop thread CPU, other threads' CPU, driver CPU)."""
+        steps = struct.unpack_from("<Q", self._map, OFFSET["frame_seq"])[0]
+        loop = _cpu(Path(f"/proc/{self.pid}/task/{self.pid}/stat"))
+        others = sum(_cpu(t / "stat") for t in Path(f"/proc/{self.pid}/task").iterdir() if t.name != str(self.pid))
+        return time.perf_counter(), steps, loop, others, _cpu(Path(f"/proc/{self.driver}/stat"))
+
+    def close(self) -> None:
+        self._map.close()
+        self._file.close()
+
+
+def _window(probe: RunProbe, seconds: float) -> dict:
+    a = probe.read()
+    time.sleep(seconds)
+    b = probe.read()
+    n = max(1, b[1] - a[1])
+    return {"hz": n / (b[0] - a[0]), "loop_ms": (b[2] - a[2]) / n * 1e3, "server_ms": (b[3] - a[3]) / n * 1e3,
+            "driver_ms": (b[4] - a[4]) / n * 1e3}
+
+
+def view_cost(page, how: str, windows: int, window: float, tmp: Path) -> dict:
+    """One long `drive --view` run (highway oracle, lock-step over shared memory), watched (by a page in Chromium,
+    or a protocol client) and not watched in alternating windows of `window` seconds, probed from outside."""
     out = Path(tempfile.mkdtemp(dir=tmp))
-    args = ["drive", "--model", "oracle", "--seconds", str(seconds), "--out", str(out)]
-    cpu0, browser0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), browser_cpu(), time.perf_counter()
-    if view:
-        s = Studio(args + ["--view", "--view-port", "0"], out, marker="watch the run at ")
-        page.get(s.url)
-        wait_page(page, "window.studio.drawn >= 1")
-    else:
-        s = Studio(args, out, marker="waiting for a driver")
-    s.proc.wait(timeout=3600)
-    s.stop()
-    cpu1, browser1, t1 = resource.getrusage(resource.RUSAGE_CHILDREN), browser_cpu(), time.perf_counter()
-    m = json.loads((out / "metrics.json").read_text())
-    steps = m["simulated_time_s"] / 0.1
-    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
-    return {"loop_hz": m["loop_rate_hz"], "cpu_ms_per_step": round(cpu / steps * 1e3, 3),
-            "browser_cpu_share": round((browser1 - browser0) / (t1 - t0), 3)}
+    s = Studio(["drive", "--model", "oracle", "--seconds", "800000", "--view", "--view-port", "0", "--out", str(out)],
+               out, marker="watch the run at ")
+    probe = RunProbe(s.proc.pid)
+    watched, unwatched = [], []
+    browser0, t0 = browser_cpu(), time.perf_counter()
+    try:
+        for _ in range(windows):
+            client = None
+            if how == "browser":
+                page.get(s.url)
+                wait_page(page, "window.studio.drawn >= 1")
+            else:
+                client = ProtocolClient(s)
+                end = time.monotonic() + 30
+                while client.t is None and time.monotonic() < end:
+                    time.sleep(0.05)
+            watched.append(_window(probe, window))
+            if client is not None:
+                client.close()
+            else:
+                page.get("about:blank")
+            time.sleep(0.3)      # the page is gone
+            unwatched.append(_window(probe, window))
+    finally:
+        probe.close()
+        s.stop()
+    browser_share = (browser_cpu() - browser0) / (time.perf_counter() - t0)
+    ratios = [1 - w["hz"] / u["hz"] for w, u in zip(watched, unwatched)]
+
+    def med(rows: list[dict], key: str) -> float:
+        return round(statistics.median(r[key] for r in rows), 3)
+    return {"how": how, "windows": windows, "window_s": window,
+            "watched_hz": med(watched, "hz"), "unwatched_hz": med(unwatched, "hz"),
+            "median_slowdown": round(statistics.median(ratios), 4),
+            "quartiles": [round(q, 4) for q in statistics.quantiles(ratios, n=4)],
+            "loop_thread_ms": [med(watched, "loop_ms"), med(unwatched, "loop_ms")],
+            "server_threads_ms": [med(watched, "server_ms"), med(unwatched, "server_ms")],
+            "driver_ms": [med(watched, "driver_ms"), med(unwatched, "driver_ms")],
+            "browser_cpu_share": round(browser_share, 3)}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=10.0, help="wall-clock seconds of frame counting per run")
     ap.add_argument("--presses", type=int, default=20, help="key presses per world")
-    ap.add_argument("--view-seconds", type=float, default=600.0, help="simulated seconds of each --view run")
-    ap.add_argument("--rounds", type=int, default=3, help="pairs of runs without and with --view")
+    ap.add_argument("--windows", type=int, default=12, help="watched (and as many unwatched) windows of the --view run")
+    ap.add_argument("--window", type=float, default=5.0, help="wall-clock seconds of a window")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     out: dict = {"load_average_start": round(os.getloadavg()[0], 2)}
@@ -144,29 +251,18 @@ def main() -> None:
                 out["latency"][world] = r
                 print(f"| {world} | {r['measured']}/{r['presses']} | {r['median_ms']} | {r['p95_ms']} | "
                       f"{r['max_ms']} |", flush=True)
-            pairs = []
-            print("\n| round | drive Hz | drive --view Hz (a page watching) | slowdown | CPU ms a step (drive, --view) "
-                  "| browser CPU |\n|---|---|---|---|---|---|")
-            for k in range(args.rounds):
-                plain = drive_rate(page, False, args.view_seconds, tmp)
-                viewed = drive_rate(page, True, args.view_seconds, tmp)
-                slow = round(1 - viewed["loop_hz"] / plain["loop_hz"], 4)
-                pairs.append({"plain": plain, "view": viewed, "slowdown": slow})
-                print(f"| {k + 1} | {plain['loop_hz']} | {viewed['loop_hz']} | {slow:.1%} | "
-                      f"{plain['cpu_ms_per_step']}, {viewed['cpu_ms_per_step']} | "
-                      f"{viewed['browser_cpu_share']:.0%} of a core |", flush=True)
-            slows = [p["slowdown"] for p in pairs]
-            extra = [p["view"]["cpu_ms_per_step"] - p["plain"]["cpu_ms_per_step"] for p in pairs]
-            out["view"] = {"seconds": args.view_seconds, "pairs": pairs, "median_slowdown": statistics.median(slows),
-                           "range": [min(slows), max(slows)],
-                           "median_extra_cpu_ms_per_step": round(statistics.median(extra), 3),
-                           "median_plain_cpu_ms_per_step": statistics.median(p["plain"]["cpu_ms_per_step"]
-                                                                             for p in pairs),
-                           "median_browser_cpu_share": statistics.median(p["view"]["browser_cpu_share"]
-                                                                         for p in pairs)}
-            print(f"\n--view slows the lock-step loop by {statistics.median(slows):.1%} (median of {len(slows)} "
-                  f"pairs; {min(slows):.1%} to {max(slows):.1%}); it adds "
-                  f"{out['view']['median_extra_cpu_ms_per_step']:.3f} ms of CPU a step to the run's processes")
+            out["view"] = {}
+            print("\n| watched by | windows | loop Hz watched, not | slowdown (median; quartiles) | CPU ms a step "
+                  "watched, not: loop thread; server threads; driver | browser CPU |\n|---|---|---|---|---|---|")
+            for how in ("browser", "client"):
+                r = view_cost(page, how, args.windows, args.window, tmp)
+                out["view"][how] = r
+                print(f"| {'a page in Chromium' if how == 'browser' else 'a protocol client'} | {r['windows']} x "
+                      f"{r['window_s']:g} s | {r['watched_hz']:.0f}, {r['unwatched_hz']:.0f} | "
+                      f"{r['median_slowdown']:.1%} ({', '.join(f'{q:.1%}' for q in r['quartiles'])}) | "
+                      f"{r['loop_thread_ms'][0]:.2f}, {r['loop_thread_ms'][1]:.2f}; {r['server_threads_ms'][0]:.2f}, "
+                      f"{r['server_threads_ms'][1]:.2f}; {r['driver_ms'][0]:.2f}, {r['driver_ms'][1]:.2f} | "
+                      f"{r['browser_cpu_share']:.0%} of a core |", flush=True)
     finally:
         close_browser(page)
     out["load_average_end"] = round(os.getloadavg()[0], 2)
