@@ -169,6 +169,10 @@ def rows_highway_env(j: dict) -> list[tuple]:
              f"x real time: ours {j['ours_realtime_factor']:.1f}, highway-env {j['theirs_realtime_factor']:.1f}", "")]
 
 
+def _slowdown(x: float) -> str:
+    return f"{x:.1%} slower" if x >= 0 else f"no slowdown: {-x:.1%} faster"
+
+
 def rows_studio(j: dict) -> list[tuple]:
     targets = {"highway camera, as fast as it can": ">= 30 frames/s",
                "sidewalk stereo pair, real time (30 Hz)": ">= 20 frames/s"}
@@ -182,8 +186,9 @@ def rows_studio(j: dict) -> list[tuple]:
         by = "a page in Chromium on the same cores" if how == "browser" else \
             "a protocol client (takes and acknowledges every frame, draws nothing)"
         out.append((f"`drive --view` watched by {by} vs not, highway oracle, lock-step, alternating windows",
-                    f"**{r['median_slowdown']:.1%} slower** (median of {r['windows']} windows of {r['window_s']:g} s, "
-                    f"quartiles {r['quartiles'][0]:.1%} to {r['quartiles'][-1]:.1%}; {r['watched_hz']:.0f} against "
+                    f"**{_slowdown(r['median_slowdown'])}** (median of {r['windows']} windows of "
+                    f"{r['window_s']:g} s, quartiles {r['quartiles'][0]:+.1%} to {r['quartiles'][-1]:+.1%} slower; "
+                    f"{r['watched_hz']:.0f} against "
                     f"{r['unwatched_hz']:.0f} Hz); CPU a step, watched and not: loop thread "
                     f"{r['loop_thread_ms'][0]:.2f}, {r['loop_thread_ms'][1]:.2f} ms, server threads "
                     f"{r['server_threads_ms'][0]:.2f}, {r['server_threads_ms'][1]:.2f} ms"

@@ -55,7 +55,9 @@ def highway_shot(page, out: Path) -> None:
     try:
         page.get(s.url)
         wait_page(page, "window.studio.drawn >= 5")
-        time.sleep(6)
+        # a moment with an estimated car ahead (purple) beside the truth
+        wait_page(page, "window.studio.state.t > 4 && window.studio.state.labels.find(l => l.name === 'dist_MM')"
+                        ".estimate < 50", timeout=120)
         page.save_screenshot(str(IMG / "studio-highway.png"))
         print("wrote", IMG / "studio-highway.png")
     finally:
