@@ -175,6 +175,34 @@ def rows_highway_env(j: dict) -> list[tuple]:
              f"x real time: ours {j['ours_realtime_factor']:.1f}, highway-env {j['theirs_realtime_factor']:.1f}", "")]
 
 
+def _slowdown(x: float) -> str:
+    return f"{x:.1%} slower" if x >= 0 else f"no slowdown: {-x:.1%} faster"
+
+
+def rows_studio(j: dict) -> list[tuple]:
+    targets = {"highway camera, as fast as it can": ">= 30 frames/s",
+               "sidewalk stereo pair, real time (30 Hz)": ">= 20 frames/s"}
+    out = [(f"studio: frames drawn in the page (headless Chromium), {name}",
+            f"**{r['frames_per_s']:.0f} frames/s** (loop {r['loop_hz']:.0f} Hz, {r['kb_per_frame']:.0f} kB a frame)",
+            targets.get(name, "")) for name, r in j["frames"].items()]
+    out += [(f"studio: key press to a changed command in the page, {w}, real time",
+             f"**median {r['median_ms']:.0f} ms**, p95 {r['p95_ms']:.0f}, max {r['max_ms']:.0f} ({r['measured']} "
+             "presses)", "<= 100 ms") for w, r in j["latency"].items()]
+    for how, r in j["view"].items():
+        by = "a page in Chromium on the same cores" if how == "browser" else \
+            "a protocol client (takes and acknowledges every frame, draws nothing)"
+        out.append((f"`drive --view` watched by {by} vs not, highway oracle, lock-step, alternating windows",
+                    f"**{_slowdown(r['median_slowdown'])}** (median of {r['windows']} windows of "
+                    f"{r['window_s']:g} s, quartiles {r['quartiles'][0]:+.1%} to {r['quartiles'][-1]:+.1%} slower; "
+                    f"{r['watched_hz']:.0f} against "
+                    f"{r['unwatched_hz']:.0f} Hz); CPU a step, watched and not: loop thread "
+                    f"{r['loop_thread_ms'][0]:.2f}, {r['loop_thread_ms'][1]:.2f} ms, server threads "
+                    f"{r['server_threads_ms'][0]:.2f}, {r['server_threads_ms'][1]:.2f} ms"
+                    + (f"; the browser {r['browser_cpu_share']:.0%} of a core" if how == "browser" else ""),
+                    "<= 10 %"))
+    return out
+
+
 @dataclass
 class Bench:
     name: str
@@ -209,6 +237,9 @@ BENCHES = [
     Bench("multinet", "bench_multinet.py", ["--repeats", "100", "--seconds", "20"],
           ["--repeats", "5", "--seconds", "2"],
           rows_multinet),
+    Bench("studio", "bench_studio.py",
+          ["--seconds", "10", "--presses", "20", "--windows", "12", "--window", "5"],
+          ["--seconds", "2", "--presses", "3", "--windows", "3", "--window", "2"], rows_studio),
     Bench("highway-env", "bench_highway_env.py", ["--steps", "200", "--rounds", "5"],
           ["--steps", "20", "--rounds", "2"],
           rows_highway_env, group="highway-env"),

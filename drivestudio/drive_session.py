@@ -49,6 +49,49 @@ def _label(args) -> str:
     return getattr(args, "model", None) or "driver"
 
 
+def _open_view(args, plugin, world, metrics):
+    """drive/serve --view: the run's steps published to a web page (docs/studio.md), or None."""
+    if getattr(args, "view_socket", None) is None:
+        return None
+    from drivestudio.studio.view import RunView  # lazy: the web server only when asked for
+    return RunView(args, plugin, world, metrics, _label(args))
+
+
+def _steps(*callbacks):
+    """One step callback of several (None: absent)."""
+    present = [c for c in callbacks if c is not None]
+
+    def on_step(rec) -> None:
+        for c in present:
+            c(rec)
+    return on_step
+
+
+def _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds: float, view, driver_proc):
+    """The loop over the bridge, from waiting for the driver on; returns why the run ended (which the driver is
+    told) and the signal that stopped it (None: none)."""
+    reason, stopped = "finished", None
+    recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
+    ok = False
+    try:
+        _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
+        last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
+                        on_step=_steps(recorder, view))
+        reason = "host lost" if last.end is not None else "finished"
+        ok = True
+    except PeerGone as gone:
+        if not gone.finished:
+            raise
+        reason, ok = "driver finished", True
+        print(str(gone), file=sys.stderr)
+    except (KeyboardInterrupt, Terminated) as signal_:
+        reason, stopped, ok = "interrupted", signal_, True   # what was driven until now is kept
+    finally:
+        recorder.close(ok)
+        ep.end(reason if reason != "finished" or ok else "error")
+    return reason, stopped
+
+
 def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
     """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
@@ -63,24 +106,13 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                   f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
                   file=sys.stderr, flush=True)
             exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
-            recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
-            ok = False
+            view = _open_view(args, plugin, world, metrics)     # the page is there while the driver comes
             try:
-                _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
-                last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
-                                on_step=recorder)
-                reason = "host lost" if last.end is not None else "finished"
-                ok = True
-            except PeerGone as gone:
-                if not gone.finished:
-                    raise
-                reason, ok = "driver finished", True
-                print(str(gone), file=sys.stderr)
-            except (KeyboardInterrupt, Terminated) as signal_:
-                reason, stopped, ok = "interrupted", signal_, True   # what was driven until now is kept
+                reason, stopped = _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds, view,
+                                                   driver_proc)
             finally:
-                recorder.close(ok)
-                ep.end(reason if reason != "finished" or ok else "error")
+                if view is not None:
+                    view.close()
         extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": _label(args),
                  "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
     driver_time = 0.0
@@ -136,20 +168,23 @@ def run_both_sides(args, plugin, out: Path) -> int:
 
 
 def run_in_process(args, plugin, out: Path) -> int:
-    with exit_on_sigterm(), plugin.world(args, render=plugin.needs_frames(args)) as world:
+    render = plugin.needs_frames(args) or getattr(args, "view_socket", None) is not None
+    with exit_on_sigterm(), plugin.world(args, render=render) as world:
         driver = plugin.driver(args.model, args, world.declaration)
         metrics = plugin.metrics(world)
         recorder = plugin.recorder(world, args.record, _label(args))
+        view = _open_view(args, plugin, world, metrics)
         ok, end, stopped = False, "finished", None
         try:
             last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
-                            render=plugin.needs_frames(args), metrics=metrics, realtime=args.realtime,
-                            on_step=recorder)
+                            render=render, metrics=metrics, realtime=args.realtime, on_step=_steps(recorder, view))
             end, ok = "host lost" if last.end is not None else "finished", True
         except (KeyboardInterrupt, Terminated) as signal_:   # as over the bridge: metrics of what was driven
             end, stopped, ok = "interrupted", signal_, True
         finally:
             recorder.close(ok)
+            if view is not None:
+                view.close()
         extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
                  "end": end, **plugin.describe_run(world, args)}
     for stage, seconds in getattr(driver, "timings", {}).items():

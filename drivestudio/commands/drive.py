@@ -13,6 +13,7 @@ from pathlib import Path
 
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
+from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
 
@@ -35,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/drive-TIME)")
     p.add_argument("--stats-out", help=argparse.SUPPRESS)  # driver side: timings for the parent
+    add_view_options(p)
     p.set_defaults(func=run)
 
 
@@ -44,7 +46,8 @@ def run(args) -> int:
 
     check_device(args.device)
     if args.shm is not None:
-        given = [f for f in ("--record", "--in-process", "--free-running") if getattr(args, f[2:].replace("-", "_"))]
+        given = [f for f in ("--record", "--in-process", "--free-running", "--view")
+                 if getattr(args, f[2:].replace("-", "_"))]
         if given:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name
@@ -58,6 +61,7 @@ def run(args) -> int:
         check_output(args.record, (".mp4",), "video")
     if args.model not in plugin.expert_names:
         check_checkpoint(args.model, plugin.name)   # before the world starts: one line, exit 2
+    bind_view(args)
     out = run_dir(args.out, "drive")
     if args.in_process:
         return drive_session.run_in_process(args, plugin, out)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from drivestudio.commands.common import add_world_options, plugin_for, run_dir
+from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.numbers import positive
 
 
@@ -21,6 +22,7 @@ def register(sub) -> None:
                    help="seconds to wait for a driver to attach (default 120)")
     p.add_argument("--record", help="write a video of the run (.mp4)")
     p.add_argument("--out", help="folder for metrics.json / metrics.md (default runs/serve-TIME)")
+    add_view_options(p)
     p.set_defaults(func=run)
 
 
@@ -32,4 +34,5 @@ def run(args) -> int:
     plugin = plugin_for(args)
     if args.record:
         check_output(args.record, (".mp4",), "video")
+    bind_view(args)
     return run_world_side(args, plugin, run_dir(args.out, "serve"))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from core.declaration import WorldDeclaration
 from drivestudio.checkpoints import load_predictor_for
@@ -19,6 +19,9 @@ from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Metrics, StepRecord, Supervisor, World
 from perception.dataset_stats import AnyWorld, Coverage
 from perception.mae_report import ReportLayout
+
+if TYPE_CHECKING:
+    from drivestudio.studio.kit import StudioKit
 
 
 class WorldOptions:
@@ -120,6 +123,10 @@ class Plugin:
     def driver_args(self, args) -> list[str]:
         """Options the driver process of `drive` needs besides --shm, --model and --device."""
         return []
+
+    def studio(self) -> StudioKit:
+        """How the studio shows this world and how a person drives it (drivestudio/studio/kit.py)."""
+        raise UsageError(f"the studio does not show the {self.name} world")
 
     # --- reports -------------------------------------------------------------------------------------------------
     def evaluation_layout(self) -> ReportLayout:

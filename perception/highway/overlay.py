@@ -165,11 +165,13 @@ def draw_topdown(lanes: int, lane_width: float, ego_s: float, ego_d: float, angl
                  estimate: HostEstimate | None) -> np.ndarray:
     """The 320x660 top-down view. cars: (n, 2) true (gap [m], d [m]) of the other cars."""
     w, h = CANVAS
-    img = np.empty((h, w, 3), np.uint8)
-    img[:] = GRASS
     m = markings(lanes, lane_width)
     x0, x1 = int(round(_x(m[0]))), int(round(_x(m[-1])))
-    img[:, x0:x1] = ROAD
+    row = np.empty((w, 3), np.uint8)
+    row[:] = GRASS
+    row[x0:x1] = ROAD
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = row    # one row broadcast down: filling with a colour triple directly took 3 ms, this 0.07
     for mj in (m[0], m[-1]):
         cv2.line(img, (int(round(_x(mj))), 0), (int(round(_x(mj))), h), WHITE, 2)
     dash, period = DASH

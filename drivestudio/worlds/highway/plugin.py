@@ -24,6 +24,7 @@ from sim.camera import CameraConfig
 from sim.track import load_track, preset_names
 
 if TYPE_CHECKING:
+    from drivestudio.studio.kit import StudioKit
     from sim.highway.world import World, WorldConfig
 
 DEFAULT_CARS = 12
@@ -153,6 +154,10 @@ class Plugin(base.Plugin):
 
     def describe_run(self, world, args) -> dict:
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars}
+
+    def studio(self) -> StudioKit:
+        from drivestudio.worlds.highway.studio import KIT  # lazy: the overlays and presets only for the studio
+        return KIT
 
     def driver_args(self, args) -> list[str]:
         out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []

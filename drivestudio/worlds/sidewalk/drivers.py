@@ -51,13 +51,21 @@ class Supervisor:
     """What the world side applies under each operation mode: expert (the expert's command; also whenever the
     bridge's driver_mode is "manual"), autonomous (the driver's), correctional (the driver's, until the
     correction rule of controller/sidewalk/correction.py hands over to the expert, and back). The world's record
-    carries the operation mode of every command applied."""
+    carries the operation mode of every command applied.
+
+    driver_mode "human" is a person at the controls (drivestudio studio): their command is applied. Under expert
+    operation the person is the expert (a demonstration); over a network it is MultiNet's RC override, recorded
+    as a correction, so that percentage autonomy counts it as the expert's take-overs are counted."""
 
     def __init__(self, world, operation: str):
         self.world, self.operation = world, operation
         self.expert, self.rule = SidewalkExpert(), CorrectionRule(dt=world.dt)
 
     def __call__(self, obs, action, driver_mode: str = "network"):
+        if driver_mode == "human":
+            name = "expert" if self.operation == "expert" else "correctional"
+            self.world.set_operation(name)
+            return self.world.declaration.clip_action(action), name
         expert = self.expert.action(obs.record)
         if driver_mode == "manual" or self.operation == "expert":
             name, applied = "expert", expert

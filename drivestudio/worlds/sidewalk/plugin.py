@@ -4,6 +4,8 @@ autonomous, correctional), closed-loop metrics, videos with both cameras and a t
 plan of a balanced data-moment set."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
@@ -14,6 +16,9 @@ from drivestudio.worlds.sidewalk.drivers import CorrectionalDriver, ExpertDriver
 from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
 from drivestudio.worlds.sidewalk.video import Recorder
+
+if TYPE_CHECKING:
+    from drivestudio.studio.kit import StudioKit
 
 DEFAULT_PATH = "park"
 
@@ -120,6 +125,10 @@ class Plugin(Plugin):
         return {"path": world.path.ref, "path_length_m": round(world.path.length, 1),
                 "path_width_m": world.path.width, "style": world.path.style, "mode": world.mode,
                 "operation": self.operation(args), "obstacles": len(world.layout.obstacles), "seed": world.seed}
+
+    def studio(self) -> StudioKit:
+        from drivestudio.worlds.sidewalk.studio import KIT  # lazy: the overlays and presets only for the studio
+        return KIT
 
     def driver_args(self, args) -> list[str]:
         return ["--seed", str(args.seed)]

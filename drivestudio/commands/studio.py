@@ -1,0 +1,141 @@
+"""drivestudio studio: a live studio in the browser, for any world (docs/studio.md).
+
+    studio [--world W ...] [--model M] [--checkpoint CKPT ...]       open the printed URL in a browser
+
+The page shows the camera (the stereo pair on the sidewalk), the top-down view with truth and estimate, every
+label's truth against the estimate with error bars, the controller's state and command, the run's metrics and the
+loop rate. It pauses, steps, paces (real time or as fast as it can), switches the driver (the person at the
+keyboard or gamepad, the world's own, any --checkpoint), the behavioural mode, and resets to a new seed, track or
+path. One button records what is driven as a dataset (OUT/recordings/NAME). `drive ... --view` and
+`serve ... --view` publish a running job to the same page.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from drivestudio.checkpoints import check_device
+from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
+from drivestudio.errors import UsageError
+from drivestudio.numbers import count, positive
+
+LOCALHOST = "127.0.0.1"
+DEFAULT_PORT = 8765
+VIEW_FPS = 10.0           # frames a second a watched run publishes at most (docs/benchmarks.md: its cost)
+
+
+def register(sub) -> None:
+    p = sub.add_parser("studio", help="a live studio in the browser: watch, drive, take over, record",
+                       description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", default=None, help="who drives at the start: human (default), the world's own "
+                                                 "(oracle, expert, poor) or a checkpoint file")
+    p.add_argument("--checkpoint", action="append", default=[], metavar="CKPT",
+                   help="a checkpoint file, or a folder of *.pt, the page offers as a driver (repeatable)")
+    add_device_option(p)
+    add_world_options(p, "drive")
+    p.add_argument("--host", help=f"listen on this address (default {LOCALHOST}); then the page needs the token of "
+                                  "the printed URL")
+    p.add_argument("--port", type=count(0, 65535), default=DEFAULT_PORT,
+                   help=f"port (default {DEFAULT_PORT}; 0: any free one)")
+    p.add_argument("--fast", action="store_true", help="start as fast as it can (default: real time)")
+    p.add_argument("--shard-steps", type=count(20, 100_000), default=300,
+                   help="steps per episode (shard) of a recording (default 300)")
+    p.add_argument("--out", help="the run's folder; recordings go to OUT/recordings/NAME (default runs/studio-TIME)")
+    p.set_defaults(func=run)
+
+
+def _checkpoints(args, plugin) -> dict[str, str]:
+    """{name the page shows: file} of every --checkpoint (and --model when it is a file)."""
+    from drivestudio.checkpoints import check_checkpoint_path
+    files: list[Path] = []
+    for given in args.checkpoint:
+        path = Path(given)
+        if path.is_dir():
+            found = sorted(path.glob("*.pt"))
+            if not found:
+                raise UsageError(f"--checkpoint {given}: the folder holds no *.pt checkpoint")
+            files += found
+        else:
+            files.append(check_checkpoint_path(given))
+    if args.model is not None and args.model != "human" and args.model not in plugin.expert_names:
+        files.append(check_checkpoint_path(args.model))
+    out: dict[str, str] = {}
+    for f in files:
+        if out.get(f.name, str(f)) != str(f):
+            raise UsageError(f"two checkpoints are called {f.name} ({out[f.name]}, {f}): the page names them by "
+                             "file name; rename one")
+        out[f.name] = str(f)
+    if args.model in out.values():
+        args.model = Path(args.model).name
+    return out
+
+
+def need_aiohttp() -> None:
+    try:
+        import aiohttp  # noqa: F401 - only to know it is there
+    except ImportError:
+        raise UsageError("the studio needs aiohttp: pip install 'drivestudio[studio]'") from None
+
+
+def run(args) -> int:
+    need_aiohttp()
+    from core.signals import Terminated, exit_on_sigterm
+    from drivestudio.studio.controls import Controls
+    from drivestudio.studio.publisher import Publisher
+    from drivestudio.studio.server import Server, bind, new_token
+    from drivestudio.studio.session import Session
+    from drivestudio.studio.watch import Watch
+
+    check_device(args.device)
+    plugin = plugin_for(args)
+    checkpoints = _checkpoints(args, plugin)
+    sock = bind(args.host or LOCALHOST, args.port)     # a port in use: one line, before any work
+    server = None
+    try:
+        out = run_dir(args.out, "studio")
+        publisher = Publisher()
+        controls = Controls(realtime=not args.fast)
+        session = Session(args, plugin, out, checkpoints, Watch(publisher, None), controls,
+                          shard_steps=args.shard_steps)
+        with exit_on_sigterm():
+            session.open()                                 # options that cannot build the world: one line
+            server = Server(sock, publisher, hello=lambda client: session.hello(), handle=session.submit,
+                            leave=session.wheel_left, token=new_token() if args.host else None, drives=True)
+            session.tell = server.broadcast
+            server.start()
+            print(f"drivestudio studio ({plugin.name}): open {server.url(args.host or LOCALHOST)}", flush=True)
+            print(f"recordings go to {out / 'recordings'}; Ctrl-C stops", flush=True)
+            try:
+                session.run()
+            except (KeyboardInterrupt, Terminated):
+                print("studio stopped", file=sys.stderr)
+    finally:
+        if server is not None:
+            server.stop()
+        else:
+            sock.close()
+    return 0
+
+
+# --- drive --view and serve --view --------------------------------------------------------------------------------
+def add_view_options(p) -> None:
+    g = p.add_argument_group("watching the run in a browser (docs/studio.md)")
+    g.add_argument("--view", action="store_true", help="publish the run to a web page: open the printed URL "
+                                                      "(read-only unless --view-control)")
+    g.add_argument("--view-port", type=count(0, 65535), default=DEFAULT_PORT,
+                   help=f"the page's port (default {DEFAULT_PORT}; 0: any free one)")
+    g.add_argument("--view-host", help=f"listen on this address (default {LOCALHOST}); then the page needs the "
+                                       "token of the printed URL")
+    g.add_argument("--view-control", action="store_true", help="the page may pause, resume and single-step the run")
+    g.add_argument("--view-fps", type=positive(240.0), default=VIEW_FPS,
+                   help=f"frames a second the page gets at most (default {VIEW_FPS:g})")
+
+
+def bind_view(args) -> None:
+    """Before any work: the --view port (one line and exit status 2 when it is in use)."""
+    args.view_socket = None
+    if getattr(args, "view", False):
+        need_aiohttp()
+        from drivestudio.studio.server import bind
+        args.view_socket = bind(args.view_host or LOCALHOST, args.view_port)

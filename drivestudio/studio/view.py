@@ -1,0 +1,64 @@
+"""drive --view and serve --view: a running job's loop published to the studio's page, as a step callback of
+drivestudio/loop.py's run_loop. Read-only by default; with --view-control the page holding the wheel may pause,
+resume and single-step the run (a paused lock-step run keeps its driver waiting). Its cost to the loop is a flag
+test per step, and a snapshot of references when a page is ready for a frame (at most --view-fps a second); the
+drawing and encoding run in the server's threads (docs/benchmarks.md measures the slowdown).
+"""
+from __future__ import annotations
+
+import sys
+
+from drivestudio.loop import StepRecord
+from drivestudio.studio.controls import Controls
+from drivestudio.studio.publisher import Publisher
+from drivestudio.studio.server import Server, new_token
+from drivestudio.studio.watch import Watch
+
+
+class RunView:
+    def __init__(self, args, plugin, world, metrics, label: str):
+        self.label = label
+        self.controls = Controls(realtime=bool(getattr(args, "realtime", False))) if args.view_control else None
+        kit = plugin.studio()
+        self.watch = Watch(Publisher(args.view_fps), kit.view_for(world, args), metrics)
+        self.extra = {"driver": label, "human": False, "takeover": False, "recording": None,
+                      "realtime": bool(getattr(args, "realtime", False)), "scene": kit.scene(args)}
+        decl = world.declaration
+        hello = {"world": decl.name, "title": decl.title, "dt": decl.dt, "studio": False,
+                 "controls": bool(args.view_control), "cameras": [c.name for c in decl.cameras],
+                 "action": [{"name": a.name, "low": a.low, "high": a.high, "neutral": a.neutral}
+                            for a in decl.action],
+                 "drivers": [label], "modes": [], "operations": [], "scene_key": kit.scene_key,
+                 "scenes": [], "labels_note": kit.note}
+        host = args.view_host or "127.0.0.1"
+        self.server = Server(args.view_socket, self.watch.publisher, hello=lambda client: hello,
+                             handle=self._handle, leave=self._left, token=new_token() if args.view_host else None,
+                             drives=False, controls=bool(args.view_control))
+        self.server.start()
+        print(f"watch the run at {self.server.url(host)}", file=sys.stderr, flush=True)
+
+    def _handle(self, msg, client) -> str | None:
+        if self.controls is None:   # the server lets nothing through without --view-control; kept for safety
+            return "this run is only watched here"
+        self.controls.put(msg)
+        return None
+
+    def _left(self, client) -> None:
+        if self.controls is not None:    # nobody may be left to resume a paused run
+            from drivestudio.studio.protocol import Message
+            self.controls.put(Message("resume"))
+
+    def __call__(self, rec: StepRecord) -> None:
+        paused = self.controls is not None and self.controls.paused
+        self.watch.step(rec, None, None, {**self.extra, "paused": paused}, self.label)
+        if self.controls is not None:
+            self.controls.hold(lambda msg: None, idle=self._idle)
+
+    def _idle(self) -> None:
+        assert self.controls is not None
+        if self.watch.republish(None, None, {**self.extra, "paused": self.controls.paused}, self.label,
+                                self.controls.changed):
+            self.controls.changed = False
+
+    def close(self) -> None:
+        self.server.stop()
