@@ -127,7 +127,9 @@ class SidewalkExpert:
         Beside it means on the left or on the right of it, at least `tight` from its centre (the body clears it)
         and `pass_margin` more where the path leaves room; of the two sides the one that costs the least swerving,
         2 |side - d| + |side - want|, wins (moving from where the car is counts double). So a car already beside an
-        obstacle's edge stays there, and one that would have to cut across in front of it passes on its side."""
+        obstacle's edge stays there, and one that would have to cut across in front of it passes on its side; closer
+        than ramp[1] it never cuts across (a car the expert takes over near an obstacle, from wherever the driver
+        left it, would not make it)."""
         gap = field(record, "obstacle_gap")
         if gap >= GAP_CAP - 1e-6:
             return want
@@ -145,6 +147,8 @@ class SidewalkExpert:
             sides.append(max(-lim, min(max(-lim, od - comfort), want)))
         if not sides:                                  # no room at all (a path file may do that): the roomier side
             sides = [lim if lim - od >= od + lim else -lim]
+        if gap < self.p.ramp[1] and len(sides) > 1:    # too close to cut across in front of it: the car's own side
+            sides = [p for p in sides if (p - od) * (d - od) > 0] or sides
         side = min(sides, key=lambda p: 2 * abs(p - d) + abs(p - want))
         w = 1.0 if gap <= self.p.ramp[0] else _smooth((self.p.ramp[1] - gap) / (self.p.ramp[1] - self.p.ramp[0]))
         return (1.0 - w) * want + w * side

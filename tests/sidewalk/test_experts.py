@@ -82,3 +82,18 @@ def test_ten_minutes_on_a_procedural_loop_with_obstacles(mode):
     rep, _ = run(mode, 600.0, path="procedural:11", seed=5, obstacles=5.0)
     assert rep["collisions"] == 0 and rep["off_path_time_s"] == 0.0
     assert rep["obstacles_met"] >= 20
+
+
+def test_near_an_obstacle_the_expert_passes_on_the_side_the_car_is_on():
+    """Where crossing to the cheaper side would mean cutting across the obstacle's front in the last metres (a car the
+    expert takes over from wherever a driver left it), it passes on the car's own side."""
+    from tests.sidewalk.helpers import record
+    expert = SidewalkExpert()
+    near = record(d=0.47, heading=0.1, speed=2.9, path_width=2.12, obstacle_gap=0.9, obstacle_d=0.32,
+                  obstacle_width=0.5)
+    assert expert.around_obstacle(near, 0.0) > 0.32 + 0.25               # left of it, where the car is
+    far = record(d=0.47, heading=0.1, speed=2.9, path_width=2.12, obstacle_gap=6.0, obstacle_d=0.32,
+                 obstacle_width=0.5)
+    assert expert.around_obstacle(far, 0.0) == 0.0                       # far away it does not swerve yet
+    rightish = record(d=0.2, path_width=2.12, obstacle_gap=0.9, obstacle_d=0.32, obstacle_width=0.5)
+    assert expert.around_obstacle(rightish, 0.0) < 0.32 - 0.25           # right of its centre: passes right
