@@ -9,7 +9,7 @@ import sys
 from drivestudio.errors import input_errors, runtime_errors
 
 VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "overlay", "serve", "drive", "benchmark",
-         "autonomy", "export", "demo")
+         "autonomy", "study", "export", "demo")
 
 
 class _Parser(argparse.ArgumentParser):

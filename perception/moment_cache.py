@@ -109,6 +109,7 @@ class Moments:
         if not decl.modes:
             raise DatasetError(f"the {decl.name} world has no behavioural modes: train another model family")
         self.decl, self.size = decl, size
+        self.roots = [str(ds.root) for ds in datasets]
         self.spec = SampleSpec(decl, targets, normalised=False)
         self.instants = np.asarray(self.spec.moment.instants)
         self.cameras = len(decl.cameras)
@@ -177,18 +178,20 @@ class Moments:
         return x, torch.from_numpy(self.modes[ids]), torch.from_numpy(self.targets[ids])
 
     def split(self, modes: list[int], seed: int = 0) -> tuple[dict[int, np.ndarray], np.ndarray]:
-        """({mode: training moment ids}, held-out ids): 10 % of each mode's episodes (at least one) held out
-        whole, and the held-out moments subsampled so that every mode has as many."""
+        """({mode: training moment ids}, held-out ids): 10 % of each mode's episodes of the first dataset (at least
+        one) held out whole, and the held-out moments subsampled so that every mode has as many. The datasets after
+        the first (corrections merged in, DAgger rounds) are training data only, so a network retrained with them
+        is validated on the same moments as before."""
         rng = np.random.default_rng([seed, 0x5A1])
         train, held = {}, {}
         for m in modes:
             ids = np.flatnonzero(self.modes == m)
             if not len(ids):
                 raise DatasetError(f"the data hold no moment of mode {self.decl.modes[m]}")
-            eps = sorted({self.episodes[i] for i in ids})
+            eps = sorted({self.episodes[i] for i in ids if self.episodes[i][0] == self.roots[0]})
             if len(eps) < 2:
-                raise DatasetError(f"mode {self.decl.modes[m]} has {len(eps)} episode(s): at least 2 are needed to "
-                                   "hold one out for validation")
+                raise DatasetError(f"mode {self.decl.modes[m]} has {len(eps)} episode(s) in {self.roots[0]}: at "
+                                   "least 2 are needed to hold one out for validation")
             k = max(1, int(round(VALIDATION_SHARE * len(eps))))
             out = {eps[j] for j in rng.choice(len(eps), k, replace=False)}
             is_held = np.array([self.episodes[i] in out for i in ids])
