@@ -11,10 +11,11 @@ in the world's process whatever transport the driver uses):
 - **leaving the path**: the car's centre will be beyond the path's edge within `path_preview` seconds, or the car
   has turned away from the path (its heading more than `heading_max` from the path's: a car pointing across a path
   of 1.5-3 m, or back along it, is no longer driving it, and the expert cannot recover it by steering alone);
-- **imminent collision**: its body will touch a border (hedge, bushes) within `contact_preview` seconds, or the next
-  obstacle or the lead car within `contact_preview` seconds or its next `contact_distance` metres, whichever is
-  longer (closer than `clearance` counts as touching; a slow car needs room as much as time to turn away from
-  something ahead of it);
+- **imminent collision**: its body will touch a border (hedge, bushes) within `contact_preview` seconds; or it will
+  touch the next obstacle, and the way left to it is no more than the expert needs to swerve clear of it
+  (controller/sidewalk/experts.py's swerve_distance, from the car's offset, heading and speed) plus
+  `swerve_margin`; or it will touch the lead car within `contact_preview` seconds or `contact_distance` metres
+  (closer than `clearance` counts as touching);
 - **stalled**: it has crept slower than `stall_speed` for `stall_time` seconds while the expert would drive on (its
   motor above 0.5 + `stall_motor`): a car that stops where it should go is not driving, and a person watching it
   would take over (without this clause a network that learned to stand still would score 100 % autonomy);
@@ -25,12 +26,17 @@ in the world's process whatever transport the driver uses):
 which measures imitation of one scripted expert rather than safe driving (a network that passes an obstacle on the
 other side, or drives a little slower, is taken over although nothing was at risk).
 
-"Will" is foresight, as a person watching anticipates: the car's next second is rolled out from the record (its
-offset, heading, speed and the command it is under) with the driver's new command, on a model of the car (servo rate,
-speed lag and acceleration limits, the grip beyond which it runs wide: docs/sidewalk.md's car) over the path ahead
-taken as a circle of the record's `curvature_ahead`. Reacting to the present state alone acts late: a car that
-goes straight into a bend leaves the path on the outside half a second after its heading looks wrong, and a car
-closing on a hedge at 0.9 m/s crosses the last 6 cm in 2 steps, faster than the expert can turn it away.
+"Will" is foresight, as a person watching anticipates: the car's next seconds are rolled out from the record (its
+offset, heading, speed and the command it is under) with the driver's new command held for `commit` seconds (a
+driver's reaction time; after it the car keeps its heading relative to the path: a driver is expected to react, not
+to hold a transient command), on a model of the car (servo rate, speed lag and acceleration limits, the grip beyond
+which it runs wide: docs/sidewalk.md's car) over the path ahead taken as a circle of the record's
+`curvature_ahead`. Reacting to the present state alone acts late: a car
+that goes straight into a bend leaves the path on the outside half a second after its heading looks wrong, and a
+car closing on a hedge at 0.9 m/s crosses the last 6 cm in 2 steps, faster than the expert can turn it away. Nor
+does the person take over while the car can still be saved by the driver's own turning: for an obstacle the moment
+is when waiting longer would leave the expert's swerve too little room (a car already turning round it needs
+little, one heading straight at it at speed needs 2-3 m).
 
 Hand back when the expert has driven at least `min_correction` seconds and, for the last `recovery` seconds, no
 hazard was foreseen on the car's course, its heading was within `heading_ok` of the path's and its body within the
@@ -41,7 +47,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from controller.sidewalk.experts import BORDER_CAP, GAP_CAP
+from controller.sidewalk.experts import BORDER_CAP, GAP_CAP, swerve_needed
 from controller.sidewalk.experts import field as value
 from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, STEP, TOP_SPEED, WHEELBASE
 
@@ -55,9 +61,11 @@ LONGEST_OBSTACLE = 1.7     # [m] along the path (a parked bike): how long a car 
 @dataclass(frozen=True)
 class CorrectionParams:
     path_preview: float = 0.6       # [s] leaving the path
-    contact_preview: float = 1.0    # [s] imminent collision: the next second,
-    contact_distance: float = 2.0   # [m] or the next 2 m for what lies ahead,
-    longest: float = 3.0            # [s] but not beyond 3 s
+    contact_preview: float = 1.0    # [s] imminent collision: a border within the next second,
+    swerve_margin: float = 0.3      # [m] an obstacle when the expert's swerve needs all but this of the way to it,
+    contact_distance: float = 2.0   # [m] the lead car within the next second or 2 m;
+    longest: float = 3.0            # [s] the car's course foreseen at most this far,
+    commit: float = 0.5             # [s] the driver's command held this long (its reaction), then the heading
     clearance: float = 0.03         # [m] closer than this counts as touching
     servo_rate: float = 8.0         # [rad/s] the rule's model of the car: servo speed,
     speed_lag: float = 0.25         # [s] time constant of the speed,
@@ -95,8 +103,8 @@ def half_extent(heading: float) -> float:
 
 def foresee(record, command: tuple[float, float], p: CorrectionParams = CorrectionParams(),
             dt: float = STEP) -> str | None:
-    """What will go wrong if the car drives on under `command`: "leaving the path" (within path_preview),
-    "imminent collision: WHAT" (within contact_preview or contact_distance), or None."""
+    """What will go wrong if the car drives on under `command`: "leaving the path", "imminent collision: WHAT", or
+    None (the clauses of the module's docstring)."""
     hw = value(record, "path_width") / 2
     d, psi, v = value(record, "d"), value(record, "heading"), value(record, "speed")
     delta = (1.0 - 2.0 * value(record, "steer")) * STEER_LOCK_RAD
@@ -107,31 +115,34 @@ def foresee(record, command: tuple[float, float], p: CorrectionParams = Correcti
     left, right = value(record, "border_left"), value(record, "border_right")
     lead_gap, lead_d, lead_v = value(record, "lead_gap"), value(record, "lead_d"), value(record, "lead_speed")
     reach_left, reach_right = d + half_extent(psi), -d + half_extent(psi)   # the body's reach to either side now
-    travelled = 0.0
-    for k in range(int(round(max(p.path_preview, p.longest) / dt)) + 1):
+    need = swerve_needed(record, p.clearance) + p.swerve_margin if gap < GAP_CAP else 0.0
+    travelled, obstacle = 0.0, gap < GAP_CAP
+    for k in range(int(round(p.longest / dt)) + 1):
         t = k * dt
+        if t > max(p.path_preview, p.contact_preview) and \
+                travelled > max(need if obstacle else 0.0, p.contact_distance if lead_gap < GAP_CAP else 0.0):
+            return None                                   # nothing further ahead is the expert's concern yet
         e = half_extent(psi)
-        if t <= p.path_preview and (abs(d) > hw or abs(psi) > p.heading_max):
+        if (t <= p.path_preview and abs(d) > hw) or (t == 0.0 and abs(psi) > p.heading_max):
             return LEAVING
         soon = t <= p.contact_preview
-        ahead = soon or abs(travelled) <= p.contact_distance     # things ahead: the next second or 2 m
-        if not ahead and t > p.path_preview:
-            return None
         if soon and left < BORDER_CAP and left - (d + e - reach_left) < p.clearance:
             return f"{COLLISION}: a border"
         if soon and right < BORDER_CAP and right - (-d + e - reach_right) < p.clearance:
             return f"{COLLISION}: a border"
-        if ahead and gap < GAP_CAP and gap - p.clearance <= travelled <= gap + LONGEST_OBSTACLE + CAR_LENGTH and \
-                abs(d - od) < ow / 2 + e + p.clearance:
-            return f"{COLLISION}: an obstacle"
-        if ahead and lead_gap < GAP_CAP and lead_gap + lead_v * t - travelled < p.clearance and \
-                abs(d - lead_d) < CAR_WIDTH / 2 + e + p.clearance:
+        if obstacle and gap - p.clearance <= travelled <= gap + LONGEST_OBSTACLE + CAR_LENGTH and \
+                abs(d - od) < ow / 2 + e + p.clearance:     # the first contact foreseen: is there room to swerve?
+            if travelled <= need:
+                return f"{COLLISION}: an obstacle"
+            obstacle = False
+        if (soon or travelled <= p.contact_distance) and lead_gap < GAP_CAP and \
+                lead_gap + lead_v * t - travelled < p.clearance and abs(d - lead_d) < CAR_WIDTH / 2 + e + p.clearance:
             return f"{COLLISION}: the lead car"
         delta += max(-p.servo_rate * dt, min(p.servo_rate * dt, target - delta))
         slowing = (v_cmd - v) * v < 0 or v_cmd == 0.0
         limit = p.accel[1] if slowing else p.accel[0]
         v += max(-limit, min(limit, (v_cmd - v) / p.speed_lag)) * dt
-        kappa = curvature_of(delta)
+        kappa = curvature_of(delta) if t < p.commit else kp   # after `commit` the car keeps its heading to the path
         if v * v * abs(kappa) > p.grip:                   # beyond the grip the car runs wide
             kappa = math.copysign(p.grip / (v * v), kappa)
         along = v * math.cos(psi) / max(1e-3, 1.0 - kp * d)

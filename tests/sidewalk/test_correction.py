@@ -7,6 +7,7 @@ import pytest
 
 from controller.sidewalk import CorrectionRule, PoorDriver, SidewalkExpert, SidewalkMetrics
 from controller.sidewalk.correction import COLLISION, DEVIATING, LEAVING, RULES, STALLED, check_rule, foresee
+from controller.sidewalk.experts import swerve_needed
 from controller.sidewalk.poor import PoorParams
 from drivestudio.worlds.sidewalk.drivers import Supervisor
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
@@ -52,17 +53,28 @@ def test_leaving_is_foreseen_from_the_drivers_command_not_the_present_state_alon
 
 
 @pytest.mark.parametrize("rule", RULES)
-def test_an_obstacle_in_the_way_is_an_imminent_collision(rule):
-    ahead = {"obstacle_d": 0.1, "obstacle_width": 0.3}
-    assert takes_over(rule, record(speed=3.0, obstacle_gap=2.5, **ahead), (0.5, 0.67)) == f"{COLLISION}: an obstacle"
-    assert takes_over(rule, record(speed=3.0, obstacle_gap=3.5, **ahead), (0.5, 0.67)) is None   # 1.2 s, 3.5 m
-    # slow, 1.8 s away but within 2 m: a slow car needs room to turn away as much as time
-    assert takes_over(rule, record(speed=1.0, obstacle_gap=1.8, **ahead), (0.5, 0.56)) == f"{COLLISION}: an obstacle"
-    # beside the car's lane it is no hazard, nor when the driver steers clear of it in time
+@pytest.mark.parametrize("speed, motor", [(3.0, 0.67), (1.0, 0.56)])
+def test_an_obstacle_in_the_way_is_taken_over_when_the_swerve_needs_the_room_left(rule, speed, motor):
+    """Heading straight at an obstacle, the expert takes over once the way left to it is no more than its swerve
+    needs (from the car's offset, heading and speed) plus swerve_margin: not before, and not too late."""
+    margin = CorrectionRule().p.swerve_margin
+    base = {"speed": speed, "obstacle_d": 0.1, "obstacle_width": 0.3}
+    need = swerve_needed(record(obstacle_gap=5.0, **base), CorrectionRule().p.clearance) + margin
+    assert 0.8 < need < 2.5
+    assert takes_over(rule, record(obstacle_gap=need - 0.05, **base), (0.5, motor)) == f"{COLLISION}: an obstacle"
+    assert takes_over(rule, record(obstacle_gap=need + 0.2, **base), (0.5, motor)) is None
+    assert takes_over(rule, record(obstacle_gap=0.3, **base), (0.5, motor)) == f"{COLLISION}: an obstacle"
+
+
+@pytest.mark.parametrize("rule", RULES)
+def test_an_obstacle_the_driver_clears_is_no_hazard(rule):
+    # beside the car's lane, or the driver already turning away from it, or the car alongside and clear of it
     assert takes_over(rule, record(speed=3.0, obstacle_gap=1.5, obstacle_d=0.7, obstacle_width=0.3), (0.5, 0.67)) \
         is None
-    assert foresee(record(speed=2.0, obstacle_gap=1.8, obstacle_d=0.25, obstacle_width=0.3), (0.5, 0.61)) is not None
-    assert foresee(record(speed=2.0, obstacle_gap=1.8, obstacle_d=0.25, obstacle_width=0.3), (0.8, 0.61)) is None
+    ahead = {"speed": 2.0, "obstacle_gap": 0.6, "obstacle_d": 0.25, "obstacle_width": 0.3}
+    assert foresee(record(**ahead), (0.5, 0.61)) == f"{COLLISION}: an obstacle"
+    assert foresee(record(heading=-0.3, **ahead), (0.7, 0.61)) is None
+    assert foresee(record(speed=2.0, obstacle_gap=-0.5, obstacle_d=0.5, obstacle_width=0.3), (0.5, 0.61)) is None
 
 
 @pytest.mark.parametrize("rule", RULES)
@@ -132,7 +144,7 @@ def test_hand_back_after_a_recovery(rule):
 def test_take_overs_and_their_steps_are_counted_by_clause():
     r = CorrectionRule()
     for rec, n in ((record(d=1.05, speed=1.0), 1), (record(speed=2.0), 40),
-                   (record(speed=3.0, obstacle_gap=1.0, obstacle_width=0.3), 1), (record(speed=2.0), 40)):
+                   (record(speed=3.0, obstacle_gap=0.5, obstacle_width=0.3), 1), (record(speed=2.0), 40)):
         for _ in range(n):
             r.update(rec, *SAME)
     report = r.tally.report(r.dt)
@@ -148,7 +160,8 @@ def drive(driver, operation: str, path="park", seed: int = 2, mode="direct", sec
     sup, m = Supervisor(w, operation, rule), SidewalkMetrics(w.dt)
     obs = w.observe(False)
     for _ in range(int(seconds / w.dt)):
-        applied, name = sup(obs, np.array(driver.act(obs.record)))
+        command = driver.action(obs.record) if isinstance(driver, SidewalkExpert) else driver.act(obs.record)
+        applied, name = sup(obs, np.array(command))
         obs = w.step(applied, False)
         m.update(obs.record)
         assert obs.truth["operation"] == ("autonomous", "correctional").index(name) + 1
@@ -169,6 +182,14 @@ def test_the_expert_keeps_the_poor_driver_safe(rule):
     alone, last, _ = drive(PoorDriver(seed=4), "autonomous")
     alone = alone.report()
     assert last.end is not None or alone["collisions"] > 0 or alone["off_path_time_s"] > 0   # without it: trouble
+
+
+@pytest.mark.parametrize("mode", ["direct", "follow", "furtive"])
+def test_the_safety_rule_leaves_the_expert_alone(mode):
+    """The expert is driving safely by construction: the rule that measures safety must never take it over (it did,
+    before foresight held a driver's command for a reaction time only and judged obstacles by the swerve left)."""
+    m, _, _ = drive(SidewalkExpert(), "correctional", "procedural:913", 3, mode, 60.0, obstacles=6.0)
+    assert m.correction_steps == 0 and m.collisions == 0
 
 
 @pytest.mark.parametrize("path, seed, mode, params, seconds", [
