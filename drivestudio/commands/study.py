@@ -43,6 +43,8 @@ def register(sub) -> None:
     p.add_argument("--rule", choices=RULES, help="the correction rule of the rounds and the headline (default "
                                                  "safety); the final runs measure both")
     p.add_argument("--seed", type=seed(), help="seed of the data, the trials and the runs (default 0)")
+    p.add_argument("--jobs", type=count(1, 64), help=f"trainings and autonomy runs side by side, each with cores / "
+                                                     f"jobs threads (default {d.jobs})")
     add_device_option(p, default="cpu")
     p.set_defaults(func=run)
 
@@ -67,6 +69,8 @@ def run(args) -> int:
         if loop in ROUND_LOOPS or loop in [f"procedural:{cfg.seed * 1000 + i}" for i in range(cfg.procedural)]:
             raise UsageError(f"--loops: {loop} is driven by the study's data or rounds; autonomy is measured on "
                              "held-out loops only")
-    report = Study(cfg).run()
+    from core.signals import exit_on_sigterm
+    with exit_on_sigterm():   # a SIGTERM ends the running verbs too, each keeping what it finished
+        report = Study(cfg).run()
     print(f"the study's report is {report}")
     return 0

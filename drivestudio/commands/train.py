@@ -62,6 +62,8 @@ def register(sub) -> None:
                                                  "one mode's data")
     p.add_argument("--trials", type=count(1, 100), default=1,
                    help="z2color: repeat training with fresh seeds, for curves with confidence intervals (default 1)")
+    p.add_argument("--init", metavar="CKPT", help="z2color: start from this checkpoint's weights (fine-tuning, as the "
+                                                  "correction rounds of `study` and `autonomy --rounds` do)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of initialisation and data order")
     p.set_defaults(func=run)
 
@@ -79,12 +81,12 @@ def run(args) -> int:
         raise UsageError("--weights goes with --model vgg16 or alexnet")
     if args.model != "gist" and args.regressor != "ridge":
         raise UsageError("--regressor goes with --model gist")
-    if fam.trainer != "multinet" and (args.modes or args.mtl or args.trials != 1):
-        raise UsageError("--modes, --mtl and --trials go with --model z2color")
-    if args.weights:
-        from pathlib import Path
-        if not Path(args.weights).is_file():
-            raise UsageError(f"--weights: no such file: {args.weights}")
+    if fam.trainer != "multinet" and (args.modes or args.mtl or args.trials != 1 or args.init):
+        raise UsageError("--modes, --mtl, --trials and --init go with --model z2color")
+    from pathlib import Path
+    for option, path in (("--weights", args.weights), ("--init", args.init)):
+        if path and not Path(path).is_file():
+            raise UsageError(f"{option}: no such file: {path}")
 
     from perception.train import config_from, train
 

@@ -64,6 +64,7 @@ class StudyConfig:
     rule: str = "safety"
     device: str = "cpu"
     seed: int = 0
+    jobs: int = 2                   # verbs run side by side (trainings, autonomy runs), each with cores / jobs threads
 
     @property
     def frames(self) -> int:
@@ -91,11 +92,51 @@ def _cli(*argv) -> None:
         raise SystemExit(rc)
 
 
+@dataclass
+class Job:
+    name: str            # also its log: out/logs/NAME.log
+    argv: list           # the verb and its options
+
+
+def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
+    """Verbs as processes, `parallel` at a time, each with cores / parallel torch threads: one thread per process
+    wastes no time in the threads' barriers when the cores are shared (measured on this machine under load: 180
+    training moments per CPU-second with one thread, 40-60 with two). A failure ends the study (exit status 1) once
+    the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps what it finished)."""
+    import os
+    import subprocess
+    threads = max(1, (os.cpu_count() or 1) // parallel)
+    env = os.environ | {"OMP_NUM_THREADS": str(threads)}
+    logs.mkdir(parents=True, exist_ok=True)
+    waiting, running, failed = list(jobs), [], []
+    try:
+        while waiting or running:
+            while waiting and len(running) < parallel:
+                job = waiting.pop(0)
+                print("$ drivestudio " + " ".join(map(str, job.argv)) + f"   (log: {logs / job.name}.log)", flush=True)
+                with open(logs / f"{job.name}.log", "ab") as log:
+                    running.append((job, subprocess.Popen([sys.executable, "-m", "drivestudio", *map(str, job.argv)],
+                                                           stdout=log, stderr=subprocess.STDOUT, env=env)))
+            time.sleep(1.0)
+            for job, proc in [r for r in running if r[1].poll() is not None]:
+                running.remove((job, proc))
+                if proc.returncode != 0:
+                    failed.append(job.name)
+                    waiting.clear()
+    finally:
+        for _, proc in running:
+            proc.terminate()
+            proc.wait()
+    if failed:
+        from drivestudio.errors import RunError
+        raise RunError(f"{', '.join(failed)} failed: see {logs}/{failed[0]}.log")
+
+
 class Study:
     def __init__(self, cfg: StudyConfig):
         self.cfg = cfg
         self.out = Path(cfg.out)
-        self.data, self.models = self.out / "data", self.out / "models"
+        self.data, self.models, self.logs = self.out / "data", self.out / "models", self.out / "logs"
         self.timings: dict[str, float] = {}
 
     def timed(self, name: str, fn, *args):
@@ -103,6 +144,10 @@ class Study:
         result = fn(*args)
         self.timings[name] = round(self.timings.get(name, 0.0) + time.perf_counter() - t, 1)
         return result
+
+    def jobs(self, stage: str, jobs: list[Job]) -> None:
+        if jobs:
+            self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs)
 
     # --- 1. data ---------------------------------------------------------------------------------------------------
     def generate(self) -> None:
@@ -113,67 +158,90 @@ class Study:
         self.timed("generate", _cli, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
                    "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet")
 
+    def cache(self) -> None:
+        """The moments cached at 94 x 168 once, before the trainings that share them start together."""
+        from perception.moment_cache import Moments
+        self.timed("cache", Moments, [self.data], (94, 168))
+
     # --- 2. training -------------------------------------------------------------------------------------------------
     def nets(self) -> dict[str, list[str]]:
         return {"multinet": []} | {f"mtl-{m}": ["--mtl", m] for m in MODES}
 
-    def train(self, name: str, extra: list[str]) -> Path:
+    def trained(self, ckpt: Path) -> bool:
+        return ckpt.exists() and not Path(str(ckpt) + ".state").exists()
+
+    def train(self) -> None:
         c = self.cfg
-        ckpt = self.models / f"{name}.pt"
-        if not ckpt.exists() or Path(str(ckpt) + ".state").exists():
-            self.timed(f"train {name}", _cli, "train", "--data", self.data, "--model", "z2color", "--out", ckpt, *extra,
-                       "--epochs", c.epochs, "--trials", c.trials, "--batch-size", c.batch_size, "--seed", c.seed,
-                       "--device", c.device)
-        return ckpt
+        self.jobs("train", [Job(f"train-{name}", ["train", "--data", self.data, "--model", "z2color", "--out",
+                                                  self.models / f"{name}.pt", *extra, "--epochs", c.epochs, "--trials",
+                                                  c.trials, "--batch-size", c.batch_size, "--seed", c.seed,
+                                                  "--device", c.device])
+                            for name, extra in self.nets().items() if not self.trained(self.models / f"{name}.pt")])
 
     # --- 4. correction rounds ----------------------------------------------------------------------------------------
     def net_modes(self, name: str) -> tuple[str, ...]:
         return MODES if name == "multinet" else (name.removeprefix("mtl-"),)
 
-    def correction_rounds(self, name: str) -> str:
-        """The network after the correction rounds: each round it drives a training loop in each of its modes under
-        the expert's correction, and is fine-tuned on the data and every correction so far."""
-        from drivestudio.worlds.sidewalk.autonomy import retrain
+    def round_dir(self, k: int, name: str, mode: str) -> Path:
+        return self.out / "rounds" / f"round{k}" / f"{name}-{mode}"
+
+    def correction_rounds(self, names) -> dict[str, str]:
+        """The networks after the correction rounds: each round every network drives a training loop in each of its
+        modes under the expert's correction, then is fine-tuned on the data and every correction so far."""
         c = self.cfg
-        current, corrections = str(self.models / f"{name}.pt"), []
+        current = {name: str(self.models / f"{name}.pt") for name in names}
         for k in range(1, c.rounds + 1):
-            for i, mode in enumerate(self.net_modes(name)):
-                where = self.out / "rounds" / f"round{k}" / f"{name}-{mode}"
-                loop = ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)]
-                self.drive(current, mode, loop, c.seed + k, c.round_seconds, c.rule, where, f"round {k}")
-                corrections.append(str(where / "corrections-0"))
-            nxt = self.models / f"{name}-round{k}.pt"
-            if not nxt.exists() or Path(str(nxt) + ".state").exists():
-                self.timed(f"retrain round {k}", retrain, current, [str(self.data), *corrections], nxt,
-                           c.round_epochs, c.seed + k, c.device)
-            current = str(nxt)
+            drives = []
+            for name in names:
+                for i, mode in enumerate(self.net_modes(name)):
+                    loop = ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)]
+                    drives.append(self.drive_job(f"round{k}-{name}-{mode}", current[name], mode, loop, c.seed + k,
+                                                 c.round_seconds, c.rule, self.round_dir(k, name, mode)))
+            self.jobs(f"round {k}: drive", [j for j in drives if j is not None])
+            retrains = []
+            for name in names:
+                nxt = self.models / f"{name}-round{k}.pt"
+                roots = [self.data] + [self.round_dir(j, name, m) / "corrections-0" for j in range(1, k + 1)
+                                       for m in self.net_modes(name)]
+                kind = ["--mtl", name.removeprefix("mtl-")] if name.startswith("mtl-") else []
+                if not self.trained(nxt):
+                    retrains.append(Job(f"round{k}-retrain-{name}", [
+                        "train", "--data", ",".join(map(str, roots)), "--model", "z2color", "--out", nxt, *kind,
+                        "--epochs", c.round_epochs, "--trials", 1, "--batch-size", c.batch_size, "--seed", c.seed + k,
+                        "--device", c.device, "--init", current[name]]))
+                current[name] = str(nxt)
+            self.jobs(f"round {k}: retrain", retrains)
         return current
 
     # --- 5. autonomy ---------------------------------------------------------------------------------------------
-    def drive(self, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str, where: Path,
-              stage: str, video: bool = False) -> dict:
-        """One autonomy run (skipped when its result exists): the round-0 result of `drivestudio autonomy`."""
-        if not (where / "autonomy.json").exists():
-            self.timed(f"autonomy ({stage})", _cli, "autonomy", "--model", model, "--mode", mode, "--path", loop,
-                       "--seed", seed, "--seconds", seconds, "--rule", rule, "--device", self.cfg.device, "--out",
-                       where, *([] if video else ["--no-video"]))
-        return json.loads((where / "autonomy.json").read_text())["rounds"][0]
+    def drive_job(self, name: str, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str,
+                  where: Path, video: bool = False) -> Job | None:
+        """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
+        if (where / "autonomy.json").exists():
+            return None
+        return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--seed", seed, "--seconds",
+                          seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
+                          *([] if video else ["--no-video"])])
 
     def autonomy(self, stage: str, nets: dict[str, str], rules, runs: int) -> dict:
         """{rule: {mode: {"MultiNet"|"MTL": [run results]}}} over every loop and run."""
         c = self.cfg
-        out: dict = {}
+        plan = []
         for rule in rules:
             for mode in EVALUATED:
                 for title, name in (("MultiNet", "multinet"), ("MTL", f"mtl-{mode}")):
-                    results = []
                     for loop in c.loops:
                         for r in range(runs):
                             where = self.out / stage / rule / mode / name / f"{loop.replace(':', '-')}-{100 + r}"
-                            first = rule == c.rule and loop == c.loops[0] and r == 0
-                            results.append(self.drive(nets[name], mode, loop, 100 + r, c.autonomy_seconds, rule,
-                                                      where, stage, video=first))
-                    out.setdefault(rule, {}).setdefault(mode, {})[title] = results
+                            video = rule == c.rule and loop == c.loops[0] and r == 0
+                            plan.append((rule, mode, title, where, self.drive_job(
+                                f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
+                                c.autonomy_seconds, rule, where, video)))
+        self.jobs(f"autonomy ({stage})", [job for *_, job in plan if job is not None])
+        out: dict = {}
+        for rule, mode, title, where, _ in plan:
+            result = json.loads((where / "autonomy.json").read_text())["rounds"][0]
+            out.setdefault(rule, {}).setdefault(mode, {}).setdefault(title, []).append(result)
         return out
 
     # --- the whole ------------------------------------------------------------------------------------------------
@@ -182,12 +250,12 @@ class Study:
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "config.json").write_text(json.dumps(asdict(self.cfg), indent=1) + "\n")
         self.generate()
-        for name, extra in self.nets().items():
-            self.train(name, extra)
+        self.cache()
+        self.train()
         first = {name: str(self.models / f"{name}.pt") for name in self.nets()}
         baseline = self.autonomy("baseline", first, (self.cfg.rule,), self.cfg.baseline_runs) \
             if self.cfg.baseline_runs else {}
-        final = {name: self.correction_rounds(name) for name in ("multinet", "mtl-direct", "mtl-furtive")}
+        final = self.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
         autonomy = self.autonomy("autonomy", final, self.cfg.rules, self.cfg.runs)
         from drivestudio.worlds.sidewalk.study_report import write_report
         return write_report(self, baseline, autonomy, final, time.perf_counter() - t0)
