@@ -108,7 +108,8 @@ def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
     threads = max(1, (os.cpu_count() or 1) // parallel)
     env = os.environ | {"OMP_NUM_THREADS": str(threads)}
     logs.mkdir(parents=True, exist_ok=True)
-    waiting, running, failed = list(jobs), [], []
+    waiting, failed = list(jobs), []
+    running: list[tuple[Job, subprocess.Popen]] = []
     try:
         while waiting or running:
             while waiting and len(running) < parallel:
@@ -137,13 +138,26 @@ class Study:
         self.cfg = cfg
         self.out = Path(cfg.out)
         self.data, self.models, self.logs = self.out / "data", self.out / "models", self.out / "logs"
-        self.timings: dict[str, float] = {}
+        self.times_path = self.out / "times.json"
+        # per stage, over every run of the command (a study cut off and continued adds up): wall and CPU seconds
+        self.timings: dict[str, dict[str, float]] = \
+            json.loads(self.times_path.read_text()) if self.times_path.exists() else {}
 
     def timed(self, name: str, fn, *args):
-        t = time.perf_counter()
-        result = fn(*args)
-        self.timings[name] = round(self.timings.get(name, 0.0) + time.perf_counter() - t, 1)
-        return result
+        import resource
+
+        def cpu() -> float:   # this process and every finished process it started (verbs, their workers)
+            me, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+            return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
+
+        t, c = time.perf_counter(), cpu()
+        try:
+            return fn(*args)
+        finally:
+            slot = self.timings.setdefault(name, {"wall_s": 0.0, "cpu_s": 0.0})
+            slot["wall_s"] = round(slot["wall_s"] + time.perf_counter() - t, 1)
+            slot["cpu_s"] = round(slot["cpu_s"] + cpu() - c, 1)
+            self.times_path.write_text(json.dumps(self.timings, indent=1) + "\n")
 
     def jobs(self, stage: str, jobs: list[Job]) -> None:
         if jobs:
