@@ -98,10 +98,10 @@ def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -
     run = resolve(cfg, log=lambda *a: None)
     run.train_ids = {m: np.resize(ids, batches * batch // 3) for m, ids in run.train_ids.items()}   # `batches` steps
 
-    def before() -> float:
+    def before() -> tuple[float, float]:
         model, opt = new_network(run, 0)
         model = model.to(memory_format=torch.contiguous_format)
-        t0, n = time.perf_counter(), 0
+        t0, c0, n = time.perf_counter(), time.process_time(), 0
         for ids in balanced_batches(run.train_ids, batch, np.random.default_rng(0), run.steps):
             x, m, y = run.moments.batch(ids)
             x = x.contiguous()
@@ -112,17 +112,25 @@ def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -
             torch.nn.utils.clip_grad_norm_(model.parameters(), CLIP)
             opt.step()
             n += len(ids)
-        return n / (time.perf_counter() - t0)
+        return n / (time.perf_counter() - t0), n / (time.process_time() - c0)
 
-    def now() -> float:
+    def now() -> tuple[float, float]:
         model, opt = new_network(run, 0)
-        return float(train_epoch(run, model, opt, 0, 1)["moments_per_s"])
+        t0, c0 = time.perf_counter(), time.process_time()
+        n = run.steps * batch
+        train_epoch(run, model, opt, 0, 1)
+        return n / (time.perf_counter() - t0), n / (time.process_time() - c0)
 
     before(), now()                                      # warm-up: oneDNN picks its kernels
     pairs = [(before(), now()) for _ in range(rounds)]
-    return {"before_moments_per_s": round(float(np.median([p[0] for p in pairs])), 1),
-            "moments_per_s": round(float(np.median([p[1] for p in pairs])), 1),
-            "rounds": [[round(a, 1), round(b, 1)] for a, b in pairs], "batch": batch, "amp": run.amp}
+
+    def median(k: int, j: int) -> float:
+        return round(float(np.median([p[k][j] for p in pairs])), 1)
+    cores = torch.get_num_threads()
+    return {"before_moments_per_s": median(0, 0), "moments_per_s": median(1, 0),
+            # moments per second of CPU time, times the threads: what the cores would give if nothing else ran
+            "before_per_cpu_s": median(0, 1), "per_cpu_s": median(1, 1), "threads": cores,
+            "rounds": [[round(a[0], 1), round(b[0], 1)] for a, b in pairs], "batch": batch, "amp": run.amp}
 
 
 def closed_loop(ckpt: Path, seconds: float, folder: Path) -> dict:
@@ -151,7 +159,8 @@ def main(argv=None) -> int:
         print(f"training on real cached moments (Adadelta, batch {tr['batch']}, balanced modes, clipping): "
               f"{tr['moments_per_s']:.0f} moments/s (channels-last, bfloat16 autocast, batches prefetched), "
               f"{tr['before_moments_per_s']:.0f} as before (float32, default layout); alternate rounds "
-              f"{tr['rounds']}")
+              f"{tr['rounds']}; per second of CPU time {tr['per_cpu_s']:.0f} and {tr['before_per_cpu_s']:.0f} "
+              f"({tr['threads']} threads)")
         loop = closed_loop(ckpt, args.seconds, Path(tmp))
         stages = ", ".join(f"{k} {v:.2f}" for k, v in loop["stage_ms_per_step"].items() if v)
         print(f"closed loop, MultiNet driving over shared memory (lock-step): {loop['loop_rate_hz']:.0f} Hz "
