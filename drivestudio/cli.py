@@ -11,7 +11,7 @@ from drivestudio.errors import input_errors, runtime_errors
 from drivestudio.parsing import Parser
 
 VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "overlay", "serve", "drive", "benchmark",
-         "aggregate", "recipe", "autonomy", "export", "demo", "studio")
+         "aggregate", "recipe", "autonomy", "study", "export", "demo", "studio")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -25,6 +25,10 @@ from core.worlds.sidewalk import CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_L
 
 BORDER_CAP = 5.0     # [m] the record's border distance where there is no border
 GAP_CAP = 30.0       # [m] the record's obstacle_gap / lead_gap when there is nothing
+SWERVE_ACCEL = 2.5   # [m/s^2] sideways: a swerve round an obstacle at speed turns on a radius of speed^2 / this,
+SWERVE_RADIUS = 1.0  # [m] at least this,
+SWERVE_ANGLE = 1.0   # [rad] to a heading of at most this from the path's
+REACTION = 0.15      # [s] before a swerve bites: the servo (0.1 s lock to lock) and the step
 
 
 @dataclass(frozen=True)
@@ -35,6 +39,9 @@ class ExpertParams:
     edge_margin: float = 0.12      # [m] kept between the body and the path's edge
     pass_margin: float = 0.18      # [m] kept between the body and an obstacle it passes
     ramp: tuple = (1.0, 4.0)       # [m] obstacle_gap over which the car swings out (fully out below the first)
+    swerve_margin: float = 0.3     # [m] swings out fully at once when the swerve needs all but this of the gap,
+    urgent_look: float = 0.5       # [m] pursuing a point this close,
+    urgent_speed: float = 1.0      # [m/s] at most this fast
     follow_gap: float = 1.2        # [m] lead_gap follow mode keeps
     follow_gain: float = 1.2       # [1/s] speed per metre of gap error
     follow_max: float = 4.5        # [m/s]
@@ -85,6 +92,37 @@ def pursue(record, target_d: float, lookahead: float) -> float:
     return 2.0 * y / max(x * x + y * y, 1e-6)
 
 
+def swerve_distance(speed: float, lateral: float, heading: float = 0.0) -> float:
+    """The distance along the path [m] a swerve needs to move the car `lateral` metres sideways (towards the side it
+    swerves to), from a heading `heading` [rad] relative to the path (positive: already turned towards that side):
+    the reaction, then an arc of radius max(SWERVE_RADIUS, speed^2 / SWERVE_ACCEL) up to SWERVE_ANGLE, then straight
+    on at that angle. Both the expert (when to swerve at once) and the correction rule (when the expert must take
+    over) judge an obstacle ahead by it."""
+    if lateral <= 0.0:
+        return 0.0
+    r = max(SWERVE_RADIUS, speed * speed / SWERVE_ACCEL)
+    psi0 = max(-math.pi / 2, min(SWERVE_ANGLE, heading))
+    arc = r * (math.cos(psi0) - math.cos(SWERVE_ANGLE))       # sideways while turning to the steepest heading
+    if arc >= lateral:
+        psi = math.acos(math.cos(psi0) - lateral / r)
+        along = r * (math.sin(psi) - math.sin(psi0))
+    else:
+        along = r * (math.sin(SWERVE_ANGLE) - math.sin(psi0)) + (lateral - arc) / math.tan(SWERVE_ANGLE)
+    return abs(speed) * REACTION + along
+
+
+def swerve_needed(record, margin: float) -> float:
+    """The shortest swerve [m along the path] that takes the car's body `margin` clear of the next obstacle, to its
+    left or to its right where the path leaves room (0: it is clear already; inf: no side has room)."""
+    d, psi, v = field(record, "d"), field(record, "heading"), field(record, "speed")
+    od, ow = field(record, "obstacle_d"), field(record, "obstacle_width")
+    lim = field(record, "path_width") / 2 - CAR_WIDTH / 2
+    tight = ow / 2 + CAR_WIDTH / 2 + margin
+    out = [swerve_distance(v, max(0.0, (x - d) * side), psi * side)
+           for x, side in ((od + tight, 1.0), (od - tight, -1.0)) if abs(x) <= lim]
+    return min(out, default=math.inf)
+
+
 def _smooth(u: float) -> float:
     u = min(1.0, max(0.0, u))
     return 0.5 - 0.5 * math.cos(math.pi * u)
@@ -127,7 +165,10 @@ class SidewalkExpert:
         Beside it means on the left or on the right of it, at least `tight` from its centre (the body clears it)
         and `pass_margin` more where the path leaves room; of the two sides the one that costs the least swerving,
         2 |side - d| + |side - want|, wins (moving from where the car is counts double). So a car already beside an
-        obstacle's edge stays there, and one that would have to cut across in front of it passes on its side."""
+        obstacle's edge stays there, and one that would have to cut across in front of it passes on its side. Closer
+        than ramp[1] it never cuts across, and where the swerve needs all the room left (a car the expert takes
+        over near an obstacle, from wherever the driver left it) it swerves fully at once rather than blending
+        in."""
         gap = field(record, "obstacle_gap")
         if gap >= GAP_CAP - 1e-6:
             return want
@@ -146,8 +187,22 @@ class SidewalkExpert:
         if not sides:                                  # no room at all (a path file may do that): the roomier side
             sides = [lim if lim - od >= od + lim else -lim]
         side = min(sides, key=lambda p: 2 * abs(p - d) + abs(p - want))
-        w = 1.0 if gap <= self.p.ramp[0] else _smooth((self.p.ramp[1] - gap) / (self.p.ramp[1] - self.p.ramp[0]))
+        late = self.urgent(record)
+        if gap < self.p.ramp[1] and len(sides) > 1:    # too close to cut across in front of it: the car's own side
+            side = min([p for p in sides if (p - od) * (d - od) > 0] or sides, key=lambda p: abs(p - d))
+        ramp = _smooth((self.p.ramp[1] - gap) / (self.p.ramp[1] - self.p.ramp[0]))
+        w = 1.0 if gap <= self.p.ramp[0] or late else ramp
         return (1.0 - w) * want + w * side
+
+    def urgent(self, record) -> bool:
+        """The next obstacle is in the way and the swerve round it needs all the room left but swerve_margin: swerve
+        fully at once, sharply (a short pursuit distance) and slowly (a car the expert takes over late, from
+        wherever a driver left it)."""
+        gap = field(record, "obstacle_gap")
+        if gap >= GAP_CAP - 1e-6:
+            return False
+        needed = swerve_needed(record, 0.08)
+        return 0.0 < needed and gap <= needed + self.p.swerve_margin
 
     # --- speeds ------------------------------------------------------------------------------------------------
     def bend_speed(self, record) -> float:
@@ -178,6 +233,9 @@ class SidewalkExpert:
         v, why = self.speed(record, mode)
         base, gain, most = self.p.lookahead
         look = min(most, base + gain * abs(field(record, "speed")))
+        if self.urgent(record):
+            look = min(look, self.p.urgent_look)
+            v, why = min(v, self.p.urgent_speed), "swerving round an obstacle"
         steer = steer_command(wheel_angle_for(pursue(record, target, look)))
         return steer, motor_command(v), why
 

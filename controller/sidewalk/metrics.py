@@ -2,8 +2,10 @@
 
 Distance, mean speed, collisions (events: steps where a contact begins) and time in contact, time off the path,
 obstacles met, the lead car's mean distance and its spread (follow), the mean distance to the nearer border while
-one is beside the car (furtive), the time the expert corrected, and percentage autonomy as Chowdhuri, Pankaj and
-Zipser define it (MultiNet, 2017): (1 - correction time / elapsed time) * 100.
+one is beside the car (furtive), the time the expert corrected, the contacts begun while the expert held the wheel
+(the correction rule acted too late if there are any), the take-overs and their seconds by the clause of the
+correction rule that caused them (`clauses`, filled in by whoever ran the rule), and percentage autonomy as
+Chowdhuri, Pankaj and Zipser define it (MultiNet, 2017): (1 - correction time / elapsed time) * 100.
 """
 from __future__ import annotations
 
@@ -31,6 +33,9 @@ class SidewalkMetrics:
     obstacles_met: int = 0
     correction_steps: int = 0
     corrections: int = 0                    # take-overs
+    collisions_correcting: int = 0          # contacts begun while the expert held the wheel
+    rule: str | None = None                 # the correction rule that ran (correctional operation)
+    clauses: dict | None = None             # {clause: {"take_overs": n, "seconds": s}}
     wall_time: float = 0.0                  # [s]
     stage_time: dict = dc_field(default_factory=lambda: {s: 0.0 for s in STAGES})
     mode_steps: dict = dc_field(default_factory=lambda: {m: 0 for m in MODES})
@@ -46,7 +51,9 @@ class SidewalkMetrics:
         flags = {"collision": bool(r[_I["collision"]]), "off_path": bool(r[_I["off_path"]]),
                  "near": bool(r[_I["obstacle_near"]]), "correcting": bool(r[_I["correcting"]])}
         prev = self._prev
-        self.collisions += int(flags["collision"] and not prev["collision"])
+        began = flags["collision"] and not prev["collision"]
+        self.collisions += int(began)
+        self.collisions_correcting += int(began and flags["correcting"])
         self.collision_steps += int(flags["collision"])
         self.off_path_events += int(flags["off_path"] and not prev["off_path"])
         self.off_path_steps += int(flags["off_path"])
@@ -86,6 +93,9 @@ class SidewalkMetrics:
             if self.mode_steps["furtive"] else None,
             "correction_time_s": round(self.correction_steps * self.dt, 3),
             "corrections": self.corrections,
+            "collisions_while_correcting": self.collisions_correcting,
+            "rule": self.rule,
+            "take_overs_by_clause": self.clauses,
             "autonomy_percent": round((1.0 - self.correction_steps / self.steps) * 100.0, 2) if self.steps else 100.0,
             "mode_share": {m: round(n / self.steps, 4) if self.steps else 0.0 for m, n in self.mode_steps.items()},
             "loop_rate_hz": round(self.steps / self.wall_time, 1) if self.wall_time else 0.0,
@@ -97,7 +107,9 @@ class SidewalkMetrics:
         r = self.report()
         stages = r.pop("stage_ms_per_step")
         shares = r.pop("mode_share")
+        clauses = r.pop("take_overs_by_clause") or {}
         rows = ["| metric | value |", "|---|---|"] + [f"| {k} | {'-' if v is None else v} |" for k, v in r.items()]
         rows.append("| mode share | " + ", ".join(f"{m} {s:.0%}" for m, s in shares.items() if s) + " |")
+        rows += [f"| take-overs: {c} | {v['take_overs']} ({v['seconds']:.1f} s) |" for c, v in clauses.items()]
         rows += [f"| ms/step {k} | {v} |" for k, v in stages.items()]
         return "\n".join(rows)

@@ -3,7 +3,9 @@
     sidewalk-cameras.png      left and right frames: a park, a sidewalk, a forest path and a procedural loop
     sidewalk-modes.png        the same place driven three ways: trajectories from above, speed over time
     sidewalk-stereo.png       a post straight ahead: its disparity, measured against the geometry's prediction
-    sidewalk-correction.png   correctional operation: the poor driver, and where the expert took over
+    sidewalk-correction.png   correctional operation: the poor driver, and where the expert took over, under each rule
+    multinet-figure7.png      the MultiNet study's Figure 7 and 8 (`... sidewalk_figures.py multinet out/study`)
+    multinet-figure8.png
     sidewalk-moment.png       one data moment: four images and the next ten steering and motor values
     sidewalk-video.png        a frame of `drive --record`: both cameras and the top-down view
 """
@@ -172,34 +174,56 @@ def stereo() -> None:
 
 
 def correction() -> None:
+    """The poor driver on the park path for 60 s under each correction rule: its lateral offset, and where the expert
+    took over, coloured by the clause that made it take over."""
+    from controller.sidewalk.correction import CLAUSES
     from drivestudio.worlds.sidewalk.drivers import Supervisor
-    w = SidewalkWorld(SidewalkConfig(path="park", seed=2, render=False))
-    poor, sup = PoorDriver(seed=4), Supervisor(w, "correctional")
-    obs = w.observe(False)
-    rec = []
-    for _ in range(int(60 / w.dt)):
-        applied, _ = sup(obs, np.array(poor.act(obs.record)))
-        obs = w.step(applied, False)
-        rec.append(obs.record)
-    rec = np.array(rec)
-    t = np.arange(1, len(rec) + 1) * w.dt
-    hw = w.path.half_width
-    fig, ax = plt.subplots(figsize=(11, 3.4))
-    ax.fill_between(t, -hw, hw, where=rec[:, IX["correcting"]] > 0, color="orange", alpha=0.35, lw=0,
-                    label="the expert corrects")
-    ax.plot(t, rec[:, IX["d"]], color="tab:blue", lw=1.2, label="lateral offset d")
-    ax.axhline(hw, color="0.4", lw=0.8)
-    ax.axhline(-hw, color="0.4", lw=0.8)
-    share = rec[:, IX["correcting"]].mean()
-    ax.set_title(f"the poor driver on the park path under the correction rule: autonomy {100 * (1 - share):.1f} %, "
-                 "no collision, never off the path")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("d [m] (path edges grey)")
-    ax.legend(loc="lower right")
+    colours = {"leaving the path": "tab:orange", "imminent collision": "tab:red", "stalled": "tab:purple",
+               "deviating from the expert": "tab:olive"}
+    fig, axes = plt.subplots(2, 1, figsize=(11, 5.6), sharex=True)
+    for ax, rule in zip(axes, ("safety", "strict")):
+        w = SidewalkWorld(SidewalkConfig(path="park", seed=2, render=False))
+        poor, sup = PoorDriver(seed=4), Supervisor(w, "correctional", rule)
+        obs = w.observe(False)
+        rec, why = [], []
+        for _ in range(int(60 / w.dt)):
+            applied, _ = sup(obs, np.array(poor.act(obs.record)))
+            why.append(sup.rule.clause)
+            obs = w.step(applied, False)
+            rec.append(obs.record)
+        rec = np.array(rec)
+        t = np.arange(1, len(rec) + 1) * w.dt
+        hw = w.path.half_width
+        for clause in CLAUSES[rule]:
+            ax.fill_between(t, -hw, hw, where=np.array(why) == clause, color=colours[clause], alpha=0.35, lw=0,
+                            label=f"the expert corrects: {clause}")
+        ax.plot(t, rec[:, IX["d"]], color="tab:blue", lw=1.2, label="lateral offset d")
+        ax.axhline(hw, color="0.4", lw=0.8)
+        ax.axhline(-hw, color="0.4", lw=0.8)
+        share = rec[:, IX["correcting"]].mean()
+        hits = int(np.sum(np.diff(rec[:, IX["collision"]], prepend=0) > 0))
+        ax.set_title(f"rule '{rule}': autonomy {100 * (1 - share):.1f} %, {hits} collision(s), "
+                     f"{rec[:, IX['off_path']].mean() * 60:.1f} s off the path", fontsize=10)
+        ax.set_ylabel("d [m] (edges grey)")
+        ax.legend(loc="lower right", fontsize=7, ncol=2)
+    axes[-1].set_xlabel("t [s]")
+    fig.suptitle("the poor driver on the park path under the two correction rules", fontsize=11)
     fig.tight_layout()
     fig.savefig(OUT / "sidewalk-correction.png", dpi=90)
     plt.close(fig)
     print("wrote", OUT / "sidewalk-correction.png")
+
+
+def multinet(study: str = "out/study") -> None:
+    """The paper's Figures 7 and 8 from a finished study (`drivestudio study --out STUDY`)."""
+    import json
+
+    from drivestudio.worlds.sidewalk.study_report import figures
+    validation = json.loads((Path(study) / "study.json").read_text())["validation"]
+    f7, f8 = figures(OUT, validation["multinet"], validation["mtl"])
+    f7.replace(OUT / "multinet-figure7.png")
+    f8.replace(OUT / "multinet-figure8.png")
+    print("wrote", OUT / "multinet-figure7.png", OUT / "multinet-figure8.png")
 
 
 def moment() -> None:
@@ -248,7 +272,12 @@ def video() -> None:
                                        f"steer {a[0]:.2f}  motor {a[1]:.2f}  expert"))
 
 
+JOBS = {f.__name__: f for f in (cameras, modes, stereo, correction, moment, video)}
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
-    for job in (cameras, modes, stereo, correction, moment, video):
-        job()
+    if sys.argv[1:2] == ["multinet"]:        # sidewalk_figures.py multinet [STUDY]: Figures 7 and 8 of a study
+        multinet(*sys.argv[2:3])
+    else:                                    # sidewalk_figures.py [NAME ...]: those pictures, or all but the study's
+        for name in sys.argv[1:] or list(JOBS):
+            JOBS[name]()

@@ -9,12 +9,14 @@ from drivestudio.numbers import count, finite, positive, seed
 
 
 def register(sub) -> None:
+    from controller.sidewalk.correction import RULES
     from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
     p = sub.add_parser("autonomy", help="percentage autonomy of a sidewalk network under the expert's correction",
                        description="A trained sidewalk network (Z2Color: MultiNet or MTL) drives a held-out loop with "
                                    "obstacles in one behavioural mode while the expert watches under the correction "
                                    "rule (docs/sidewalk.md); autonomy = (1 - correction time / elapsed time) * 100, "
-                                   "as in Chowdhuri, Pankaj and Zipser's MultiNet. Writes autonomy.md/.json, a video "
+                                   "as in Chowdhuri, Pankaj and Zipser's MultiNet. Writes autonomy.md/.json (with the "
+                                   "take-overs by the rule's clause that caused them), a video "
                                    "per round marking the corrections, and every round's steps as a dataset that "
                                    "`train` merges (--data A,B); --rounds K repeats drive, merge and retrain.")
     p.add_argument("--model", required=True, help="a sidewalk checkpoint (drivestudio train --model z2color)")
@@ -28,6 +30,9 @@ def register(sub) -> None:
                                                           "generate's default plan)")
     p.add_argument("--obstacles", type=finite(0.0, 12.0), default=HELD_OUT_OBSTACLES,
                    help=f"obstacles per 100 m (default {HELD_OUT_OBSTACLES:g})")
+    p.add_argument("--rule", choices=RULES, default="safety",
+                   help="the correction rule: safety (take over for leaving the path, an imminent collision, a "
+                        "stalled car; default) or strict (also for deviating from the expert)")
     p.add_argument("--seed", type=seed(), default=0, help="seed of the scene (default 0)")
     p.add_argument("--no-video", dest="video", action="store_false", help="do not write the videos")
     add_device_option(p)
@@ -50,8 +55,9 @@ def run(args) -> int:
                 raise UsageError(f"--data: no dataset folder at {root}")
     check_output_dir(args.out or "runs")
     out = run_dir(args.out, "autonomy")
-    results = autonomy.run(args.model, args.mode, args.seconds, out, args.rounds, args.epochs, args.data, args.path,
-                           args.obstacles, args.seed, args.device, args.video)
+    drive = autonomy.Drive(args.model, args.mode, args.seconds, args.path, args.obstacles, args.seed, args.rule,
+                           args.device, args.video)
+    results = autonomy.run(drive, out, args.rounds, args.epochs, args.data)
     print(autonomy.write_summary(out, results, args.mode))
     print(f"results in {out}/autonomy.md and autonomy.json")
     return 0

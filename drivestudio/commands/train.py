@@ -85,7 +85,8 @@ def register(sub) -> None:
                    help="mobilenet: also read the previous 1 or 2 frames (0.1 s apart) beside the current one "
                         "(default 0)")
     p.add_argument("--init", metavar="CKPT", help="start from this checkpoint's weights (same family, world and "
-                                                  "targets): fine-tuning, aggregation rounds")
+                                                  "targets): fine-tuning, aggregation rounds, the correction rounds "
+                                                  "of `study` and `autonomy --rounds`")
     p.add_argument("--no-channels-last", dest="channels_last", action="store_false",
                    help="keep weights and inputs contiguous on the CPU (channels-last is faster with oneDNN; for "
                         "comparison)")

@@ -82,3 +82,46 @@ def test_ten_minutes_on_a_procedural_loop_with_obstacles(mode):
     rep, _ = run(mode, 600.0, path="procedural:11", seed=5, obstacles=5.0)
     assert rep["collisions"] == 0 and rep["off_path_time_s"] == 0.0
     assert rep["obstacles_met"] >= 20
+
+
+def test_near_an_obstacle_the_expert_passes_on_the_side_the_car_is_on():
+    """Where crossing to the cheaper side would mean cutting across the obstacle's front in the last metres (a car the
+    expert takes over from wherever a driver left it), it passes on the car's own side."""
+    from tests.sidewalk.helpers import record
+    expert = SidewalkExpert()
+    near = record(d=0.47, heading=0.1, speed=2.9, path_width=2.12, obstacle_gap=0.9, obstacle_d=0.32,
+                  obstacle_width=0.5)
+    assert expert.around_obstacle(near, 0.0) > 0.32 + 0.25               # left of it, where the car is
+    far = record(d=0.47, heading=0.1, speed=2.9, path_width=2.12, obstacle_gap=6.0, obstacle_d=0.32,
+                 obstacle_width=0.5)
+    assert expert.around_obstacle(far, 0.0) == 0.0                       # far away it does not swerve yet
+    rightish = record(d=0.2, path_width=2.12, obstacle_gap=0.9, obstacle_d=0.32, obstacle_width=0.5)
+    assert expert.around_obstacle(rightish, 0.0) < 0.32 - 0.25           # right of its centre: passes right
+
+
+def test_the_swerve_round_an_obstacle_is_an_arc_then_a_straight():
+    """swerve_distance: the reaction (0.15 s), an arc of radius max(1 m, v^2 / 2.5 m/s^2) up to 1 rad from the
+    path's heading, then straight on at that angle."""
+    import math
+
+    from controller.sidewalk.experts import REACTION, swerve_distance
+    assert swerve_distance(3.0, 0.0) == 0.0 and swerve_distance(3.0, -0.2) == 0.0          # clear already
+    lateral = 1 - math.cos(0.5)                                                             # radius 1 m at 1 m/s
+    assert swerve_distance(1.0, lateral) == pytest.approx(REACTION + math.sin(0.5))
+    r = 9.0 / 2.5                                                                           # 3 m/s: 3.6 m
+    assert swerve_distance(3.0, r * (1 - math.cos(0.3))) == pytest.approx(3 * REACTION + r * math.sin(0.3))
+    beyond = swerve_distance(1.0, 1.0)                                                      # arc to 1 rad, then on
+    assert beyond == pytest.approx(REACTION + math.sin(1.0) + (1.0 - (1 - math.cos(1.0))) / math.tan(1.0))
+    assert swerve_distance(1.0, 0.3, heading=0.4) < swerve_distance(1.0, 0.3) < swerve_distance(1.0, 0.3, -0.4)
+
+
+def test_an_expert_taken_over_late_swerves_at_once_sharply_and_slowly():
+    from tests.sidewalk.helpers import record
+    expert = SidewalkExpert()
+    late = record(speed=3.0, obstacle_gap=1.2, obstacle_d=0.05, obstacle_width=0.4, curvature_ahead=0.0)
+    early = record(speed=3.0, obstacle_gap=3.8, obstacle_d=0.05, obstacle_width=0.4, curvature_ahead=0.0)
+    assert expert.urgent(late) and not expert.urgent(early)
+    steer, motor, why = expert.act(late, "direct")
+    assert why == "swerving round an obstacle" and motor <= 0.5 + 1.0 / 18 + 1e-9           # 1 m/s at most
+    assert steer > 0.8                                                                      # hard right: it is left
+    assert abs(expert.act(early, "direct")[0] - 0.5) < 0.1                                  # early: a gentle start

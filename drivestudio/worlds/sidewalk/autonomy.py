@@ -1,8 +1,10 @@
-"""Percentage autonomy (Chowdhuri, Pankaj and Zipser, MultiNet, 2017): a trained network drives a held-out sidewalk
-loop with obstacles while the expert watches under the correction rule (controller/sidewalk/correction.py);
-autonomy = (1 - correction time / elapsed time) * 100.
+"""Percentage autonomy (Chowdhuri, Pankaj and Zipser, MultiNet, 2017): a trained network drives a sidewalk loop with
+obstacles while the expert watches under a correction rule (controller/sidewalk/correction.py: `safety`, the
+default, or `strict`); autonomy = (1 - correction time / elapsed time) * 100. Every run reports its take-overs and
+their seconds by the clause that caused them, and the contacts begun while the expert held the wheel (there should
+be none: one means the rule acted too late).
 
-Every step of the run is recorded into a dataset (the same format as `generate`'s) with its operation mode, so the
+Every step of a run is recorded into a dataset (the same format as `generate`'s) with its operation mode, so the
 expert's corrections can be merged into the training data: the paper's DAgger variant, which needs no labelling
 after the fact. MultiNet's trainer learns only from moments whose targets the expert drove (autonomous steps are
 the network's own commands, not labels). `rounds` repeats drive, merge and retrain.
@@ -11,11 +13,13 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
+HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
 HELD_OUT_OBSTACLES = 6.0           # obstacles per 100 m
 
 
@@ -39,114 +43,165 @@ class RoundResult:
     distance_m: float
     dataset: str
     video: str | None
+    mode: str = "direct"
+    path: str = HELD_OUT_PATH
+    seed: int = 0
+    rule: str = "safety"
+    collisions_while_correcting: int = 0
+    clauses: dict = field(default_factory=dict)   # {clause: {"take_overs": n, "seconds": s}}
 
     def row(self) -> dict:
         return dict(self.__dict__)
 
 
-def drive_round(model: str, mode: str, seconds: float, out: Path, k: int, path: str = HELD_OUT_PATH,
-                obstacles=HELD_OUT_OBSTACLES, seed: int = 0, video: bool = True, device: str = "cpu",
-                log=print) -> RoundResult:
-    """One autonomy run: the model drives, the expert corrects; the run's steps become dataset out/corrections-k."""
+@dataclass
+class Drive:
+    """One autonomy run: which network drives where, how long, under which rule."""
 
+    model: str
+    mode: str
+    seconds: float
+    path: str = HELD_OUT_PATH
+    obstacles: float = HELD_OUT_OBSTACLES
+    seed: int = 0
+    rule: str = "safety"
+    device: str = "cpu"
+    video: bool = True
+
+
+def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
+    """The model drives, the expert corrects under the rule; the run's steps become the dataset out/corrections-k."""
     from drivestudio import worlds
     from drivestudio.bridge_loop import supervised
-    from drivestudio.generate import _software
     from drivestudio.loop import in_process, run_loop
-    from perception.shards import SPLIT_RULE, ShardInfo, ShardWriter, shard_name, write_manifest
 
-    plugin = worlds.get("sidewalk")
-    args = SimpleNamespace(path=path, path_width=None, seed=seed, mode=mode, obstacles=str(obstacles), width=None,
-                           height=None, fov=None, renderer="tiny", operation="correctional", model=model,
-                           device=device)
+    plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
+    args = SimpleNamespace(path=run.path, path_width=None, seed=run.seed, mode=run.mode, obstacles=str(run.obstacles),
+                           width=None, height=None, fov=None, renderer="tiny", operation="correctional",
+                           model=run.model, device=run.device, rule=run.rule)
     data_dir = out / f"corrections-{k}"
+    t0 = time.perf_counter()
     with plugin.world(args, render=True) as world:
         decl = world.declaration
-        driver = plugin.driver(model, args, decl)
-        driver.mode = mode   # the network is told its behavioural mode, as the car's operator sets it
+        driver = plugin.driver(run.model, args, decl)
+        driver.mode = run.mode   # the network is told its behavioural mode, as the car's operator sets it
+        supervisor = plugin.supervisor(world, args)
         metrics = plugin.metrics(world)
-        video_path = out / f"autonomy-{k}.mp4" if video else None
-        recorder = plugin.recorder(world, video_path, f"{Path(model).stem} ({mode})")
-        writer = ShardWriter(data_dir / shard_name(0), decl)
+        video_path = out / f"autonomy-{k}.mp4" if run.video else None
+        recorder = plugin.recorder(world, video_path, f"{Path(run.model).stem} ({run.mode}, {run.rule} rule)")
+        writer = Recording(data_dir, decl, run)
 
         def on_step(rec) -> None:
             recorder(rec)
-            obs = rec.obs
-            writer.add(obs.frames, obs.record, {"path": path}, episode=0, step=len(writer), t=obs.t, seed=seed,
-                       action=rec.action)
+            writer.add(rec)
 
         ok = False
-        t0 = time.perf_counter()
         try:
-            run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), seconds, render=True,
-                     metrics=metrics, on_step=on_step, when_lost="recover")
+            run_loop(world, supervised(in_process(driver), supervisor), run.seconds, render=True, metrics=metrics,
+                     on_step=on_step, when_lost="recover")
             ok = True
         finally:
             recorder.close(ok)
         report = metrics.report()
-    written = writer.close()
-    entry = ShardInfo(shard_name(0), 0, written["frames"], "train", {"path": path, "mode": mode,
-                                                                       "operation": "correctional"},
-                      written["size"], written["sha256"]).entry()
-    write_manifest(data_dir, {"world": decl.to_json(), "config": {"world": "sidewalk", "autonomy": {
-        "model": str(model), "mode": mode, "path": path, "obstacles": obstacles, "seconds": seconds, "seed": seed}},
-        "seed": seed, "renderer": "tiny", "split_rule": SPLIT_RULE, "software": _software(),
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [entry], "frames": written["frames"],
-        "complete": True})
-    elapsed = metrics.steps * world.dt                 # exact: the report's seconds are rounded for reading
-    correction = metrics.correction_steps * world.dt
-    result = RoundResult(k, str(model), round(percentage_autonomy(correction, elapsed), 2), round(correction, 3),
-                         round(elapsed, 3),
-                         int(report.get("corrections", 0)), int(report["collisions"]),
+        steps, corrected = metrics.steps, metrics.correction_steps
+        writer.close()
+    elapsed, correction = steps * world.dt, corrected * world.dt   # exact: the report rounds for reading
+    result = RoundResult(k, str(run.model), round(percentage_autonomy(correction, elapsed), 2), round(correction, 3),
+                         round(elapsed, 3), int(report["corrections"]), int(report["collisions"]),
                          float(report["off_path_time_s"]), float(report["distance_m"]), str(data_dir),
-                         str(video_path) if video_path else None)
+                         str(video_path) if video_path else None, run.mode, run.path, run.seed, run.rule,
+                         int(report["collisions_while_correcting"]), report.get("take_overs_by_clause") or {})
     log(f"round {k}: autonomy {result.autonomy_percent:.2f} % ({correction:.1f} s of corrections in {elapsed:.1f} s, "
-        f"{result.corrections} take-overs, {result.collisions} collisions) in {time.perf_counter() - t0:.0f} s; "
+        f"{result.corrections} take-overs, {result.collisions} collisions, {result.collisions_while_correcting} "
+        f"while correcting; {run.mode} mode on {run.path}, {run.rule} rule) in {time.perf_counter() - t0:.0f} s; "
         f"steps recorded in {data_dir}")
     return result
 
 
-def run(model: str, mode: str, seconds: float, out: Path, rounds: int = 1, epochs: int = 3, data: str | None = None,
-        path: str = HELD_OUT_PATH, obstacles=HELD_OUT_OBSTACLES, seed: int = 0, device: str = "cpu",
-        video: bool = True, log=print) -> list[RoundResult]:
-    """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
-    the original data plus every round's corrections); returns the autonomy of every round."""
+class Recording:
+    """A run's steps as a one-episode dataset in the format of `generate` (perception/shards.py)."""
+
+    def __init__(self, root: Path, decl, run: Drive):
+        from perception.shards import ShardWriter, shard_name
+        self.root, self.decl, self.run = root, decl, run
+        self.writer = ShardWriter(root / shard_name(0), decl)
+
+    def add(self, rec) -> None:
+        obs = rec.obs
+        self.writer.add(obs.frames, obs.record, {"path": self.run.path}, episode=0, step=len(self.writer), t=obs.t,
+                        seed=self.run.seed, action=rec.action)
+
+    def close(self) -> None:
+        from drivestudio.generate import _software
+        from perception.shards import SPLIT_RULE, ShardInfo, shard_name, write_manifest
+        run = self.run
+        written = self.writer.close()
+        entry = ShardInfo(shard_name(0), 0, written["frames"], "train", {"path": run.path, "mode": run.mode,
+                                                                           "operation": "correctional"},
+                          written["size"], written["sha256"]).entry()
+        write_manifest(self.root, {"world": self.decl.to_json(), "config": {"world": "sidewalk", "autonomy": {
+            "model": str(run.model), "mode": run.mode, "path": run.path, "obstacles": run.obstacles,
+            "seconds": run.seconds, "seed": run.seed, "rule": run.rule}},
+            "seed": run.seed, "renderer": "tiny", "split_rule": SPLIT_RULE, "software": _software(),
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [entry], "frames": written["frames"],
+            "complete": True})
+
+
+def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, device: str, log=print) -> str:
+    """Fine-tune `current` (its weights, its kind: MultiNet or the MTL net of one mode) for `epochs` epochs on
+    `roots`, the original data first (whose held-out episodes stay the validation set) and the corrections after
+    it; returns the new checkpoint."""
     from perception.checkpoint import load_checkpoint
     from perception.train import train
     from perception.training import config_from
 
+    options = load_checkpoint(current, world="sidewalk")["spec"]["options"]
+    mtl = options.get("mtl")
+    modes = None if mtl else ",".join(options.get("modes_trained", [])) or None
+    train(config_from(data=",".join(roots), model="z2color", out=str(out), epochs=epochs, trials=1, seed=seed,
+                      device=device, init=current, mtl=mtl, modes=modes), log=log)
+    return str(out)
+
+
+def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, data: str | None = None,
+        log=print) -> list[RoundResult]:
+    """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
+    the original data plus every round's corrections); returns the autonomy of every round."""
+    from dataclasses import replace
+
+    from perception.checkpoint import load_checkpoint
+
     results: list[RoundResult] = []
-    current = str(model)
-    spec = load_checkpoint(current, world="sidewalk")
+    spec = load_checkpoint(drive.model, world="sidewalk")
     roots = [r for r in (data or ",".join(spec.get("data", {}).get("roots", []))).split(",") if r]
     for k in range(rounds):
-        results.append(drive_round(current, mode, seconds, out, k, path, obstacles, seed, video, device, log))
-        write_summary(out, results, mode)
+        results.append(drive_round(drive, out, k, log))
+        write_summary(out, results, drive.mode)
         if k + 1 == rounds:
             break
         if not roots:
             from drivestudio.errors import UsageError
             raise UsageError("--rounds needs the training data: give --data (the checkpoint does not record it)")
         merged = roots + [r.dataset for r in results]
-        nxt = out / f"model-round{k + 1}.pt"
-        options = spec["spec"]["options"]
         log(f"round {k + 1}: retraining on {len(merged)} dataset(s) (the original and {len(results)} correction "
-            f"set(s)) for {epochs} epochs, starting from {current}")
-        train(config_from(data=",".join(merged), model="z2color", out=str(nxt), epochs=epochs, trials=1, seed=seed,
-                          device=device, init=current, mtl=options.get("mtl"),
-                          modes=None if options.get("mtl") else ",".join(options.get("modes_trained", []))
-                          or None), log=log)
-        current = str(nxt)
+            f"set(s)) for {epochs} epochs, starting from {drive.model}")
+        drive = replace(drive, model=retrain(drive.model, merged, out / f"model-round{k + 1}.pt", epochs, drive.seed,
+                                             drive.device, log))
     return results
+
+
+def clause_text(clauses: dict) -> str:
+    return "; ".join(f"{c} {v['take_overs']} ({v['seconds']:.1f} s)" for c, v in clauses.items()) or "-"
 
 
 def write_summary(out: Path, results: list[RoundResult], mode: str) -> str:
     from drivestudio.outputs import write_json, write_text
-    rows = ["| round | model | autonomy % | corrections [s] | elapsed [s] | take-overs | collisions | off path [s] | "
-            "distance [m] |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
-    rows += [f"| {r.round} | {Path(r.model).name} | {r.autonomy_percent:.2f} | {r.correction_s:.1f} | "
-             f"{r.elapsed_s:.1f} | {r.corrections} | {r.collisions} | {r.off_path_s:.1f} | {r.distance_m:.0f} |"
-             for r in results]
+    rows = ["| round | model | rule | autonomy % | corrections [s] | elapsed [s] | take-overs | by clause (take-overs, "
+            "seconds) | collisions | while correcting | off path [s] | distance [m] |",
+            "|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
+    rows += [f"| {r.round} | {Path(r.model).name} | {r.rule} | {r.autonomy_percent:.2f} | {r.correction_s:.1f} | "
+             f"{r.elapsed_s:.1f} | {r.corrections} | {clause_text(r.clauses)} | {r.collisions} | "
+             f"{r.collisions_while_correcting} | {r.off_path_s:.1f} | {r.distance_m:.0f} |" for r in results]
     text = f"# Percentage autonomy, {mode} mode\n\n" + "\n".join(rows) + "\n"
     write_text(out / "autonomy.md", text)
     write_json(out / "autonomy.json", {"mode": mode, "rounds": [r.row() for r in results]})

@@ -4,6 +4,7 @@ and the in-process correctional driver of dataset episodes."""
 from __future__ import annotations
 
 import time
+from weakref import WeakKeyDictionary
 
 import numpy as np
 
@@ -49,17 +50,19 @@ class PoorDriver:
 
 class Supervisor:
     """What the world side applies under each operation mode: expert (the expert's command; also whenever the
-    bridge's driver_mode is "manual"), autonomous (the driver's), correctional (the driver's, until the
-    correction rule of controller/sidewalk/correction.py hands over to the expert, and back). The world's record
-    carries the operation mode of every command applied.
+    bridge's driver_mode is "manual"), autonomous (the driver's), correctional (the driver's, until the correction
+    rule (controller/sidewalk/correction.py: `safety` or `strict`) hands over to the expert, and back). The world's
+    record carries the operation mode of every command applied; the rule counts take-overs by clause, which the
+    world's metrics report (SUPERVISORS links a world to its supervisor).
 
     driver_mode "human" is a person at the controls (drivestudio studio): their command is applied. Under expert
     operation the person is the expert (a demonstration); over a network it is MultiNet's RC override, recorded
     as a correction, so that percentage autonomy counts it as the expert's take-overs are counted."""
 
-    def __init__(self, world, operation: str):
+    def __init__(self, world, operation: str, rule: str = "safety"):
         self.world, self.operation = world, operation
-        self.expert, self.rule = SidewalkExpert(), CorrectionRule(dt=world.dt)
+        self.expert, self.rule = SidewalkExpert(), CorrectionRule(dt=world.dt, rule=rule)
+        SUPERVISORS[world] = self
 
     def __call__(self, obs, action, driver_mode: str = "network"):
         if driver_mode == "human":
@@ -77,6 +80,9 @@ class Supervisor:
             name, applied = ("correctional", expert) if correcting else ("autonomous", driver)
         self.world.set_operation(name)
         return applied, name
+
+
+SUPERVISORS: WeakKeyDictionary = WeakKeyDictionary()   # world -> its supervisor, for the metrics' report
 
 
 class CorrectionalDriver:

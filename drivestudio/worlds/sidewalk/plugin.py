@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from controller.sidewalk.correction import RULES
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
@@ -43,6 +44,10 @@ class Plugin(Plugin):
             options.add(self.name, g, "--operation", choices=OPERATIONS,
                         help="expert, autonomous or correctional (default: expert for --model expert, correctional "
                         "otherwise)")
+            options.add(self.name, g, "--rule", choices=RULES,
+                        help="the correction rule of correctional operation: safety (take over for leaving the path, "
+                        "an imminent collision, a stalled car; default) or strict (also for deviating from the "
+                        "expert)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help="frame width [px] (sidewalk: 336)")
             options.add(self.name, g, "--height", type=count(16, 4096), help="frame height [px] (sidewalk: 188)")
@@ -108,7 +113,7 @@ class Plugin(Plugin):
                                                     else "correctional")
 
     def supervisor(self, world, args):
-        return Supervisor(world, self.operation(args))
+        return Supervisor(world, self.operation(args), getattr(args, "rule", None) or "safety")
 
     def metrics(self, world):
         return Metrics(world)
@@ -124,7 +129,8 @@ class Plugin(Plugin):
     def describe_run(self, world, args) -> dict:
         return {"path": world.path.ref, "path_length_m": round(world.path.length, 1),
                 "path_width_m": world.path.width, "style": world.path.style, "mode": world.mode,
-                "operation": self.operation(args), "obstacles": len(world.layout.obstacles), "seed": world.seed}
+                "operation": self.operation(args), "rule": getattr(args, "rule", None) or "safety",
+                "obstacles": len(world.layout.obstacles), "seed": world.seed}
 
     def studio(self) -> StudioKit:
         from drivestudio.worlds.sidewalk.studio import KIT  # lazy: the overlays and presets only for the studio

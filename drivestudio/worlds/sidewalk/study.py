@@ -1,219 +1,280 @@
-"""The MultiNet study in one command (Chowdhuri, Pankaj and Zipser, MultiNet, 2017, sections 4.2-4.4, in simulation):
+"""The MultiNet study in one command (Chowdhuri, Pankaj and Zipser, MultiNet, 2017, sections 2.4 and 4.2-4.4, in
+simulation): `drivestudio study --out DIR`.
 
-    python -m drivestudio.worlds.sidewalk.study --out out/study [--steps 4000] [--epochs 8] [--trials 3] [--seconds 60]
+1. **Data**: a balanced data-moment set of the sidewalk world: the three behavioural modes in equal episodes over the
+   presets and `procedural` procedural loops, every episode with its own look (time of day, colours, obstacles).
+2. **Training**: MultiNet (Z2Color with modal insertion) on all of it, and three MTL nets (no modal input), each on
+   one mode's data, `trials` times each with fresh seeds, validated every epoch on the last step (equation 2).
+3. **Figures 7 and 8**: MultiNet's validation loss against the mean of the three MTL nets', and in furtive mode
+   against the furtive MTL net, means over trials with 95 % confidence intervals.
+4. **Correction rounds** (the paper's DAgger variant, section 2.4): each network evaluated below (MultiNet, the direct
+   and the furtive MTL nets) drives training loops in its modes under the expert's correction; the corrections are
+   merged with the data and the network is fine-tuned on both, `rounds` times.
+5. **Percentage autonomy** (section 4.4) in direct and furtive mode, MultiNet against the MTL net of that mode, on the
+   held-out loops (never driven by the data or the rounds), `runs` runs of `autonomy_seconds` per loop, under both
+   correction rules (the study's `rule` first); mean and 95 % confidence interval over the runs; take-overs by the
+   clause that caused them; collisions while the expert held the wheel.
+6. **STUDY.md** and **study.json**: the tables beside the paper's numbers, the sizes of the networks, the data and
+   the times.
 
-1. a balanced data-moment set of the sidewalk world (direct, follow, furtive);
-2. MultiNet (Z2Color with modal insertion) on all of it, and three MTL nets (no modal input), each on one mode's
-   data, `trials` times each with fresh seeds, validated every epoch on the last step (equation 2);
-3. the paper's Figure 7 (MultiNet's validation loss against the mean of the three MTL nets') and Figure 8 (furtive
-   mode: MultiNet against the furtive MTL net), means over trials with 95 % confidence intervals;
-4. percentage autonomy in direct and in furtive mode, MultiNet against the MTL net of that mode, on a held-out
-   loop with obstacles under the expert's correction;
-5. STUDY.md with the tables beside the paper's numbers, the sizes of the networks, and the plots.
-
-Every step goes through the same verbs a user runs (generate, train, autonomy, export); a step whose output exists
-is skipped, so an interrupted study continues where it stopped.
+Every step goes through the verbs a user runs (generate, train, autonomy) and skips what is done, so a study that
+was cut off continues where it stopped when the same command runs again.
 """
 from __future__ import annotations
 
-import argparse
 import json
+import math
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-import numpy as np
+from controller.sidewalk.correction import RULES
+from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
+from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
 
-MODES = ("direct", "follow", "furtive")
-PAPER = {"autonomy": {"direct": {"MultiNet": 92.68, "MTL": 84.27}, "furtive": {"MultiNet": 88.23, "MTL": 87.55}},
-         "parameters": "no more than 1.7 M (about 6.5 MB)", "moments": 1_930_000, "epochs": 24, "trials": 8}
-
-
-def _cli(*argv) -> None:
-    from drivestudio.cli import main
-    print("$ drivestudio " + " ".join(map(str, argv)), flush=True)
-    rc = main([str(a) for a in argv])
-    if rc != 0:
-        raise SystemExit(rc)
+ROUND_LOOPS = ("park", "sidewalk", "forest")         # training loops the correction rounds drive
+MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one before the first, the ten after the last
 
 
-def _curves(path: Path) -> list[dict]:
-    import csv
-    with open(str(path) + ".curves.csv") as f:
-        return [{k: (float(v) if v not in ("", None) else None) for k, v in row.items()} for row in csv.DictReader(f)]
+@dataclass(frozen=True)
+class StudyConfig:
+    out: str = "out/study"
+    moments: int = 30_000           # at least this many data moments
+    episode_frames: int = 250
+    procedural: int = 12            # procedural loops beside the three presets
+    epochs: int = 10
+    trials: int = 3
+    batch_size: int = 120
+    rounds: int = 1                 # correction rounds before the final autonomy runs
+    round_seconds: float = 60.0     # simulated seconds per network and mode in each round
+    round_epochs: int = 2           # fine-tuning after each round
+    loops: tuple = HELD_OUT_PATHS
+    runs: int = 3                   # autonomy runs per loop (seeds 100, 101, ...)
+    autonomy_seconds: float = 60.0
+    baseline_runs: int = 1          # runs per loop before the rounds (under the study's rule), 0: none
+    rule: str = "safety"
+    device: str = "cpu"
+    seed: int = 0
+    jobs: int = 2                   # verbs run side by side (trainings, autonomy runs), each with cores / jobs threads
+
+    @property
+    def frames(self) -> int:
+        """Steps to record: whole episodes, a multiple of the three modes, holding at least `moments` moments."""
+        episodes = math.ceil(self.moments / (self.episode_frames - MOMENT_MARGIN))
+        return (-(-episodes // len(MODES)) * len(MODES)) * self.episode_frames
+
+    @property
+    def rules(self) -> tuple[str, ...]:
+        return (self.rule,) + tuple(r for r in RULES if r != self.rule)
 
 
-def figure(out: Path, multi: list[dict], mtl: dict, key_multi: str, keys_mtl: dict, title: str, name: str) -> Path:
-    """Validation loss per epoch with 95 % confidence bands: MultiNet against MTL (one net, or the mean of several)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
-    x = [r["epoch"] for r in multi]
-    m = np.array([r[f"{key_multi}_mean"] for r in multi])
-    c = np.array([r.get(f"{key_multi}_ci95") or 0.0 for r in multi])
-    ax.plot(x, m, "o-", color="C0", label="MultiNet", markersize=3)
-    ax.fill_between(x, m - c, m + c, color="C0", alpha=0.2)
-    series = [np.array([r["val_loss_mean"] for r in mtl[k]]) for k in keys_mtl]
-    cis = [np.array([r.get("val_loss_ci95") or 0.0 for r in mtl[k]]) for k in keys_mtl]
-    mean = np.mean(series, axis=0)
-    ci = np.sqrt(np.sum(np.square(cis), axis=0)) / len(series)   # the mean of independent nets' means
-    label = "MTL" if len(series) == 1 else f"MTL (mean of {len(series)} nets)"
-    ax.plot(x, mean, "s--", color="C3", label=label, markersize=3)
-    ax.fill_between(x, mean - ci, mean + ci, color="C3", alpha=0.2)
-    ax.set_xlabel("epoch")
-    ax.set_ylabel("validation loss, last step (eq. 2)")
-    ax.set_title(title, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend()
-    from matplotlib.ticker import MaxNLocator
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    fig.tight_layout()
-    path = out / name
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+QUICK: dict = dict(moments=240, episode_frames=40, procedural=0, epochs=2, trials=2, batch_size=30, round_seconds=2.0,
+             round_epochs=1, runs=1, autonomy_seconds=2.0, baseline_runs=0)
+PAPER_SCALE: dict = dict(moments=200_000, epochs=24, trials=8, rounds=2, round_seconds=300.0, runs=5,
+                   autonomy_seconds=180.0)   # --device cuda: the paper's epochs and trials
 
 
-def run(out: Path, steps: int, epochs: int, trials: int, seconds: float, batch: int, seed: int) -> Path:
-    t0 = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
-    data, models = out / "data", out / "models"
-    timings = {}
-
-    def timed(name, fn, *a):
-        t = time.perf_counter()
-        fn(*a)
-        timings[name] = round(time.perf_counter() - t, 1)
-
-    if not (data / "manifest.json").exists() or not json.loads((data / "manifest.json").read_text())["complete"]:
-        timed("generate", _cli, "generate", "--world", "sidewalk", "--out", data, "--frames", steps,
-              "--episode-frames", 150, "--seed", seed, "--quiet")
-    nets = {"multinet": []} | {f"mtl-{m}": ["--mtl", m] for m in MODES}
-    for name, extra in nets.items():
-        ckpt = models / f"{name}.pt"
-        if not ckpt.exists() or Path(str(ckpt) + ".state").exists():
-            timed(f"train {name}", _cli, "train", "--data", data, "--model", "z2color", "--out", ckpt, *extra,
-                  "--epochs", epochs, "--trials", trials, "--batch-size", batch, "--seed", seed, "--device", "cpu")
-    multi = _curves(models / "multinet.pt")
-    mtl = {m: _curves(models / f"mtl-{m}.pt") for m in MODES}
-    fig7 = figure(out, multi, mtl, "val_loss", MODES, "All modes: MultiNet vs the mean of the three MTL nets "
-                  "(the paper's Figure 7)", "figure7-all-modes.png")
-    fig8 = figure(out, multi, mtl, "val_loss_furtive", ("furtive",), "Furtive mode: MultiNet vs the furtive MTL net "
-                  "(the paper's Figure 8)", "figure8-furtive.png")
-    autonomy = {}
-    for mode in ("direct", "furtive"):
-        for name, ckpt in (("MultiNet", "multinet"), ("MTL", f"mtl-{mode}")):
-            where = out / f"autonomy-{mode}-{ckpt}"
-            if not (where / "autonomy.json").exists():
-                timed(f"autonomy {mode} {ckpt}", _cli, "autonomy", "--model", models / f"{ckpt}.pt", "--mode", mode,
-                      "--seconds", seconds, "--seed", seed, "--out", where)
-            autonomy.setdefault(mode, {})[name] = json.loads((where / "autonomy.json").read_text())["rounds"][0]
-    sizes = {}
-    from perception.checkpoint import load_checkpoint
-    for name in nets:
-        ckpt = load_checkpoint(models / f"{name}.pt")
-        # the network's learned parameters (not batch-norm statistics, nor the input scaling's buffers)
-        params = sum(v.numel() for k, v in ckpt["state_dict"].items()
-                     if k.startswith("net.") and not k.endswith(("running_mean", "running_var", "num_batches_tracked")))
-        sizes[name] = {"parameters": params, "mb": params * 4 / 1e6, "best": ckpt["train"]["best"],
-                       "moments": ckpt["train"]["moments"]}
-    report = write_report(out, multi, mtl, autonomy, sizes, fig7, fig8, dict(steps=steps, epochs=epochs, trials=trials,
-                          seconds=seconds, batch=batch, seed=seed), timings, time.perf_counter() - t0)
-    return report
+@dataclass
+class Job:
+    name: str            # also its log: out/logs/NAME.log
+    argv: list           # the verb and its options
 
 
-def mid_training_verdict(multi: list[dict], mtl: dict) -> tuple[int, int]:
-    """(epochs from mid-training on where MultiNet's mean validation loss is at or below the MTL nets' mean, those
-    epochs)."""
-    n = len(multi)
-    later = range(n // 2, n)
-    mtl_mean = [np.mean([mtl[m][i]["val_loss_mean"] for m in MODES]) for i in range(n)]
-    return int(sum(bool(multi[i]["val_loss_mean"] <= mtl_mean[i]) for i in later)), len(later)
+def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
+    """Verbs as processes, `parallel` at a time, each with cores / parallel torch threads: one thread per process
+    wastes no time in the threads' barriers when the cores are shared (measured on this machine under load: 180
+    training moments per CPU-second with one thread, 40-60 with two). A failure ends the study (exit status 1) once
+    the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps what it finished)."""
+    import os
+    import subprocess
+    threads = max(1, (os.cpu_count() or 1) // parallel)
+    env = os.environ | {"OMP_NUM_THREADS": str(threads)}
+    logs.mkdir(parents=True, exist_ok=True)
+    waiting, failed = list(jobs), []
+    running: list[tuple[Job, subprocess.Popen]] = []
+    try:
+        while waiting or running:
+            while waiting and len(running) < parallel:
+                job = waiting.pop(0)
+                print("$ drivestudio " + " ".join(map(str, job.argv)) + f"   (log: {logs / job.name}.log)", flush=True)
+                with open(logs / f"{job.name}.log", "ab") as log:
+                    running.append((job, subprocess.Popen([sys.executable, "-m", "drivestudio", *map(str, job.argv)],
+                                                           stdout=log, stderr=subprocess.STDOUT, env=env)))
+            time.sleep(1.0)
+            for job, proc in [r for r in running if r[1].poll() is not None]:
+                running.remove((job, proc))
+                if proc.returncode != 0:
+                    failed.append(job.name)
+                    waiting.clear()
+    finally:
+        for _, proc in running:
+            proc.terminate()
+            proc.wait()
+    if failed:
+        from drivestudio.errors import RunError
+        raise RunError(f"{', '.join(failed)} failed: see {logs}/{failed[0]}.log")
 
 
-def write_report(out, multi, mtl, autonomy, sizes, fig7, fig8, settings, timings, seconds) -> Path:
-    rows = ["| epoch | MultiNet (all modes) | MTL mean of 3 | MTL direct | MTL follow | MTL furtive "
-            "| MultiNet, furtive moments |", "|---:|---:|---:|---:|---:|---:|---:|"]
+class Study:
+    def __init__(self, cfg: StudyConfig, cli: Callable[[list[str]], int]):
+        self.cfg = cfg
+        self.cli = cli   # drivestudio's verbs, in this process (the study verb passes drivestudio.cli.main)
+        self.out = Path(cfg.out)
+        self.data, self.models, self.logs = self.out / "data", self.out / "models", self.out / "logs"
+        self.times_path = self.out / "times.json"
+        # per stage, over every run of the command (a study cut off and continued adds up): wall and CPU seconds
+        self.timings: dict[str, dict[str, float]] = \
+            json.loads(self.times_path.read_text()) if self.times_path.exists() else {}
 
-    def fmt(r, key):
-        v, c = r.get(f"{key}_mean"), r.get(f"{key}_ci95")
-        return "-" if v is None else f"{v:.4f}" + (f" ± {c:.4f}" if c else "")
+    def timed(self, name: str, fn, *args):
+        import resource
 
-    for i, r in enumerate(multi):
-        mean = np.mean([mtl[m][i]["val_loss_mean"] for m in MODES])
-        rows.append(f"| {int(r['epoch'])} | {fmt(r, 'val_loss')} | {mean:.4f} | " + " | ".join(
-            fmt(mtl[m][i], "val_loss") for m in MODES) + f" | {fmt(r, 'val_loss_furtive')} |")
-    won, of = mid_training_verdict(multi, mtl)
-    auto = ["| mode | MultiNet autonomy % | MTL autonomy % | paper MultiNet | paper MTL | MultiNet take-overs | MTL "
-            "take-overs | MultiNet distance [m] | MTL distance [m] |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for mode in ("direct", "furtive"):
-        a, b = autonomy[mode]["MultiNet"], autonomy[mode]["MTL"]
-        p = PAPER["autonomy"][mode]
-        auto.append(f"| {mode} | {a['autonomy_percent']:.2f} | {b['autonomy_percent']:.2f} | {p['MultiNet']} | "
-                    f"{p['MTL']} | {a['corrections']} | {b['corrections']} | {a['distance_m']:.0f} | "
-                    f"{b['distance_m']:.0f} |")
-    size = ["| network | parameters | float32 MB | best (trial, epoch, val loss) | training / held-out moments |",
-            "|---|---:|---:|---|---|"]
-    for name, s in sizes.items():
-        b = s["best"]
-        size.append(f"| {name} | {s['parameters']:,} | {s['mb']:.2f} | {b['trial']}, {b['epoch']}, "
-                    f"{b['val_loss']:.4f} | {s['moments']['train']} / {s['moments']['validation']} |")
-    three = sum(sizes[f"mtl-{m}"]["parameters"] for m in MODES)
-    text = f"""# The MultiNet study, in simulation
+        def cpu() -> float:   # this process and every finished process it started (verbs, their workers)
+            me, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+            return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
 
-Settings: {settings['steps']} sidewalk steps (balanced modes), Z2Color trained {settings['trials']} trial(s) x
-{settings['epochs']} epochs (Adadelta, batch {settings['batch']}, modes equally represented in batches and in the
-held-out data), autonomy over {settings['seconds']:g} simulated seconds per run on the held-out loop
-`procedural:907`. Took {seconds / 60:.0f} minutes. The paper: {PAPER['moments']:,} real moments, {PAPER['epochs']}
-epochs, {PAPER['trials']} trials.
+        t, c = time.perf_counter(), cpu()
+        try:
+            return fn(*args)
+        finally:
+            slot = self.timings.setdefault(name, {"wall_s": 0.0, "cpu_s": 0.0})
+            slot["wall_s"] = round(slot["wall_s"] + time.perf_counter() - t, 1)
+            slot["cpu_s"] = round(slot["cpu_s"] + cpu() - c, 1)
+            self.times_path.write_text(json.dumps(self.timings, indent=1) + "\n")
 
-## Validation loss per epoch (equation 2; mean over trials ± 95 % confidence half-width)
+    def jobs(self, stage: str, jobs: list[Job]) -> None:
+        if jobs:
+            self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs)
 
-{chr(10).join(rows)}
+    # --- 1. data ---------------------------------------------------------------------------------------------------
+    def generate(self) -> None:
+        manifest = self.data / "manifest.json"
+        if manifest.exists() and json.loads(manifest.read_text()).get("complete"):
+            return
+        c = self.cfg
+        self.timed("generate", self.verb, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
+                   "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet")
 
-From mid-training on (the second half of the epochs), MultiNet's mean validation loss is at or below the mean of
-the three MTL nets' in {won} of {of} epochs.
+    def verb(self, *argv) -> None:
+        """A verb, in this process; its failure ends the study with its exit status."""
+        print("$ drivestudio " + " ".join(map(str, argv)), flush=True)
+        rc = self.cli([str(a) for a in argv])
+        if rc != 0:
+            raise SystemExit(rc)
 
-![Figure 7](figure7-all-modes.png) ![Figure 8](figure8-furtive.png)
+    def cache(self) -> None:
+        """The moments cached at 94 x 168 once, before the trainings that share them start together."""
+        from perception.moment_cache import Moments
+        self.timed("cache", Moments, [self.data], (94, 168))
 
-## Percentage autonomy (the paper's section 4.4)
+    # --- 2. training -------------------------------------------------------------------------------------------------
+    def nets(self) -> dict[str, list[str]]:
+        return {"multinet": []} | {f"mtl-{m}": ["--mtl", m] for m in MODES}
 
-{chr(10).join(auto)}
+    def trained(self, ckpt: Path) -> bool:
+        return ckpt.exists() and not Path(str(ckpt) + ".state").exists()
 
-## Size
+    def train(self) -> None:
+        c = self.cfg
+        self.jobs("train", [Job(f"train-{name}", ["train", "--data", self.data, "--model", "z2color", "--out",
+                                                  self.models / f"{name}.pt", *extra, "--epochs", c.epochs, "--trials",
+                                                  c.trials, "--batch-size", c.batch_size, "--seed", c.seed,
+                                                  "--device", c.device])
+                            for name, extra in self.nets().items() if not self.trained(self.models / f"{name}.pt")])
 
-{chr(10).join(size)}
+    # --- 4. correction rounds ----------------------------------------------------------------------------------------
+    def net_modes(self, name: str) -> tuple[str, ...]:
+        return MODES if name == "multinet" else (name.removeprefix("mtl-"),)
 
-One MultiNet: {sizes['multinet']['parameters']:,} parameters; three MTL nets together: {three:,}
-({three / sizes['multinet']['parameters']:.2f}x).
+    def round_dir(self, k: int, name: str, mode: str) -> Path:
+        return self.out / "rounds" / f"round{k}" / f"{name}-{mode}"
 
-Step timings [s]: {json.dumps(timings)}
-"""
-    from drivestudio.outputs import write_json, write_text
-    write_text(out / "STUDY.md", text)
-    write_json(out / "study.json", {"settings": settings, "validation": {"multinet": multi, "mtl": mtl},
-                                    "autonomy": autonomy, "sizes": sizes, "mid_training": [won, of],
-                                    "timings": timings, "minutes": round(seconds / 60, 1)})
-    print(text)
-    return out / "STUDY.md"
+    def correction_rounds(self, names) -> dict[str, str]:
+        """The networks after the correction rounds: each round every network drives a training loop in each of its
+        modes under the expert's correction, then is fine-tuned on the data and every correction so far."""
+        c = self.cfg
+        current = {name: str(self.models / f"{name}.pt") for name in names}
+        for k in range(1, c.rounds + 1):
+            drives = []
+            for name in names:
+                for i, mode in enumerate(self.net_modes(name)):
+                    loop = ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)]
+                    drives.append(self.drive_job(f"round{k}-{name}-{mode}", current[name], mode, loop, c.seed + k,
+                                                 c.round_seconds, c.rule, self.round_dir(k, name, mode)))
+            self.jobs(f"round {k}: drive", [j for j in drives if j is not None])
+            retrains = []
+            for name in names:
+                nxt = self.models / f"{name}-round{k}.pt"
+                roots = [self.data] + [self.round_dir(j, name, m) / "corrections-0" for j in range(1, k + 1)
+                                       for m in self.net_modes(name)]
+                kind = ["--mtl", name.removeprefix("mtl-")] if name.startswith("mtl-") else []
+                if not self.trained(nxt):
+                    retrains.append(Job(f"round{k}-retrain-{name}", [
+                        "train", "--data", ",".join(map(str, roots)), "--model", "z2color", "--out", nxt, *kind,
+                        "--epochs", c.round_epochs, "--trials", 1, "--batch-size", c.batch_size, "--seed", c.seed + k,
+                        "--device", c.device, "--init", current[name]]))
+                current[name] = str(nxt)
+            self.jobs(f"round {k}: retrain", retrains)
+        return current
+
+    # --- 5. autonomy ---------------------------------------------------------------------------------------------
+    def drive_job(self, name: str, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str,
+                  where: Path, video: bool = False) -> Job | None:
+        """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
+        if (where / "autonomy.json").exists():
+            return None
+        return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--seed", seed, "--seconds",
+                          seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
+                          *([] if video else ["--no-video"])])
+
+    def autonomy(self, stage: str, nets: dict[str, str], rules, runs: int) -> dict:
+        """{rule: {mode: {"MultiNet"|"MTL": [run results]}}} over every loop and run."""
+        c = self.cfg
+        plan = []
+        for rule in rules:
+            for mode in EVALUATED:
+                for title, name in (("MultiNet", "multinet"), ("MTL", f"mtl-{mode}")):
+                    for loop in c.loops:
+                        for r in range(runs):
+                            where = self.out / stage / rule / mode / name / f"{loop.replace(':', '-')}-{100 + r}"
+                            video = rule == c.rule and loop == c.loops[0] and r == 0
+                            plan.append((rule, mode, title, where, self.drive_job(
+                                f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
+                                c.autonomy_seconds, rule, where, video)))
+        self.jobs(f"autonomy ({stage})", [job for *_, job in plan if job is not None])
+        out: dict = {}
+        for rule, mode, title, where, _ in plan:
+            result = json.loads((where / "autonomy.json").read_text())["rounds"][0]
+            out.setdefault(rule, {}).setdefault(mode, {}).setdefault(title, []).append(result)
+        return out
+
+    # --- the whole ------------------------------------------------------------------------------------------------
+    def run(self) -> Path:
+        t0 = time.perf_counter()
+        self.out.mkdir(parents=True, exist_ok=True)
+        (self.out / "config.json").write_text(json.dumps(asdict(self.cfg), indent=1) + "\n")
+        self.generate()
+        self.cache()
+        self.train()
+        first = {name: str(self.models / f"{name}.pt") for name in self.nets()}
+        baseline = self.autonomy("baseline", first, (self.cfg.rule,), self.cfg.baseline_runs) \
+            if self.cfg.baseline_runs else {}
+        final = self.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
+        autonomy = self.autonomy("autonomy", final, self.cfg.rules, self.cfg.runs)
+        return write_report(self, baseline, autonomy, final, time.perf_counter() - t0)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m drivestudio.worlds.sidewalk.study",
-                                 description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="out/study")
-    ap.add_argument("--steps", type=int, default=4000, help="sidewalk steps to record (default 4000)")
-    ap.add_argument("--epochs", type=int, default=8, help="epochs per trial (default 8)")
-    ap.add_argument("--trials", type=int, default=3, help="trials per network (default 3)")
-    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per autonomy run (default 60)")
-    ap.add_argument("--batch-size", type=int, default=60, help="moments per batch (default 60)")
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args(argv)
-    run(Path(args.out), args.steps, args.epochs, args.trials, args.seconds, args.batch_size, args.seed)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def config_from_args(args) -> StudyConfig:
+    """The study's settings: the defaults, `--quick`'s or, on a GPU, the paper's epochs and trials; then every option
+    given."""
+    base = StudyConfig()
+    if args.quick:
+        base = replace(base, **QUICK)
+    elif str(args.device).startswith("cuda"):
+        base = replace(base, **PAPER_SCALE)
+    given = {k: v for k, v in vars(args).items() if k in StudyConfig.__dataclass_fields__ and v is not None}
+    if "loops" in given:
+        given["loops"] = tuple(p.strip() for p in given["loops"].split(",") if p.strip())
+    return replace(base, **given)

@@ -1,0 +1,201 @@
+"""Data moments at the network's input size, decoded once per dataset and kept on disk (MultiNet's trainer).
+
+Z2Color reads 94 x 168 images; the sidewalk records 188 x 336 PNGs. Decoding two PNGs and averaging them 2x2 costs
+about a millisecond a step, and a study passes over every moment 10-24 times in each of several trainings, so each
+shard's images are decoded and downsampled once and kept beside the dataset:
+
+    <dataset>/.moments/<h>x<w>/<shard stem>.<first 16 hex digits of the shard's SHA-256>.npy
+        uint8 (steps, cameras, h, w, 3): every step of the shard, cameras in declaration order, RGB
+
+The name carries the shard's checksum from the manifest, so a regenerated shard is cached afresh. A file is written
+whole or not at all (renamed into place), so a build that is cut off continues with the shards it had not done.
+Training maps the files (NumPy memory maps): the operating system keeps them in memory once for every process
+that reads them, and no image is decoded again. A dataset folder that cannot be written is read into memory
+instead (every training then decodes it again; a line says so).
+
+The downsampling is OpenCV's area resampling, which for the factor of two is the 2x2 mean rounded to a whole grey
+level: within half a grey level of the float mean Z2Color's own input scaling takes of full-size frames
+(perception/models.py), and what tests/perception/test_moment_cache.py compares with the readers' moments.
+
+`Moments` indexes every data moment of one or more datasets of a world with behavioural modes; `batch(ids)`
+assembles them as the network reads them.
+"""
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from core.files import OutputError, atomic_write
+from perception.datasets import SampleSpec
+from perception.shards import Dataset, DatasetError, ShardInfo, decode_image, image_column
+
+CACHE_DIR = ".moments"
+VALIDATION_SHARE = 0.10
+
+
+def to_size(rgb: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """An (H, W, 3) uint8 image at (h, w) = size by area resampling (unchanged when it is that size already)."""
+    h, w = size
+    return rgb if rgb.shape[:2] == (h, w) else cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA)
+
+
+def cache_path(ds: Dataset, shard: ShardInfo, size: tuple[int, int]) -> Path:
+    stem = Path(shard.file).stem
+    digest = (shard.sha256 or f"{shard.size}")[:16]
+    return ds.root / CACHE_DIR / f"{size[0]}x{size[1]}" / f"{stem}.{digest}.npy"
+
+
+def decode_shard(ds: Dataset, shard: ShardInfo, size: tuple[int, int]) -> np.ndarray:
+    """Every step's images of one shard at `size`: uint8 (steps, cameras, h, w, 3). Two threads decode (OpenCV
+    releases the interpreter while it decodes and resamples)."""
+    cams = [image_column(c.name) for c in ds.declaration.cameras]
+    reader = ds.reader(shard)
+    out = np.empty((len(reader), len(cams), size[0], size[1], 3), dtype=np.uint8)
+    jobs: list[tuple[int, int, bytes]] = []
+    step = 0
+    for group in reader.iter_row_groups(cams):
+        columns = [group.column(c).to_pylist() for c in cams]
+        for row in zip(*columns):
+            jobs.extend((step, k, data) for k, data in enumerate(row))
+            step += 1
+
+    def one(job) -> None:
+        t, k, data = job
+        out[t, k] = to_size(decode_image(data), size)
+
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(one, jobs))
+    return out
+
+
+def shard_images(ds: Dataset, shard: ShardInfo, size: tuple[int, int], log=print) -> np.ndarray:
+    """The shard's images at `size`, from the cache (mapped, read-only), built first if it is missing."""
+    path = cache_path(ds, shard, size)
+    if path.exists():
+        try:
+            images = np.load(path, mmap_mode="r")
+            if images.shape[0] == shard.frames and images.shape[2:4] == size:
+                return images
+        except (ValueError, OSError):
+            pass   # a damaged cache file: built again below
+    images = decode_shard(ds, shard, size)
+    try:
+        atomic_write(path, lambda f: np.save(f, images))
+    except (OSError, OutputError) as e:
+        log(f"cannot cache the moments of {ds.root} ({getattr(e, 'strerror', None) or e}): reading them into memory")
+        return images
+    return np.load(path, mmap_mode="r")
+
+
+class Moments:
+    """Every data moment of some datasets of one world with behavioural modes, images at `size` (from the cache).
+
+    A moment is an index: its step's images are not copied. Moments whose targets include a step that a network
+    drove (the sidewalk's operation 1, recorded during autonomy runs) are left out: a network's own command is no
+    label. The expert's corrections stay in (the MultiNet paper's DAgger variant)."""
+
+    def __init__(self, roots, size: tuple[int, int], targets=None, log=print):
+        datasets = [Dataset(Path(r)) for r in roots]
+        decl = datasets[0].declaration
+        for ds in datasets[1:]:
+            if ds.world != decl.name:
+                raise DatasetError(f"{ds.root} is a {ds.world} dataset, not a {decl.name} one: datasets trained "
+                                   "together must be of one world")
+        if not decl.modes:
+            raise DatasetError(f"the {decl.name} world has no behavioural modes: train another model family")
+        self.decl, self.size = decl, size
+        self.roots = [str(ds.root) for ds in datasets]
+        self.spec = SampleSpec(decl, targets, normalised=False)
+        self.instants = np.asarray(self.spec.moment.instants)
+        self.cameras = len(decl.cameras)
+        self.arrays: list[np.ndarray] = []          # one per shard: (steps, cameras, h, w, 3)
+        starts: list[int] = []
+        modes: list[int] = []
+        targets_: list[np.ndarray] = []
+        self.episodes: list[tuple[str, int]] = []
+        self.offsets = [0]                            # first global step of every shard, and the total
+        t0 = time.perf_counter()
+        for ds in datasets:
+            for shard in ds.shards:
+                for t, mode, target in self._shard_moments(ds, shard):
+                    starts.append(self.offsets[-1] + t)
+                    modes.append(mode)
+                    targets_.append(target)
+                    self.episodes.append((str(ds.root), shard.episode))
+                self.arrays.append(shard_images(ds, shard, size, log))
+                self.offsets.append(self.offsets[-1] + shard.frames)
+        if not starts:
+            raise DatasetError("the datasets hold no complete data moment")
+        self.index = np.asarray(starts)
+        self.modes = np.asarray(modes, dtype=np.int64)
+        self.targets = np.asarray(targets_, dtype=np.float32)
+        self._offsets = np.asarray(self.offsets)
+        mb = self.offsets[-1] * self.cameras * size[0] * size[1] * 3 / 1e6
+        log(f"{len(self.index)} data moments of {len(datasets)} dataset(s) ({mb:.0f} MB of images at "
+            f"{size[1]}x{size[0]}, cached in {CACHE_DIR}/ beside each dataset) ready in "
+            f"{time.perf_counter() - t0:.0f} s")
+
+    def _shard_moments(self, ds: Dataset, shard: ShardInfo):
+        """(step, mode, raw targets) of every moment of one shard whose targets the expert drove."""
+        reader = ds.reader(shard)
+        table = reader.labels(self.spec.columns)
+        values = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
+                           for n in self.spec.targets], axis=1)
+        mode = table.column(self.decl.mode_field).to_numpy().astype(np.int64)
+        by_expert = np.ones(len(values), dtype=bool)
+        if "operation" in self.decl.truth_names:   # 1: autonomous, a network's command, never a label
+            by_expert = reader.labels(["operation"]).column("operation").to_numpy() != 1
+        horizon = self.spec.moment.horizon
+        for t in self.spec.starts(len(values)):
+            if by_expert[t + 1:t + 1 + horizon].all():
+                yield t, int(mode[t]), self.spec.target_values(values, t)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def images(self, ids) -> np.ndarray:
+        """uint8 (B, h, w, instants * cameras * 3): the moments' images, channels oldest instant first, cameras in
+        declaration order, RGB (the channel order of perception/datasets.py), channels last in memory."""
+        steps = self.index[np.asarray(ids)][:, None] + self.instants[None, :]        # (B, instants)
+        shard = np.searchsorted(self._offsets, steps, side="right") - 1
+        h, w = self.size
+        out = np.empty((len(steps), h, w, len(self.instants), self.cameras, 3), dtype=np.uint8)
+        for b, i in np.ndindex(*steps.shape):
+            k = int(shard[b, i])
+            pair = self.arrays[k][int(steps[b, i]) - self.offsets[k]]             # (cameras, h, w, 3)
+            out[b, :, :, i] = pair.transpose(1, 2, 0, 3)
+        return out.reshape(len(steps), h, w, -1)
+
+    def batch(self, ids) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(uint8 images (B, instants * cameras * 3, h, w) in channels-last memory, modes (B,), raw targets)."""
+        ids = np.asarray(ids)
+        x = torch.from_numpy(self.images(ids)).permute(0, 3, 1, 2)
+        return x, torch.from_numpy(self.modes[ids]), torch.from_numpy(self.targets[ids])
+
+    def split(self, modes: list[int], seed: int = 0) -> tuple[dict[int, np.ndarray], np.ndarray]:
+        """({mode: training moment ids}, held-out ids): 10 % of each mode's episodes of the first dataset (at least
+        one) held out whole, and the held-out moments subsampled so that every mode has as many. The datasets after
+        the first (corrections merged in, DAgger rounds) are training data only, so a network retrained with them
+        is validated on the same moments as before."""
+        rng = np.random.default_rng([seed, 0x5A1])
+        train, held = {}, {}
+        for m in modes:
+            ids = np.flatnonzero(self.modes == m)
+            if not len(ids):
+                raise DatasetError(f"the data hold no moment of mode {self.decl.modes[m]}")
+            eps = sorted({self.episodes[i] for i in ids if self.episodes[i][0] == self.roots[0]})
+            if len(eps) < 2:
+                raise DatasetError(f"mode {self.decl.modes[m]} has {len(eps)} episode(s) in {self.roots[0]}: at "
+                                   "least 2 are needed to hold one out for validation")
+            k = max(1, int(round(VALIDATION_SHARE * len(eps))))
+            out = {eps[j] for j in rng.choice(len(eps), k, replace=False)}
+            is_held = np.array([self.episodes[i] in out for i in ids])
+            train[m], held[m] = ids[~is_held], ids[is_held]
+        n = min(len(v) for v in held.values())
+        held_ids = np.concatenate([np.sort(rng.choice(v, n, replace=False)) for v in held.values()])
+        return train, held_ids

@@ -1,0 +1,83 @@
+"""The moment cache (perception/moment_cache.py): a cached moment is the one the readers assemble from the shards,
+downsampled to the network's 94 x 168; the cache is written once and read back without decoding."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from core import worlds
+from perception import moment_cache
+from perception.datasets import FrameDataset
+from perception.models import Regressor, make_spec
+from perception.moment_cache import CACHE_DIR, Moments, to_size
+
+SIZE = (94, 168)
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """Three full-size (336 x 188) episodes of 40 steps, one per behavioural mode."""
+    out = tmp_path_factory.mktemp("cache") / "data"
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "120",
+                        "--episode-frames", "40", "--paths", "park", "--workers", "1", "--quiet", "--seed", "3",
+                        "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def small(images: torch.Tensor) -> np.ndarray:
+    """A reader's (12, 188, 336) moment at 94 x 168, each 3-channel image through the cache's resampling."""
+    x = images.numpy()
+    return np.concatenate([to_size(x[c:c + 3].transpose(1, 2, 0), SIZE).transpose(2, 0, 1)
+                           for c in range(0, x.shape[0], 3)])
+
+
+def test_a_cached_moment_equals_the_one_read_from_the_shards(data):
+    moments = Moments([data], SIZE, log=lambda *a: None)
+    reader = FrameDataset(data, None, normalised=False)
+    assert len(moments) == len(reader) == 3 * (40 - 1 - 10)
+    for i in (0, 1, 28, 29, 30, 57, len(reader) - 1):               # first, episode boundaries, last
+        images, mode, target = reader[i]
+        x, m, y = moments.batch([i])
+        assert x.shape == (1, 12, 94, 168) and x.dtype == torch.uint8
+        assert x.is_contiguous(memory_format=torch.channels_last)
+        np.testing.assert_array_equal(x[0].numpy(), small(images))
+        assert int(m[0]) == int(mode) and int(m[0]) == i // 29
+        np.testing.assert_allclose(y[0].numpy(), target.numpy(), rtol=1e-6)
+
+
+def test_the_cache_is_within_half_a_grey_level_of_the_networks_own_scaling(data):
+    """At inference the predictor hands Z2Color full-size frames, which it averages 2x2 in float: the cached,
+    rounded mean differs from that by at most half a grey level."""
+    model = Regressor(make_spec("z2color", worlds.get("sidewalk")))
+    moments = Moments([data], SIZE, log=lambda *a: None)
+    images, _, _ = FrameDataset(data, None, normalised=False)[40]
+    exact = model.scale_input(images[None])                          # x / 255 - 0.5 of the 2x2 mean
+    cached = model.scale_input(moments.batch([40])[0])
+    assert float((exact - cached).abs().max()) <= 0.5 / 255 + 1e-6
+
+
+def test_the_cache_is_written_once_and_then_only_read(data, monkeypatch):
+    Moments([data], SIZE, log=lambda *a: None)
+    files = sorted((data / CACHE_DIR / "94x168").glob("*.npy"))
+    assert [f.name.split(".")[0] for f in files] == ["shard-000000", "shard-000001", "shard-000002"]
+    assert all(np.load(f, mmap_mode="r").shape == (40, 2, 94, 168, 3) for f in files)
+
+    def no_decoding(*args):
+        raise AssertionError("a cached shard was decoded again")
+
+    monkeypatch.setattr(moment_cache, "decode_shard", no_decoding)
+    again = Moments([data], SIZE, log=lambda *a: None)
+    assert all(isinstance(a, np.memmap) for a in again.arrays)
+
+
+def test_a_damaged_cache_file_is_built_again(data):
+    Moments([data], SIZE, log=lambda *a: None)
+    victim = sorted((data / CACHE_DIR / "94x168").glob("*.npy"))[1]
+    victim.write_bytes(victim.read_bytes()[:1000])                   # cut short
+    moments = Moments([data], SIZE, log=lambda *a: None)
+    assert np.load(victim, mmap_mode="r").shape == (40, 2, 94, 168, 3)
+    images, _, _ = FrameDataset(data, None, normalised=False)[29]
+    np.testing.assert_array_equal(moments.batch([29])[0][0].numpy(), small(images))

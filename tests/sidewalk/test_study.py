@@ -1,0 +1,119 @@
+"""The MultiNet study (drivestudio/worlds/sidewalk/study.py): the correction rounds' merge (a network's recorded run
+adds only the expert's corrections to the training data, and the validation set stays the original data's), the
+data plan, bad input, and the whole study in its --quick form."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from core import worlds
+from drivestudio.worlds.sidewalk.autonomy import Drive, drive_round, retrain
+from drivestudio.worlds.sidewalk.study import StudyConfig
+from perception.checkpoint import load_checkpoint, save_checkpoint
+from perception.models import Regressor, make_spec
+from perception.moment_cache import Moments
+from perception.shards import Dataset
+
+REPO = Path(__file__).resolve().parents[2]
+SIDEWALK = worlds.get("sidewalk")
+
+
+@pytest.fixture(scope="module")
+def merged(tmp_path_factory):
+    """A small expert data set, an untrained MultiNet and one correction run of it (4 s, the expert correcting)."""
+    root = tmp_path_factory.mktemp("rounds")
+    data = root / "data"
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
+                    "--frames", "240", "--episode-frames", "40", "--paths", "park", "--workers", "1", "--quiet"],
+                   cwd=REPO, check=True, timeout=300)
+    torch.manual_seed(0)
+    model = Regressor(make_spec("z2color", SIDEWALK, modal=True, modes_trained=list(SIDEWALK.modes)))
+    save_checkpoint(root / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {},
+                                    "data": {"roots": [str(data)]}})
+    result = drive_round(Drive(str(root / "m.pt"), "direct", 4.0, video=False), root / "round", 0, log=lambda *a: None)
+    return data, Path(result.dataset), root / "m.pt", result
+
+
+def test_a_round_adds_only_the_experts_corrections(merged):
+    data, corrections, _, result = merged
+    labels = Dataset(corrections).labels(columns=("operation", "correcting"))
+    assert result.corrections >= 1 and labels["correcting"].any() and (labels["operation"][1:] == 1).any()
+    alone = Moments([data], (94, 168), log=lambda *a: None)
+    both = Moments([data, corrections], (94, 168), log=lambda *a: None)
+    added = np.flatnonzero([e[0] == str(corrections) for e in both.episodes])
+    expert = labels["operation"] != 1
+    expected = [t for t in range(1, len(expert) - 10) if expert[t + 1:t + 11].all()]
+    assert len(both) == len(alone) + len(added) and len(added) == len(expected) > 0
+    steps = both.index[added] - both.offsets[-2]                     # the corrections are the last shard
+    assert steps.tolist() == expected                                 # exactly the moments the expert drove ahead
+    assert (both.modes[added] == 0).all()                             # driven in direct mode
+
+
+def test_the_validation_set_stays_the_original_datas(merged):
+    data, corrections, _, _ = merged
+    alone = Moments([data], (94, 168), log=lambda *a: None)
+    both = Moments([data, corrections], (94, 168), log=lambda *a: None)
+    train_a, held_a = alone.split([0, 1, 2], seed=0)
+    train_b, held_b = both.split([0, 1, 2], seed=0)
+    np.testing.assert_array_equal(held_a, held_b)                     # the same held-out moments, in the same order
+    added = {i for i, e in enumerate(both.episodes) if e[0] == str(corrections)}
+    assert added <= set(train_b[0].tolist())                          # every correction moment trains
+
+
+def test_retraining_merges_the_corrections(merged, tmp_path):
+    data, corrections, start, _ = merged
+    out = retrain(str(start), [str(data), str(corrections)], tmp_path / "round1.pt", epochs=1, seed=0, device="cpu",
+                  log=lambda *a: None)
+    ckpt = load_checkpoint(out)
+    assert [Path(r).name for r in ckpt["data"]["roots"]] == ["data", "corrections-0"]
+    assert ckpt["train"]["config"]["init"] == str(start) and ckpt["spec"]["options"]["modal"]
+    first = load_checkpoint(start)["state_dict"]
+    assert any(not torch.equal(first[k], v) for k, v in ckpt["state_dict"].items())   # it learned from them
+
+
+def test_the_data_plan_holds_the_moments_asked_for():
+    c = StudyConfig()
+    episodes = c.frames // c.episode_frames
+    assert c.frames % c.episode_frames == 0 and episodes % 3 == 0
+    assert episodes * (c.episode_frames - 11) >= 30_000 > (episodes - 3) * (c.episode_frames - 11)
+    assert c.rules == ("safety", "strict") and StudyConfig(rule="strict").rules == ("strict", "safety")
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--rounds", "0"], "--rounds: must be an integer from 1 to 20"),
+    (["--rule", "lenient"], "invalid choice: 'lenient'"),
+    (["--loops", "park"], "park is driven by the study's data or rounds"),
+    (["--loops", "procedural:3"], "procedural:3 is driven by the study's data"),
+    (["--loops", "nowhere.json"], "--loops"),
+])
+def test_bad_input_is_one_line_and_status_2(argv, says, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(tmp_path / "s"), *argv], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and says in r.stderr, r.stderr
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.slow
+def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
+    out = tmp_path / "study"
+    cmd = [sys.executable, "-m", "drivestudio", "study", "--quick", "--out", str(out)]
+    r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, r.stderr[-3000:]
+    study = json.loads((out / "study.json").read_text())
+    assert set(study["autonomy"]) == {"safety", "strict"}
+    for rule in ("safety", "strict"):
+        for mode in ("direct", "furtive"):
+            for net in ("MultiNet", "MTL"):
+                a = study["autonomy"][rule][mode][net]
+                assert a["runs"] == 2 and 0.0 <= a["autonomy_mean"] <= 100.0
+                assert a["collisions_while_correcting"] == 0
+    assert study["final_networks"]["multinet"].endswith("multinet-round1.pt")
+    assert len(study["validation"]["multinet"]) == 2 and (out / "figure7-all-modes.png").stat().st_size > 10_000
+    assert "## Percentage autonomy" in (out / "STUDY.md").read_text()
+    again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)   # all done: nothing redone
+    assert again.returncode == 0 and "$ drivestudio train" not in again.stdout
+    assert "$ drivestudio autonomy" not in again.stdout
