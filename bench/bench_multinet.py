@@ -92,7 +92,7 @@ def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -
     import torch
 
     from perception.multinet import CLIP, balanced_batches, new_network, resolve, train_epoch, train_loss
-    from perception.train import config_from
+    from perception.training import config_from
     cfg = config_from(data=str(data), model="z2color", out=str(data.parent / "bench.pt"), epochs=1, batch_size=batch,
                       device="cpu")
     run = resolve(cfg, log=lambda *a: None)

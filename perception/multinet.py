@@ -36,6 +36,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -180,7 +181,7 @@ def resolve(cfg, log=print) -> MultiNetRun:
                               f"(modes: {', '.join(decl.modes)})")
     from perception.models import family
     defaults = family(cfg.model).defaults
-    options = {"modal": not cfg.mtl, "modes_trained": names} | ({"mtl": cfg.mtl} if cfg.mtl else {})
+    options: dict[str, Any] = {"modal": not cfg.mtl, "modes_trained": names} | ({"mtl": cfg.mtl} if cfg.mtl else {})
     spec = make_spec(cfg.model, decl, labels, **options)
     device = resolve_device(cfg.device)
     moments = Moments(roots, (spec["input"]["height"], spec["input"]["width"]), labels, log)

@@ -37,22 +37,24 @@ class Studio:
         self.url = self._wait_for(marker, timeout).split(marker, 1)[1].strip()
 
     def _wait_for(self, marker: str, timeout: float) -> str:
+        out = self.proc.stdout
+        assert out is not None   # started with stdout=PIPE
         sel = selectors.DefaultSelector()
-        sel.register(self.proc.stdout, selectors.EVENT_READ)
+        sel.register(out, selectors.EVENT_READ)
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             if not sel.select(timeout=0.5):
                 if self.proc.poll() is not None:
                     break
                 continue
-            line = self.proc.stdout.readline()
+            line = out.readline()
             if not line:
                 break
             self.lines.append(line)
             if marker in line:
                 return line
         self.stop()
-        raise AssertionError(f"no '{marker}' from {self.proc.args}: {''.join(self.lines)[-2000:]}")
+        raise AssertionError(f"no '{marker}' from {self.proc.args!r}: {''.join(self.lines)[-2000:]}")
 
     @property
     def base(self) -> str:
@@ -142,7 +144,7 @@ def browser():
     profile = tempfile.mkdtemp(prefix="studio-chromium-")
     opts.add_argument(f"--user-data-dir={profile}")
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)
-    driver.profile_dir = profile
+    driver.profile_dir = profile  # type: ignore[attr-defined]   # removed with the driver (quit_chromium)
     return driver
 
 

@@ -12,7 +12,8 @@ from controller.sidewalk.correction import RULES
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, non_negative
-from drivestudio.worlds.base import Episode, Plugin, WorldOptions
+from drivestudio.worlds import base
+from drivestudio.worlds.base import Episode, WorldOptions
 from drivestudio.worlds.sidewalk.drivers import CorrectionalDriver, ExpertDriver, PoorDriver, Supervisor
 from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
@@ -25,7 +26,7 @@ DEFAULT_PATH = "park"
 
 
 # --- the plugin ----------------------------------------------------------------------------------------------------
-class Plugin(Plugin):
+class Plugin(base.Plugin):
     declaration = SIDEWALK
     expert_names = ("expert", "poor", "oracle")   # oracle: the expert, under the name `drive --shm` defaults to
 

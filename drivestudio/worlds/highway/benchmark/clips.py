@@ -23,6 +23,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -33,6 +34,9 @@ from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, RE
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 from drivestudio.worlds.highway.drivers import act_on, make_controller
+
+if TYPE_CHECKING:
+    from sim.highway.world import Observation
 
 PANEL_HEIGHT = 184
 LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
@@ -50,7 +54,7 @@ class Entry:
     """One step in the ring buffer: the observation, the command applied on it, the estimate and the controller
     state the command came from."""
 
-    obs: object
+    obs: Observation
     action: np.ndarray
     estimate: np.ndarray
     control: dict | None
@@ -264,6 +268,7 @@ class ClipRecorder:
             d = float(event_entry.obs.truth.ego[4])
             info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
         name = f"{self.route.name}-{p.index:02d}-{p.event}-t{t:06.1f}s.mp4"
+        assert self.dir is not None   # clips are recorded only with a clip folder (limit 0 otherwise)
         writer = VideoWriter(self.dir / name)
         try:
             for entry in p.before + p.after:

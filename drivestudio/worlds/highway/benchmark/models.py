@@ -140,7 +140,7 @@ def slug(model: ModelSpec, taken: set[str]) -> str:
     if model.exact:
         base = model.family
     else:
-        base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(model.path).stem).strip("-.") or "model"
+        base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(str(model.path)).stem).strip("-.") or "model"
         for f, a in model.filters().items():
             base += f"-{f.replace('_', '')}{a:g}"
     name, i = base, 2

@@ -17,6 +17,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -64,6 +65,9 @@ class RouteMetrics:
 
     def add_time(self, stage: str, seconds: float) -> None:
         self.base.add_time(stage, seconds)
+
+    def table(self) -> str:
+        return self.base.table()
 
     @property
     def wall_time(self) -> float:
@@ -119,11 +123,16 @@ class RouteWorld:
     def __init__(self, world):
         self.world = world
         self.dt = world.dt
+        self.declaration = world.declaration
         self._moved: deque = deque(maxlen=int(round(BLOCKED_SECONDS / world.dt)))
 
     @property
-    def timings(self) -> dict:
+    def timings(self) -> dict[str, float]:
         return self.world.timings
+
+    @timings.setter
+    def timings(self, value: dict[str, float]) -> None:
+        self.world.timings = value
 
     def observe(self, render=None):
         return self.world.observe(render)
@@ -138,6 +147,9 @@ class RouteWorld:
     def recover(self) -> None:
         self.world.recover()
 
+    def close(self) -> None:
+        self.world.close()
+
 
 def world_for(route: Route, renderer: str = "tiny"):
     """The route's world, built as `drive` builds it (the highway plugin's defaults) at the route's start lane."""
@@ -145,7 +157,8 @@ def world_for(route: Route, renderer: str = "tiny"):
     from sim.highway.world import World
     ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                             cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None)
-    return World(worlds.get("highway").config(ns, render=True, start_lane=route.start_lane))
+    plugin: Any = worlds.get("highway")   # the highway plugin: its config() builds the WorldConfig
+    return World(plugin.config(ns, render=True, start_lane=route.start_lane))
 
 
 # --- drivers --------------------------------------------------------------------------------------------------
