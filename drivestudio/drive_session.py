@@ -133,7 +133,8 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
 def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
     """The driver over the bridge: the world's declaration comes from the header; the model must fit it."""
     from drivestudio import worlds
-    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=DRIVER_ATTACH) as ep:
+    wait = getattr(args, "attach_wait", None) or DRIVER_ATTACH
+    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=wait) as ep:
         decl = ep.declaration
         try:
             plugin = worlds.get(decl.name)

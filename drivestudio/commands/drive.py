@@ -26,6 +26,8 @@ def register(sub) -> None:
     add_device_option(p)
     p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
                                  "world and its options come from there")
+    p.add_argument("--attach-wait", type=positive(24 * 3600.0), metavar="SECONDS",
+                   help="with --shm: seconds to wait for the world's segment to appear (default 30)")
     add_world_options(p, "drive")
     p.add_argument("--seconds", type=positive(10 * 24 * 3600.0), default=60.0,
                    help="simulated seconds (default 60)")
@@ -55,6 +57,8 @@ def run(args) -> int:
         if args.model is not None and Path(args.model).is_file():   # a checkpoint: checked before attaching
             check_checkpoint(args.model, None)
         return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
+    if args.attach_wait is not None:
+        raise UsageError("--attach-wait goes with --shm (a driver attaching to a running world)")
     plugin = plugin_for(args)
     args.model = args.model or plugin.expert_names[0]
     if args.record:

@@ -121,9 +121,11 @@ def test_bad_model_is_one_line(tmp_path):
 
 
 def test_attaching_to_a_missing_world_fails_clearly():
-    r = subprocess.run(DRIVE + ["--shm", "no-such-world-here"], capture_output=True, text=True, timeout=60,
-                       env={**os.environ})
+    t0 = time.monotonic()
+    r = subprocess.run(DRIVE + ["--shm", "no-such-world-here", "--attach-wait", "2"], capture_output=True, text=True,
+                       timeout=60, env={**os.environ})
     assert r.returncode != 0 and "no-such-world-here" in r.stderr and "Traceback" not in r.stderr
+    assert time.monotonic() - t0 < 20    # it waited the 2 s asked for, not the default 30
 
 
 def test_a_controller_drives_the_gymnasium_environment():

@@ -4,7 +4,10 @@ import json
 import subprocess
 import sys
 
+import pytest
 
+
+@pytest.mark.slow   # about 80 s: every step of the recipe at its smallest (run with pytest -m slow)
 def test_the_recipe_goes_from_nothing_to_the_leaderboard(tmp_path):
     suite = tmp_path / "tiny.json"
     suite.write_text(json.dumps({"name": "tiny", "routes": [{"name": "oval-1l", "track": "oval", "lanes": 1,

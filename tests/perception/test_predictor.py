@@ -44,7 +44,9 @@ def test_the_chen_driver_places_outputs_into_the_estimate_record(frame):
     everything = predict.named(frame)
     assert set(everything) == set(INDICATORS) | {"lanes_left"}
     action, estimate = ChenDriver(predict).act(_percept(frame))
-    assert estimate.shape == (15,)   # the highway's estimate record: 14 indicators, then lanes_left
+    # the highway's estimate record: 14 indicators, lanes_left, then the four rear labels (NaN: not predicted)
+    assert estimate.shape == (19,)
+    assert np.isnan(estimate[15:]).all()
     assert estimate[13] == pytest.approx(everything["fast"]) and estimate[14] == pytest.approx(everything["lanes_left"])
     _, estimate13 = ChenDriver(load_predictor(gist_checkpoint()[0])).act(_percept(frame))
     assert np.isnan(estimate13[13:]).all() and np.isfinite(estimate13[:13]).all()
@@ -73,7 +75,7 @@ def test_the_closed_loop_driver_accepts_it(frame):
 
     driver = ChenDriver(load_predictor(gist_checkpoint()[0]))
     action, estimate = driver.act(_percept(frame))
-    assert driver.name == "gist" and estimate.shape == (15,)
+    assert driver.name == "gist" and estimate.shape == (19,)   # 14 indicators, lanes_left, 4 rear labels
     assert action.shape == (3,) and -1.0 <= action[0] <= 1.0
 
 
