@@ -5,6 +5,7 @@ from pathlib import Path
 
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
+from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
 
 
@@ -42,22 +43,24 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.files import check_output_dir
+    from core.signals import exit_on_sigterm
     from drivestudio.checkpoints import check_checkpoint_path, load_predictor_for
     from drivestudio.worlds.sidewalk import autonomy
 
     check_device(args.device)
     check_checkpoint_path(args.model)
     load_predictor_for(args.model, "sidewalk", args.device)   # a model of another world: one line, before driving
-    if args.data:
-        for root in args.data.split(","):
-            if not Path(root).is_dir():
-                from drivestudio.errors import UsageError
-                raise UsageError(f"--data: no dataset folder at {root}")
+    roots = autonomy.merge_roots(args.model, args.data, args.rounds)   # the retraining's data, checked now
     check_output_dir(args.out or "runs")
+    if args.out is not None and autonomy.earlier_run(Path(args.out)):
+        raise UsageError(f"--out {args.out} holds an earlier autonomy run "
+                         f"({', '.join(autonomy.earlier_run(Path(args.out)))}); give another folder")
     out = run_dir(args.out, "autonomy")
+    autonomy.check_outputs(out, args.rounds, args.video)    # every file a round writes, checked now
     drive = autonomy.Drive(args.model, args.mode, args.seconds, args.path, args.obstacles, args.seed, args.rule,
                            args.device, args.video)
-    results = autonomy.run(drive, out, args.rounds, args.epochs, args.data)
-    print(autonomy.write_summary(out, results, args.mode))
+    with exit_on_sigterm():   # a SIGTERM ends the round in order: autonomy.json says the run is incomplete
+        results = autonomy.run(drive, out, args.rounds, args.epochs, roots)
+    print(autonomy.write_summary(out, results, args.mode, complete=True))
     print(f"results in {out}/autonomy.md and autonomy.json")
     return 0

@@ -117,3 +117,72 @@ def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path):
     assert sum(c["seconds"] for c in clauses.values()) == pytest.approx(result["correction_s"], abs=0.01)
     assert result["collisions_while_correcting"] == 0
     assert "| strict |" in (tmp_path / "autonomy.md").read_text()
+
+
+def _autonomy(checkpoint, *argv, timeout=120):
+    return subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint),
+                           *map(str, argv)], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+
+
+def test_rounds_without_data_are_refused_before_round_0(checkpoint, tmp_path):
+    r = _autonomy(checkpoint, "--rounds", "2", "--seconds", "3", "--out", tmp_path / "a")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--rounds needs the training data" in r.stderr
+    assert not (tmp_path / "a").exists()    # refused before anything was driven
+
+
+def test_merge_data_of_another_world_or_missing_is_refused_before_round_0(checkpoint, tmp_path):
+    highway = tmp_path / "hw"
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(highway), "--frames", "20",
+                    "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True, timeout=300)
+    r = _autonomy(checkpoint, "--rounds", "2", "--data", highway, "--out", tmp_path / "a")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "dataset of the highway world" in r.stderr
+    r = _autonomy(checkpoint, "--data", tmp_path / "gone", "--out", tmp_path / "a")
+    assert r.returncode == 2 and "no dataset folder" in r.stderr
+    assert not (tmp_path / "a").exists()
+
+
+def test_merge_data_too_small_to_hold_an_episode_out_is_refused_before_round_0(checkpoint, tmp_path):
+    data = tmp_path / "data"   # 3 episodes, one a mode: none to spare for validation
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
+                    "--frames", "60", "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True,
+                   timeout=300)
+    r = _autonomy(checkpoint, "--rounds", "2", "--data", data, "--out", tmp_path / "a")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "fewer than 2 episodes of mode direct (1)" in r.stderr
+    assert not (tmp_path / "a").exists()
+
+
+def test_a_folder_with_an_earlier_run_is_refused(checkpoint, tmp_path):
+    """A rerun into a run's folder would take its round models as trained already."""
+    (tmp_path / "model-round1.pt").write_bytes(b"an earlier run's model")
+    r = _autonomy(checkpoint, "--seconds", "3", "--out", tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "holds an earlier autonomy run" in r.stderr
+    assert (tmp_path / "model-round1.pt").read_bytes() == b"an earlier run's model"    # untouched
+
+
+def test_sigterm_ends_the_run_in_order_and_the_report_says_it_is_incomplete(tmp_path):
+    """Cut off during the retraining after round 0: exit 128 + 15 with one line; autonomy.json holds round 0 and
+    "complete": false; no temporary file is left."""
+    import signal
+    import time
+    data = tmp_path / "data"
+    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
+                    "--frames", "120", "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True,
+                   timeout=300)   # 6 episodes: 2 a mode, one of which the retraining holds out
+    torch.manual_seed(0)
+    model = Regressor(make_spec("z2color", SIDEWALK, modal=True))
+    save_checkpoint(tmp_path / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    out = tmp_path / "a"
+    proc = subprocess.Popen([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "m.pt"),
+                             "--seconds", "2", "--rounds", "3", "--epochs", "50", "--data", str(data), "--out",
+                             str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.time()
+    while not (out / "autonomy.json").exists() and time.time() - t0 < 200 and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM and "Traceback" not in err, err[-2000:]
+    report = json.loads((out / "autonomy.json").read_text())
+    assert report["complete"] is False and [x["round"] for x in report["rounds"]] == [0]
+    assert "incomplete" in (out / "autonomy.md").read_text()
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]

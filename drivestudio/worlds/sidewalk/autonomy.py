@@ -163,26 +163,85 @@ def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, d
     return str(out)
 
 
-def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, data: str | None = None,
+def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
+    """The datasets a retraining merges the corrections with (--data, else the checkpoint's own), checked before
+    round 0 when there will be a retraining: each a sidewalk dataset that is there."""
+    from drivestudio.errors import UsageError
+    from perception.checkpoint import load_checkpoint
+    from perception.shards import Dataset, DatasetError
+
+    spec = load_checkpoint(model, world="sidewalk")
+    roots = [r.strip() for r in (data or ",".join(spec.get("data", {}).get("roots", []))).split(",") if r.strip()]
+    if rounds == 1 and data is None:
+        return roots
+    if not roots:
+        raise UsageError("--rounds needs the training data: give --data (the checkpoint does not record it)")
+    for root in roots:
+        if not Path(root).is_dir():
+            raise UsageError(f"--data: no dataset folder at {root}")
+        try:
+            world = Dataset(Path(root)).world
+        except DatasetError as e:
+            raise UsageError(f"--data: {e}") from None
+        if world != "sidewalk":
+            raise UsageError(f"--data: {root} is a dataset of the {world} world; {model} learns the sidewalk's")
+    check_held_out(roots[0], spec["spec"]["options"])
+    return roots
+
+
+def check_held_out(root: str, options: dict) -> None:
+    """The retraining validates on whole episodes of the first dataset, at least one held out per mode the model
+    learns (perception/moment_cache.py): each such mode needs two episodes there."""
+    from drivestudio.errors import UsageError
+    from perception.shards import Dataset
+
+    from core.worlds.sidewalk import SIDEWALK
+    # the retraining's modes: the MTL net's one, else those it was trained on (all the world's when not recorded)
+    modes = [options["mtl"]] if options.get("mtl") else list(options.get("modes_trained") or SIDEWALK.modes)
+    episodes: dict[str, int] = {}
+    for shard in Dataset(Path(root)).shards:
+        mode = str(shard.params.get("mode"))
+        episodes[mode] = episodes.get(mode, 0) + 1
+    short = [f"{m} ({episodes.get(m, 0)})" for m in modes if episodes.get(m, 0) < 2]
+    if short:
+        raise UsageError(f"--data: {root} has fewer than 2 episodes of mode {', '.join(short)}; the retraining "
+                         "holds one out for validation")
+
+
+def earlier_run(folder: Path) -> list[str]:
+    """The files of an earlier autonomy run in `folder` (its round models would be taken as trained already)."""
+    if not folder.is_dir():
+        return []
+    return sorted(p.name for p in (folder / "autonomy.json", *folder.glob("model-round*.pt")) if p.exists())
+
+
+def check_outputs(out: Path, rounds: int, video: bool) -> None:
+    """Every file the run's rounds write, checked before round 0."""
+    from core.files import check_output
+
+    for name in ("autonomy.md", "autonomy.json"):
+        check_output(out / name, None, "report file")
+    for k in range(rounds):
+        if video:
+            check_output(out / f"autonomy-{k}.mp4", (".mp4",), "video")
+        if k:
+            check_output(out / f"model-round{k}.pt", (".pt",), "round model")
+
+
+def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, roots: list[str] | None = None,
         log=print) -> list[RoundResult]:
     """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
-    the original data plus every round's corrections); returns the autonomy of every round."""
+    the original data `roots` plus every round's corrections); returns the autonomy of every round. autonomy.json is
+    written after every round with "complete": false until the last (a run cut off says so)."""
     from dataclasses import replace
 
-    from perception.checkpoint import load_checkpoint
-
     results: list[RoundResult] = []
-    spec = load_checkpoint(drive.model, world="sidewalk")
-    roots = [r for r in (data or ",".join(spec.get("data", {}).get("roots", []))).split(",") if r]
     for k in range(rounds):
         results.append(drive_round(drive, out, k, log))
-        write_summary(out, results, drive.mode)
+        write_summary(out, results, drive.mode, complete=k + 1 == rounds)
         if k + 1 == rounds:
             break
-        if not roots:
-            from drivestudio.errors import UsageError
-            raise UsageError("--rounds needs the training data: give --data (the checkpoint does not record it)")
-        merged = roots + [r.dataset for r in results]
+        merged = list(roots or []) + [r.dataset for r in results]
         log(f"round {k + 1}: retraining on {len(merged)} dataset(s) (the original and {len(results)} correction "
             f"set(s)) for {epochs} epochs, starting from {drive.model}")
         drive = replace(drive, model=retrain(drive.model, merged, out / f"model-round{k + 1}.pt", epochs, drive.seed,
@@ -194,7 +253,7 @@ def clause_text(clauses: dict) -> str:
     return "; ".join(f"{c} {v['take_overs']} ({v['seconds']:.1f} s)" for c, v in clauses.items()) or "-"
 
 
-def write_summary(out: Path, results: list[RoundResult], mode: str) -> str:
+def write_summary(out: Path, results: list[RoundResult], mode: str, complete: bool = True) -> str:
     from drivestudio.outputs import write_json, write_text
     rows = ["| round | model | rule | autonomy % | corrections [s] | elapsed [s] | take-overs | by clause (take-overs, "
             "seconds) | collisions | while correcting | off path [s] | distance [m] |",
@@ -203,8 +262,10 @@ def write_summary(out: Path, results: list[RoundResult], mode: str) -> str:
              f"{r.elapsed_s:.1f} | {r.corrections} | {clause_text(r.clauses)} | {r.collisions} | "
              f"{r.collisions_while_correcting} | {r.off_path_s:.1f} | {r.distance_m:.0f} |" for r in results]
     text = f"# Percentage autonomy, {mode} mode\n\n" + "\n".join(rows) + "\n"
+    if not complete:
+        text += "\n(incomplete: the run was cut off or is still running; more rounds were asked for)\n"
     write_text(out / "autonomy.md", text)
-    write_json(out / "autonomy.json", {"mode": mode, "rounds": [r.row() for r in results]})
+    write_json(out / "autonomy.json", {"mode": mode, "complete": complete, "rounds": [r.row() for r in results]})
     return text
 
 
