@@ -13,10 +13,15 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
+
+from drivestudio import worlds
+from drivestudio.errors import UsageError
+from drivestudio.loop import in_process, run_loop
+from drivestudio.outputs import write_json, write_text
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
 HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
@@ -71,9 +76,7 @@ class Drive:
 
 def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
     """The model drives, the expert corrects under the rule; the run's steps become the dataset out/corrections-k."""
-    from drivestudio import worlds
-    from drivestudio.bridge_loop import supervised
-    from drivestudio.loop import in_process, run_loop
+    from drivestudio.bridge_loop import supervised  # lazy: the bridge, only when it runs (not for --help)
 
     plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
     args = SimpleNamespace(path=run.path, path_width=None, seed=run.seed, mode=run.mode, obstacles=str(run.obstacles),
@@ -122,7 +125,7 @@ class Recording:
     """A run's steps as a one-episode dataset in the format of `generate` (perception/shards.py)."""
 
     def __init__(self, root: Path, decl, run: Drive):
-        from perception.shards import ShardWriter, shard_name
+        from perception.shards import ShardWriter, shard_name  # lazy: pyarrow
         self.root, self.decl, self.run = root, decl, run
         self.writer = ShardWriter(root / shard_name(0), decl)
 
@@ -132,8 +135,8 @@ class Recording:
                         seed=self.run.seed, action=rec.action)
 
     def close(self) -> None:
-        from drivestudio.generate import _software
-        from perception.shards import SPLIT_RULE, ShardInfo, shard_name, write_manifest
+        from drivestudio.generate import _software  # lazy: pyarrow, tqdm
+        from perception.shards import SPLIT_RULE, ShardInfo, shard_name, write_manifest  # lazy: pyarrow
         run = self.run
         written = self.writer.close()
         entry = ShardInfo(shard_name(0), 0, written["frames"], "train", {"path": run.path, "mode": run.mode,
@@ -151,9 +154,9 @@ def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, d
     """Fine-tune `current` (its weights, its kind: MultiNet or the MTL net of one mode) for `epochs` epochs on
     `roots`, the original data first (whose held-out episodes stay the validation set) and the corrections after
     it; returns the new checkpoint."""
-    from perception.checkpoint import load_checkpoint
-    from perception.train import train
-    from perception.training import config_from
+    from perception.checkpoint import load_checkpoint  # lazy: torch
+    from perception.train import train  # lazy: torch, pyarrow
+    from perception.training import config_from  # lazy: torch, pyarrow
 
     options = load_checkpoint(current, world="sidewalk")["spec"]["options"]
     mtl = options.get("mtl")
@@ -167,9 +170,7 @@ def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, data: str | N
         log=print) -> list[RoundResult]:
     """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
     the original data plus every round's corrections); returns the autonomy of every round."""
-    from dataclasses import replace
-
-    from perception.checkpoint import load_checkpoint
+    from perception.checkpoint import load_checkpoint  # lazy: torch
 
     results: list[RoundResult] = []
     spec = load_checkpoint(drive.model, world="sidewalk")
@@ -180,7 +181,6 @@ def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, data: str | N
         if k + 1 == rounds:
             break
         if not roots:
-            from drivestudio.errors import UsageError
             raise UsageError("--rounds needs the training data: give --data (the checkpoint does not record it)")
         merged = roots + [r.dataset for r in results]
         log(f"round {k + 1}: retraining on {len(merged)} dataset(s) (the original and {len(results)} correction "
@@ -195,7 +195,6 @@ def clause_text(clauses: dict) -> str:
 
 
 def write_summary(out: Path, results: list[RoundResult], mode: str) -> str:
-    from drivestudio.outputs import write_json, write_text
     rows = ["| round | model | rule | autonomy % | corrections [s] | elapsed [s] | take-overs | by clause (take-overs, "
             "seconds) | collisions | while correcting | off path [s] | distance [m] |",
             "|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
