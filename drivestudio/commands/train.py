@@ -26,6 +26,7 @@ FAMILIES = ("alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), mobilenet (
             "optionally with earlier frames), z2color (Z2Color: MultiNet and its MTL baseline)")
 
 
+# long but declarative: one add_argument per option, each with its help; splitting it would only scatter them
 def register(sub) -> None:
     lines = FAMILIES   # the registry imports torch: the parser must not (every verb would start seconds slower)
     p = sub.add_parser("train", help="train a model (AlexNet, VGG-16, GIST, Z2Color, ...) on a dataset",
