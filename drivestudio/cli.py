@@ -26,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        from drivestudio.worlds import load_external
+        from drivestudio.worlds import load_external  # lazy: `import drivestudio.cli` loads no world
         load_external()
     except input_errors() as e:
         print(f"drivestudio: error: {e}", file=sys.stderr)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from core import worlds as declared
 from core.signals import Terminated, exit_on_sigterm
+from drivestudio import worlds
 from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
 from drivestudio.errors import RunError, UsageError
 from drivestudio.loop import in_process, run_loop
@@ -132,7 +133,6 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
 
 def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
     """The driver over the bridge: the world's declaration comes from the header; the model must fit it."""
-    from drivestudio import worlds
     wait = getattr(args, "attach_wait", None) or DRIVER_ATTACH
     with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=wait) as ep:
         decl = ep.declaration

@@ -62,58 +62,81 @@ def run_pool(module: str, jobs: list[dict], workers: int, on_progress: Callable,
     procs = [subprocess.Popen([sys.executable, "-m", module, "worker"], stdin=subprocess.PIPE,
                               stdout=subprocess.PIPE, env=env, cwd=os.getcwd())
              for _ in range(max(1, min(workers, len(jobs))))]
-    queue = list(jobs)
-    busy: dict = {}
-    pending: dict = {p: b"" for p in procs}   # bytes read from a worker that do not yet end in a newline
-    sel = selectors.DefaultSelector()
-
-    def give(proc) -> None:
-        if queue:
-            job = queue.pop(0)
-            proc.stdin.write((json.dumps(job) + "\n").encode())
-            proc.stdin.flush()
-            busy[proc] = job
-        else:
-            proc.stdin.close()
-
-    def handle(proc, line: bytes) -> None:
-        msg = json.loads(line)
-        if "progress" in msg:
-            on_progress(msg["progress"])
-        elif "done" in msg:
-            busy.pop(proc)
-            on_done(msg["done"])
-            give(proc)
-        else:
-            raise RunError(msg.get("error", "a worker failed"))
-
+    pool = _Pool(procs, jobs, on_progress, on_done, what)
     try:
-        for p in procs:
-            assert p.stdout is not None   # started with stdout=PIPE
-            sel.register(p.stdout, selectors.EVENT_READ, p)
-            give(p)
-        while busy:
-            for key, _ in sel.select(timeout=1.0):
-                proc = key.data
-                chunk = os.read(proc.stdout.fileno(), 1 << 16)   # raw reads: no line may hide in a buffer
-                if not chunk:
-                    sel.unregister(proc.stdout)
-                    if proc in busy:
-                        raise RunError(f"a worker died on {what(busy[proc])} (exit status {proc.wait()})")
-                    continue
-                *lines, pending[proc] = (pending[proc] + chunk).split(b"\n")
-                for line in lines:
-                    handle(proc, line)
+        pool.run()
         for p in procs:
             p.wait(timeout=30)
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.terminate() if stop_wait > 0 else p.kill()
-        for p in procs:
-            try:
-                p.wait(timeout=stop_wait or None)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-        sel.close()
+        _stop(procs, stop_wait)
+        pool.sel.close()
+
+
+class _Pool:
+    """The parent's side of one run: the jobs still queued, the job each worker is on, and the bytes read from
+    each worker that do not yet end in a newline."""
+
+    def __init__(self, procs: list, jobs: list[dict], on_progress: Callable, on_done: Callable,
+                 what: Callable[[dict], str]):
+        self.procs, self.on_progress, self.on_done, self.what = procs, on_progress, on_done, what
+        self.queue = list(jobs)
+        self.busy: dict = {}
+        self.pending: dict = {p: b"" for p in procs}
+        self.sel = selectors.DefaultSelector()
+
+    def give(self, proc) -> None:
+        """The next job to a worker that is free, or end of input when none is left."""
+        if self.queue:
+            job = self.queue.pop(0)
+            proc.stdin.write((json.dumps(job) + "\n").encode())
+            proc.stdin.flush()
+            self.busy[proc] = job
+        else:
+            proc.stdin.close()
+
+    def handle(self, proc, line: bytes) -> None:
+        """One message of a worker: progress, a finished job (then the next job), or an error."""
+        msg = json.loads(line)
+        if "progress" in msg:
+            self.on_progress(msg["progress"])
+        elif "done" in msg:
+            self.busy.pop(proc)
+            self.on_done(msg["done"])
+            self.give(proc)
+        else:
+            raise RunError(msg.get("error", "a worker failed"))
+
+    def read(self, proc) -> None:
+        """What a worker has written: its whole lines handled, a death in the middle of a job raised."""
+        chunk = os.read(proc.stdout.fileno(), 1 << 16)   # raw reads: no line may hide in a buffer
+        if not chunk:
+            self.sel.unregister(proc.stdout)
+            if proc in self.busy:
+                raise RunError(f"a worker died on {self.what(self.busy[proc])} (exit status {proc.wait()})")
+            return
+        *lines, self.pending[proc] = (self.pending[proc] + chunk).split(b"\n")
+        for line in lines:
+            self.handle(proc, line)
+
+    def run(self) -> None:
+        """A job to every worker, then theirs as they finish, until no job is left running."""
+        for p in self.procs:
+            assert p.stdout is not None   # started with stdout=PIPE
+            self.sel.register(p.stdout, selectors.EVENT_READ, p)
+            self.give(p)
+        while self.busy:
+            for key, _ in self.sel.select(timeout=1.0):
+                self.read(key.data)
+
+
+def _stop(procs: list, stop_wait: float) -> None:
+    """Workers still running get SIGTERM and `stop_wait` seconds (0: killed at once); all are waited for."""
+    for p in procs:
+        if p.poll() is None:
+            p.terminate() if stop_wait > 0 else p.kill()
+    for p in procs:
+        try:
+            p.wait(timeout=stop_wait or None)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()

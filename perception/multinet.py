@@ -44,8 +44,10 @@ import torch
 from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from perception.models import Regressor, make_spec
+from perception.curves import write_curves
+from perception.models import Regressor, family, make_spec
 from perception.moment_cache import Moments
+from perception.training import open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,
@@ -167,8 +169,6 @@ class Progress:
 
 def resolve(cfg, log=print) -> MultiNetRun:
     """The run's settings from the TrainConfig; the data read (and cached) and split."""
-    from perception.training import open_data, resolve_device
-
     roots = [r for r in str(cfg.data).split(",") if r]
     _, decl, labels = open_data(type(cfg)(**{**{f.name: getattr(cfg, f.name) for f in fields(cfg)},
                                              "data": roots[0]}))
@@ -179,7 +179,6 @@ def resolve(cfg, log=print) -> MultiNetRun:
     if unknown:
         raise CheckpointError(f"the {decl.name} world has no behavioural mode {', '.join(unknown)} "
                               f"(modes: {', '.join(decl.modes)})")
-    from perception.models import family
     defaults = family(cfg.model).defaults
     options: dict[str, Any] = {"modal": not cfg.mtl, "modes_trained": names} | ({"mtl": cfg.mtl} if cfg.mtl else {})
     spec = make_spec(cfg.model, decl, labels, **options)
@@ -312,7 +311,6 @@ def save_state(run: MultiNetRun, progress: Progress, model: Regressor, opt: torc
 
 def save_best(run: MultiNetRun, progress: Progress, best_weights: dict | None, finished: bool = False) -> None:
     """The checkpoint (the best network so far and the whole history) and the curves beside it."""
-    from perception.curves import write_curves
     summary = curves(progress.history, run.names)
     record = {"history": progress.history, "summary": summary, "best": progress.best, "trials": run.trials,
               "epochs": run.epochs, "config": run.config, "finished": finished, "seconds": progress.seconds,

@@ -435,6 +435,7 @@ def _enum(prefix: str, names) -> str:
     return ", ".join(f"{prefix}_{n.upper().replace(' ', '_')} = {i}" for i, n in enumerate(names))
 
 
+# long but declarative: the header is one C text, in the order docs/shm-protocol.md shows it
 def c_header() -> str:
     """The C declarations of protocol version 2, as docs/shm-protocol.md shows them."""
     ctrl, ctrl_asserts = _c_members(CONTROL_FIELDS, FIXED_SIZE, "ds_control")

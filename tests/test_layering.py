@@ -1,7 +1,11 @@
 """The layering of docs/architecture.md, read from the code's own import statements (those inside functions too):
 which package may import which, each world's modules apart from the other's and from the generic ones, nothing
-below drivestudio/commands importing it, and no import cycle between modules."""
+below drivestudio/commands importing it, no import cycle between modules, and no import inside a function without
+a comment saying why it is not at the top."""
 import ast
+import io
+import re
+import tokenize
 from pathlib import Path
 
 import pytest
@@ -106,3 +110,40 @@ def test_there_is_no_import_cycle():
         if m not in state:
             cycle = visit(m)
             assert cycle is None, " -> ".join(cycle)
+
+
+# files whose function-level imports are being reworked elsewhere (the benchmark's models, routes and runner); each
+# import there is to get its comment with that work, and the file then leaves this set
+PENDING = {"drivestudio/worlds/highway/benchmark/models.py", "drivestudio/worlds/highway/benchmark/route.py",
+           "drivestudio/worlds/highway/benchmark/run.py"}
+# a tool's marker alone is not a reason
+PRAGMA = re.compile(r"#\s*(noqa(:\s*[A-Z]+[0-9]+(,\s*[A-Z]+[0-9]+)*)?|type:\s*ignore(\[[^]]*\])?|pragma:[^#]*)\s*$")
+
+
+def uncommented_function_imports(path: Path) -> list[str]:
+    """The imports inside functions with no comment on their lines or on a comment line just above them."""
+    source = path.read_text()
+    comments: dict[int, bool] = {}   # line -> the line is a comment only
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type == tokenize.COMMENT and not PRAGMA.match(tok.string):
+            comments[tok.start[0]] = tok.line.strip().startswith("#")
+    found = set()
+    for fn in ast.walk(ast.parse(source)):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                lines = range(node.lineno, (node.end_lineno or node.lineno) + 1)
+                if not any(n in comments for n in lines) and not comments.get(node.lineno - 1, False):
+                    found.add(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.get_source_segment(source, node)}")
+    return sorted(found)
+
+
+def test_imports_inside_functions_say_why():
+    """Imports sit at the top of their files; one inside a function is a heavy dependency loaded only when needed
+    (torch, matplotlib, pyarrow, aiohttp...: `drivestudio --help` and every verb pay for what their modules import
+    at the top), and a comment on its line, or the line above it, says so."""
+    wrong = [line for pkg in ("core", "sim", "perception", "controller", "shm_bridge", "drivestudio")
+             for path in sorted((ROOT / pkg).rglob("*.py")) if str(path.relative_to(ROOT)) not in PENDING
+             for line in uncommented_function_imports(path)]
+    assert not wrong, "\n".join(wrong)

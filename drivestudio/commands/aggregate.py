@@ -6,10 +6,12 @@ import os
 import sys
 from pathlib import Path
 
+from core.files import check_output_dir
 from drivestudio.checkpoints import check_checkpoint_path, check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, seed
+from perception.memory import check_batch
 
 
 def register(sub) -> None:
@@ -57,10 +59,8 @@ def _cars(text: str) -> tuple[int, int]:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
     from perception.checkpoint import load_checkpoint  # lazy: torch
-    from perception.memory import check_batch
-    from perception.shards import Dataset
+    from perception.shards import Dataset  # lazy: pyarrow
 
     check_device(args.device)
     check_output_dir(args.out, "aggregation folder")
@@ -73,6 +73,7 @@ def run(args) -> int:
                          "aggregation rounds are the highway's")
     suite = None if args.suite == "none" else args.suite
     if suite not in (None, "default"):
+        # lazy: the benchmark, only when it runs (not for --help)
         from drivestudio.worlds.highway.benchmark import load_suite
         load_suite(suite)   # a bad suite fails now, not after the rounds
     from drivestudio.worlds.highway.aggregation import Aggregation, AggregationConfig  # lazy: torch, SUMO

@@ -3,15 +3,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivestudio.checkpoints import check_device
+from controller.sidewalk.correction import RULES
+from core.files import check_output_dir
+from core.signals import exit_on_sigterm
+from drivestudio.checkpoints import check_checkpoint_path, check_device, load_predictor_for
 from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
+from drivestudio.worlds.sidewalk import autonomy
+from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
 
 
 def register(sub) -> None:
-    from controller.sidewalk.correction import RULES
-    from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
     p = sub.add_parser("autonomy", help="percentage autonomy of a sidewalk network under the expert's correction",
                        description="A trained sidewalk network (Z2Color: MultiNet or MTL) drives a held-out loop with "
                                    "obstacles in one behavioural mode while the expert watches under the correction "
@@ -42,11 +45,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from core.signals import exit_on_sigterm
-    from drivestudio.checkpoints import check_checkpoint_path, load_predictor_for
-    from drivestudio.worlds.sidewalk import autonomy
-
     check_device(args.device)
     check_checkpoint_path(args.model)
     load_predictor_for(args.model, "sidewalk", args.device)   # a model of another world: one line, before driving

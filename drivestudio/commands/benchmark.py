@@ -63,8 +63,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    # lazy: the benchmark loads only when it runs, not for --help
     from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
-    from drivestudio.worlds.highway.benchmark.report import BOARD_FILES, CLIPS, write_board
+    from drivestudio.worlds.highway.benchmark.report import BOARD_FILES, CLIPS, write_board  # lazy: as above
 
     if args.out is not None:   # the folder and every file the run will write into it, before any work
         check_output_dir(args.out)
@@ -81,8 +82,8 @@ def run(args) -> int:
     models = check_models(args.model)
     out = run_dir(args.out, "benchmark")
     if args.shm:   # segments of earlier benchmarks whose whole process group was killed (nobody left to clean up)
-        from drivestudio.worlds.highway.benchmark.route import SHM_PREFIX
-        from shm_bridge.endpoints import reclaim
+        from drivestudio.worlds.highway.benchmark.route import SHM_PREFIX  # lazy: as above
+        from shm_bridge.endpoints import reclaim  # lazy: the bridge loads only when it runs, not for --help
         reclaim(SHM_PREFIX)
     opts = RunOptions(transport="shm" if args.shm else "in-process", device=args.device, renderer=args.renderer,
                       clips=args.clips)

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
+from core.files import make_dir
+from drivestudio.cli import main
 from drivestudio.numbers import count
+from drivestudio.outputs import write_text
 
 
 @dataclass(frozen=True)
@@ -55,12 +58,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from dataclasses import replace
-
-    from core.files import make_dir
-    from drivestudio.cli import main
-    from drivestudio.outputs import write_text
-
     size = QUICK if args.quick else FULL
     if args.frames:
         size = replace(size, frames=args.frames)
@@ -68,22 +65,40 @@ def run(args) -> int:
         size = replace(size, iterations=args.iterations)
     out = make_dir(Path(args.out))
     hw, sw = make_dir(out / "highway"), make_dir(out / "sidewalk")
-    log: list[str] = []
-    t_start = time.perf_counter()
-    steps = [0]
+    step = _Steps()
+    _highway(step, size, hw)
+    _sidewalk(step, size, sw)
+    write_text(out / "commands.txt", "\n".join(step.log) + "\n")
+    report = write_report(out, time.perf_counter() - step.t_start, args.quick)
+    print(f"\ndemo done in {time.perf_counter() - step.t_start:.0f} s; the report is {report} and everything is in "
+          f"{out}/ (the commands it ran: {out / 'commands.txt'})")
+    return 0
 
-    def step(title: str, *argv) -> None:
-        steps[0] += 1
+
+class _Steps:
+    """Runs the demo's steps through the command's own main(), numbered and timed, and keeps the commands it ran;
+    a step that fails ends the demo with its exit status."""
+
+    def __init__(self) -> None:
+        self.log: list[str] = []
+        self.t_start = time.perf_counter()
+        self.done = 0
+
+    def __call__(self, title: str, *argv) -> None:
+        self.done += 1
         t0 = time.perf_counter()
-        print(f"\n== [{steps[0]}/{TOTAL}] {title}  ({time.perf_counter() - t_start:.0f} s so far)\n"
+        print(f"\n== [{self.done}/{TOTAL}] {title}  ({time.perf_counter() - self.t_start:.0f} s so far)\n"
               f"$ drivestudio {' '.join(map(str, argv))}", flush=True)
-        log.append("drivestudio " + " ".join(map(str, argv)))
+        self.log.append("drivestudio " + " ".join(map(str, argv)))
         rc = main([str(a) for a in argv])
         if rc != 0:
             raise SystemExit(rc)
         print(f"({time.perf_counter() - t0:.0f} s)", flush=True)
 
-    # --- the highway ---------------------------------------------------------------------------------------------
+
+def _highway(step: _Steps, size: Size, hw: Path) -> None:
+    """The highway's steps: frames, the oracle over shared memory, a dataset, the GIST baseline and a MobileNet,
+    their Table 3, overlays and the MobileNet driving."""
     data, models = hw / "data", hw / "models"
     for track, lanes in (("oval", 3), ("hairpins", 2), ("sbends", 1)):
         name = f"frame-{track}-{lanes}lane{'s' * (lanes > 1)}"
@@ -110,7 +125,10 @@ def run(args) -> int:
          models / "mobilenet.pt", "--track", "oval", "--lanes", 3, "--cars", 12, "--seconds", size.deep_seconds,
          "--record", hw / "mobilenet-drive.mp4", "--out", hw / "mobilenet-drive")
 
-    # --- the sidewalk --------------------------------------------------------------------------------------------
+
+def _sidewalk(step: _Steps, size: Size, sw: Path) -> None:
+    """The sidewalk's steps: a stereo pair, the expert modes, a data-moment set, MultiNet and an MTL net, their
+    autonomy and the ONNX export."""
     sdata, smodels = sw / "data", sw / "models"
     step("sidewalk: the stereo pair of a park path", "render", "--world", "sidewalk", "--path", "park", "-o",
          sw / "stereo.png", "--truth", sw / "stereo.json")
@@ -134,12 +152,6 @@ def run(args) -> int:
              size.autonomy_seconds, "--out", sw / f"autonomy-{net}")
     step("sidewalk: MultiNet exported to ONNX and checked against PyTorch", "export", "--model",
          smodels / "multinet.pt", "--onnx", smodels / "multinet.onnx")
-
-    write_text(out / "commands.txt", "\n".join(log) + "\n")
-    report = write_report(out, time.perf_counter() - t_start, args.quick)
-    print(f"\ndemo done in {time.perf_counter() - t_start:.0f} s; the report is {report} and everything is in {out}/ "
-          f"(the commands it ran: {out / 'commands.txt'})")
-    return 0
 
 
 TOTAL = 11 + 11   # the demo's steps: highway, sidewalk
@@ -168,7 +180,6 @@ def _table_autonomy(sw: Path) -> str:
 
 def write_report(out: Path, seconds: float, quick: bool) -> Path:
     """REPORT.md: the two headline tables, then links to every plot, overlay and video."""
-    from drivestudio.outputs import write_text
     hw, sw = out / "highway", out / "sidewalk"
 
     def links(folder: Path, pattern: str) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from core.files import check_output
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.commands.studio import add_view_options, bind_view
@@ -43,8 +44,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output
-    from drivestudio import drive_session
+    from drivestudio import drive_session  # lazy: the bridge, only when it runs (not for --help)
 
     check_device(args.device)
     if args.shm is not None:
@@ -52,7 +52,7 @@ def run(args) -> int:
                  if getattr(args, f[2:].replace("-", "_"))]
         if given:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
-        from shm_bridge.segment import validate_name
+        from shm_bridge.segment import validate_name  # lazy: the bridge, only when it runs (not for --help)
         validate_name(args.shm)
         if args.model is not None and Path(args.model).is_file():   # a checkpoint: checked before attaching
             check_checkpoint(args.model, None)

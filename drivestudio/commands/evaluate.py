@@ -12,6 +12,7 @@ from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.numbers import count
 from drivestudio.outputs import write_json, write_png, write_text
+from perception.memory import check_batch
 
 
 def register(sub) -> None:
@@ -38,8 +39,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from perception.checkpoint import CheckpointError  # lazy: torch
-    from perception.evaluate import REPORT_FILES, evaluate
-    from perception.memory import check_batch
+    from perception.evaluate import REPORT_FILES, evaluate  # lazy: torch, pyarrow
     from perception.shards import Dataset  # lazy: pyarrow (80 ms) only when a dataset is read
 
     check_device(args.device)

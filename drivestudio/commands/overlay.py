@@ -64,7 +64,7 @@ def check_combination(args) -> None:
 def run(args) -> int:
     # lazy: perception's readers import torch and pyarrow (seconds); only drawing overlays needs them
     from perception.datasets import FrameDataset
-    from perception.shards import Dataset, DatasetError
+    from perception.shards import Dataset, DatasetError  # lazy: pyarrow
 
     check_device(args.device)
     check_combination(args)

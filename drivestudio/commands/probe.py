@@ -20,7 +20,7 @@ def register(sub) -> None:
 def run(args) -> int:
     # lazy: the highway's simulator imports trimesh (0.3 s), which `drivestudio --help` need not pay
     from sim.highway.scenario import load_scenario
-    from sim.highway.world import World, WorldConfig
+    from sim.highway.world import World, WorldConfig  # lazy: the highway simulator (trimesh, PIL), only when it runs
 
     scenario = load_scenario(args.scenario, lanes=args.lanes)
     with World(WorldConfig(render=False, cars=0), scenario=scenario) as world:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from core.files import check_output_dir, make_dir
+from drivestudio.cli import main
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count
 from drivestudio.outputs import write_text
@@ -47,8 +48,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from drivestudio.cli import main
-
     size = QUICK if args.quick else FULL
     size = replace(size, **{k: v for k, v in (("frames", args.frames), ("iterations", args.iterations),
                                                ("rounds", args.rounds)) if v is not None})

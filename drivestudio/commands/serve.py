@@ -1,6 +1,7 @@
 """drivestudio serve --shm NAME: the world side of the shared-memory loop (TORCS's role), for any world."""
 from __future__ import annotations
 
+from core.files import check_output
 from drivestudio.commands.common import add_world_options, plugin_for, run_dir
 from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.numbers import positive
@@ -27,9 +28,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output
-    from drivestudio.drive_session import run_world_side
-    from shm_bridge.segment import validate_name
+    from drivestudio.drive_session import run_world_side  # lazy: the bridge, only when it runs (not for --help)
+    from shm_bridge.segment import validate_name  # lazy: the bridge, only when it runs (not for --help)
     validate_name(args.shm)
     plugin = plugin_for(args)
     if args.record:

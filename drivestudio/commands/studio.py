@@ -15,7 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from drivestudio.checkpoints import check_device
+from core.signals import Terminated, exit_on_sigterm
+from drivestudio.checkpoints import check_checkpoint_path, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, positive
@@ -47,7 +48,6 @@ def register(sub) -> None:
 
 def _checkpoints(args, plugin) -> dict[str, str]:
     """{name the page shows: file} of every --checkpoint (and --model when it is a file)."""
-    from drivestudio.checkpoints import check_checkpoint_path
     files: list[Path] = []
     for given in args.checkpoint:
         path = Path(given)
@@ -80,12 +80,11 @@ def need_aiohttp() -> None:
 
 def run(args) -> int:
     need_aiohttp()
-    from core.signals import Terminated, exit_on_sigterm
-    from drivestudio.studio.controls import Controls
-    from drivestudio.studio.publisher import Publisher
-    from drivestudio.studio.server import Server, bind, new_token
-    from drivestudio.studio.session import Session
-    from drivestudio.studio.watch import Watch
+    from drivestudio.studio.controls import Controls  # lazy: the studio loads only when it runs
+    from drivestudio.studio.publisher import Publisher  # lazy: pyarrow
+    from drivestudio.studio.server import Server, bind, new_token  # lazy: aiohttp
+    from drivestudio.studio.session import Session  # lazy: pyarrow
+    from drivestudio.studio.watch import Watch  # lazy: pyarrow
 
     check_device(args.device)
     plugin = plugin_for(args)
@@ -137,5 +136,5 @@ def bind_view(args) -> None:
     args.view_socket = None
     if getattr(args, "view", False):
         need_aiohttp()
-        from drivestudio.studio.server import bind
+        from drivestudio.studio.server import bind  # lazy: aiohttp
         args.view_socket = bind(args.view_host or LOCALHOST, args.view_port)

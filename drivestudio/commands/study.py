@@ -1,14 +1,20 @@
 """drivestudio study --out DIR [--quick]: the MultiNet study in one command (drivestudio/worlds/sidewalk/study.py)."""
 from __future__ import annotations
 
+from controller.sidewalk.correction import RULES
+from core.files import check_output_dir
+from core.signals import exit_on_sigterm
 from drivestudio.checkpoints import check_device
+from drivestudio.cli import main
 from drivestudio.commands.common import add_device_option
+from drivestudio.errors import UsageError
 from drivestudio.numbers import count, positive, seed
+from drivestudio.worlds.sidewalk.study import ROUND_LOOPS, Study, StudyConfig, config_from_args
+from sim.sidewalk.errors import PathError
+from sim.sidewalk.paths import load_path
 
 
 def register(sub) -> None:
-    from controller.sidewalk.correction import RULES
-    from drivestudio.worlds.sidewalk.study import StudyConfig
     d = StudyConfig()
     p = sub.add_parser("study", help="the MultiNet study: data, MultiNet and MTL nets, Figures 7 and 8, correction "
                                      "rounds, percentage autonomy",
@@ -50,12 +56,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.files import check_output_dir
-    from drivestudio.errors import UsageError
-    from drivestudio.worlds.sidewalk.study import ROUND_LOOPS, Study, config_from_args
-    from sim.sidewalk.errors import PathError
-    from sim.sidewalk.paths import load_path
-
     check_device(args.device)
     check_output_dir(args.out)
     cfg = config_from_args(args)
@@ -69,9 +69,7 @@ def run(args) -> int:
         if loop in ROUND_LOOPS or loop in [f"procedural:{cfg.seed * 1000 + i}" for i in range(cfg.procedural)]:
             raise UsageError(f"--loops: {loop} is driven by the study's data or rounds; autonomy is measured on "
                              "held-out loops only")
-    from core.signals import exit_on_sigterm
     with exit_on_sigterm():   # a SIGTERM ends the running verbs too, each keeping what it finished
-        from drivestudio.cli import main
         report = Study(cfg, cli=main).run()
     print(f"the study's report is {report}")
     return 0

@@ -3,10 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivestudio.checkpoints import check_device
+from core.files import check_output
+from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, finite, positive, seed
+from perception.memory import check_batch
 
 # The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a
 # family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
@@ -24,6 +26,7 @@ FAMILIES = ("alexnet (AlexNet), vgg16 (VGG-16), gist (GIST + ridge), mobilenet (
             "optionally with earlier frames), z2color (Z2Color: MultiNet and its MTL baseline)")
 
 
+# long but declarative: one add_argument per option, each with its help; splitting it would only scatter them
 def register(sub) -> None:
     lines = FAMILIES   # the registry imports torch: the parser must not (every verb would start seconds slower)
     p = sub.add_parser("train", help="train a model (AlexNet, VGG-16, GIST, Z2Color, ...) on a dataset",
@@ -108,10 +111,9 @@ def check_applies(args, trainer: str) -> None:
 
 
 def check_batch_for(args) -> None:
-    from perception.memory import check_batch
-    from perception.models import make_spec
-    from perception.shards import Dataset
-    from perception.training import history_moment
+    from perception.models import make_spec  # lazy: torch
+    from perception.shards import Dataset  # lazy: pyarrow
+    from perception.training import history_moment  # lazy: torch, pyarrow
 
     decl = Dataset(Path(args.data)).declaration
     moment = history_moment(decl, args.history)
@@ -125,9 +127,8 @@ def _flag(dest: str) -> str:
 
 
 def run(args) -> int:
-    from core.files import check_output
-    from perception.curves import curve_paths
-    from perception.models import family
+    from perception.curves import curve_paths  # lazy: not for --help
+    from perception.models import family  # lazy: torch
 
     check_device(args.device)
     check_output(args.out, (".pt", ".pth", ".ckpt"), "checkpoint")   # before any work, not after the fit
@@ -146,8 +147,7 @@ def run(args) -> int:
     if args.history and not fam.temporal:
         raise UsageError(f"--history goes with a model that reads earlier frames (mobilenet), not {args.model}")
     if args.init is not None:   # opened now: a damaged or foreign checkpoint is refused before any work
-        from drivestudio.checkpoints import check_checkpoint
-        from perception.shards import Dataset
+        from perception.shards import Dataset  # lazy: pyarrow
         if not Path(args.init).is_file():
             raise UsageError(f"--init: no such file: {args.init}")
         check_checkpoint(args.init, Dataset(Path(args.data)).world)
@@ -160,8 +160,8 @@ def run(args) -> int:
     if args.batch_size is not None:   # a batch whose inputs cannot fit is refused before anything is allocated
         check_batch_for(args)
 
-    from perception.train import train
-    from perception.training import config_from
+    from perception.train import train  # lazy: torch, pyarrow
+    from perception.training import config_from  # lazy: torch, pyarrow
 
     train(config_from(**vars(args)))
     return 0

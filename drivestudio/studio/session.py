@@ -223,7 +223,7 @@ class Session:
     def _start_recording(self, name: str | None) -> None:
         if self.recorder is not None:
             return
-        from drivestudio.generate import _software
+        from drivestudio.generate import _software  # lazy: tqdm
         name = name or time.strftime("rec-%Y%m%d-%H%M%S")
         decl = self.world.declaration
         meta = {"config": {"world": decl.name, "studio": {**self._scene(), **self.plugin.describe_run(self.world,

@@ -10,6 +10,7 @@ import sys
 
 from drivestudio.loop import StepRecord
 from drivestudio.studio.controls import Controls
+from drivestudio.studio.protocol import Message
 from drivestudio.studio.publisher import Publisher
 from drivestudio.studio.server import Server, new_token
 from drivestudio.studio.watch import Watch
@@ -45,7 +46,6 @@ class RunView:
 
     def _left(self, client) -> None:
         if self.controls is not None:    # nobody may be left to resume a paused run
-            from drivestudio.studio.protocol import Message
             self.controls.put(Message("resume"))
 
     def __call__(self, rec: StepRecord) -> None:

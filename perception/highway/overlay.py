@@ -77,69 +77,89 @@ def estimate_host(est: np.ndarray, lanes: int, lane_width: float, lanes_left: fl
     m, c = markings(lanes, lane_width), lane_centres(lanes, lane_width)
     cars: list = []
     ds, systems, sources = [], [], []
-
-    in_lane = -est[INDEX["toMarking_ML"]] + est[INDEX["toMarking_MR"]] < IN_LANE_SPAN
-    k = None
-    if in_lane:
-        left_exists = est[INDEX["toMarking_LL"]] > -NEIGHBOUR_LL_RR
-        right_exists = est[INDEX["toMarking_RR"]] < NEIGHBOUR_LL_RR
-        if lanes_left is not None:
-            k, src = int(np.clip(round(lanes_left), 0, lanes - 1)), "lanes_left"
-        elif not left_exists or lanes == 1:
-            k, src = 0, "indicators"
-        elif not right_exists:
-            k, src = lanes - 1, "indicators"
-        elif lanes == 3:
-            k, src = 1, "indicators"
-        else:  # four lanes, both neighbours: lane 1 or lane 2
-            options = [1, 2] if lanes >= 4 else [0]
-            k = min(options, key=lambda i: abs(c[i] - (hint_d if hint_d is not None else 0.0)))
-            src = "ambiguous"
-        ds.append(((est[INDEX["toMarking_ML"]] + m[k]) + (est[INDEX["toMarking_MR"]] + m[k + 1])) / 2)
+    lane = _in_lane(est, lanes, m, c, lanes_left, hint_d, cars)
+    if lane is not None:
+        d, src = lane[1], lane[2]
+        ds.append(d)
         systems.append("in-lane")
         sources.append(src)
-        for name, lane in (("dist_LL", k - 1), ("dist_MM", k), ("dist_RR", k + 1)):
-            if 0 <= lane < lanes and est[INDEX[name]] < ESTIMATE_RANGE:
-                cars.append((float(est[INDEX[name]]), float(c[lane])))
-
-    if abs(est[INDEX["toMarking_M"]]) < MARKING_M:
-        mv = est[INDEX["toMarking_M"]]
-        left_marking, right_marking = est[INDEX["toMarking_L"]] > -EDGE_LR, est[INDEX["toMarking_R"]] < EDGE_LR
-        if not left_marking:
-            j, src = 0, "indicators"
-        elif not right_marking:
-            j, src = lanes, "indicators"
-        elif lanes == 1:  # both edges read as present (a poor estimate): the one nearer its inactive value
-            j = 0 if abs(est[INDEX["toMarking_L"]] + EDGE_LR) < abs(est[INDEX["toMarking_R"]] - EDGE_LR) else 1
-            src = "indicators"
-        elif lanes == 2:
-            j, src = 1, "indicators"
-        elif k is not None:  # the in-lane estimate says which lane; the sign of M says which of its markings
-            j, src = (k if mv <= 0 else k + 1), sources[-1]
-        elif lanes_left is not None:
-            lane = int(np.clip(round(lanes_left), 0, lanes - 1))
-            j, src = (lane if mv <= 0 else lane + 1), "lanes_left"
-        else:
-            inner = list(range(1, lanes))
-            j = min(inner, key=lambda i: abs(m[i] - (hint_d if hint_d is not None else 0.0)))
-            src = "ambiguous"
-        j = int(np.clip(j, 0, lanes))
-        parts = [mv + m[j]]
-        if j >= 1 and left_marking:
-            parts.append(est[INDEX["toMarking_L"]] + m[j - 1])
-        if j + 1 <= lanes and right_marking:
-            parts.append(est[INDEX["toMarking_R"]] + m[j + 1])
-        ds.append(float(np.mean(parts)))
+    marking = _on_marking(est, lanes, m, c, lanes_left, hint_d, lane, cars)
+    if marking is not None:
+        ds.append(marking[0])
         systems.append("on-marking")
-        sources.append(src)
-        for name, lane in (("dist_L", j - 1), ("dist_R", j)):
-            if 0 <= lane < lanes and est[INDEX[name]] < ESTIMATE_RANGE:
-                if not any(abs(cd - c[lane]) < 1e-6 for _, cd in cars):
-                    cars.append((float(est[INDEX[name]]), float(c[lane])))
-
+        sources.append(marking[1])
     system = "both" if len(systems) == 2 else systems[0] if systems else "none"
     source = "ambiguous" if "ambiguous" in sources else sources[0] if sources else "indicators"
     return HostEstimate(float(np.mean(ds)) if ds else None, float(est[INDEX["angle"]]), system, source, cars)
+
+
+def _in_lane(est: np.ndarray, lanes: int, m, c, lanes_left: float | None, hint_d: float | None,
+             cars: list) -> tuple | None:
+    """The in-lane system's estimate, None when it is inactive: (the lane k the car is in, its lateral offset,
+    where the lane came from); the cars it sees ahead (its lane and the two beside) are added to `cars`."""
+    in_lane = -est[INDEX["toMarking_ML"]] + est[INDEX["toMarking_MR"]] < IN_LANE_SPAN
+    if not in_lane:
+        return None
+    left_exists = est[INDEX["toMarking_LL"]] > -NEIGHBOUR_LL_RR
+    right_exists = est[INDEX["toMarking_RR"]] < NEIGHBOUR_LL_RR
+    if lanes_left is not None:
+        k, src = int(np.clip(round(lanes_left), 0, lanes - 1)), "lanes_left"
+    elif not left_exists or lanes == 1:
+        k, src = 0, "indicators"
+    elif not right_exists:
+        k, src = lanes - 1, "indicators"
+    elif lanes == 3:
+        k, src = 1, "indicators"
+    else:  # four lanes, both neighbours: lane 1 or lane 2
+        options = [1, 2] if lanes >= 4 else [0]
+        k = min(options, key=lambda i: abs(c[i] - (hint_d if hint_d is not None else 0.0)))
+        src = "ambiguous"
+    d = ((est[INDEX["toMarking_ML"]] + m[k]) + (est[INDEX["toMarking_MR"]] + m[k + 1])) / 2
+    for name, lane in (("dist_LL", k - 1), ("dist_MM", k), ("dist_RR", k + 1)):
+        if 0 <= lane < lanes and est[INDEX[name]] < ESTIMATE_RANGE:
+            cars.append((float(est[INDEX[name]]), float(c[lane])))
+    return k, d, src
+
+
+def _on_marking(est: np.ndarray, lanes: int, m, c, lanes_left: float | None, hint_d: float | None,
+                in_lane: tuple | None, cars: list) -> tuple[float, str] | None:
+    """The on-marking system's estimate, None when it is inactive: (the car's lateral offset, where the marking
+    came from), the in-lane estimate (`in_lane`, when active) saying which lane's marking it is; the cars it sees
+    ahead in the lanes either side are added to `cars` unless the in-lane system saw them already."""
+    if not abs(est[INDEX["toMarking_M"]]) < MARKING_M:
+        return None
+    mv = est[INDEX["toMarking_M"]]
+    left_marking, right_marking = est[INDEX["toMarking_L"]] > -EDGE_LR, est[INDEX["toMarking_R"]] < EDGE_LR
+    if not left_marking:
+        j, src = 0, "indicators"
+    elif not right_marking:
+        j, src = lanes, "indicators"
+    elif lanes == 1:  # both edges read as present (a poor estimate): the one nearer its inactive value
+        j = 0 if abs(est[INDEX["toMarking_L"]] + EDGE_LR) < abs(est[INDEX["toMarking_R"]] - EDGE_LR) else 1
+        src = "indicators"
+    elif lanes == 2:
+        j, src = 1, "indicators"
+    elif in_lane is not None:  # the in-lane estimate says which lane; the sign of M says which of its markings
+        k = in_lane[0]
+        j, src = (k if mv <= 0 else k + 1), in_lane[2]
+    elif lanes_left is not None:
+        lane = int(np.clip(round(lanes_left), 0, lanes - 1))
+        j, src = (lane if mv <= 0 else lane + 1), "lanes_left"
+    else:
+        inner = list(range(1, lanes))
+        j = min(inner, key=lambda i: abs(m[i] - (hint_d if hint_d is not None else 0.0)))
+        src = "ambiguous"
+    j = int(np.clip(j, 0, lanes))
+    parts = [mv + m[j]]
+    if j >= 1 and left_marking:
+        parts.append(est[INDEX["toMarking_L"]] + m[j - 1])
+    if j + 1 <= lanes and right_marking:
+        parts.append(est[INDEX["toMarking_R"]] + m[j + 1])
+    for name, lane in (("dist_L", j - 1), ("dist_R", j)):
+        if 0 <= lane < lanes and est[INDEX[name]] < ESTIMATE_RANGE:
+            if not any(abs(cd - c[lane]) < 1e-6 for _, cd in cars):
+                cars.append((float(est[INDEX[name]]), float(c[lane])))
+    return float(np.mean(parts)), src
 
 
 # --- drawing -----------------------------------------------------------------------------------------------------

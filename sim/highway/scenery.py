@@ -117,10 +117,22 @@ def _clear_of_road(track: Track, x, y, clearance: float) -> np.ndarray:
 
 
 def _roadside(track: Track, rng: np.random.Generator, s0: float, s1: float, style: dict) -> dict:
+    """The objects and grass patches beside the road between s0 and s1, by material, drawn from `rng` in a fixed
+    order (trees, poles, buildings, guard rails, patches): the same track, style and draws give the same scene."""
     out: dict = {}
-    tpl = style["templates"]
     edge = track.half_width + VERGE_WIDTH
-    # trees on both sides
+    _trees(out, track, rng, s0, s1, style, edge)
+    _poles(out, track, s0, s1, style, edge)
+    _buildings(out, track, rng, s0, s1, style, edge)
+    _guard_rails(out, track, s0, s1, style, edge)
+    _grass_patches(out, track, rng, s0, s1, style, edge)
+    return out
+
+
+def _trees(out: dict, track: Track, rng: np.random.Generator, s0: float, s1: float, style: dict,
+           edge: float) -> None:
+    """Trees on both sides: a trunk and a conical or round crown."""
+    tpl = style["templates"]
     n = rng.poisson(style["tree_density"] * (s1 - s0) * 2)
     if n:
         ts = rng.uniform(s0, s1, n)
@@ -142,13 +154,20 @@ def _roadside(track: Track, rng: np.random.Generator, s0: float, s1: float, styl
                 crown = tpl["ball"].transformed(xi, yi, hi, (r, r, r * 1.1))
                 crown.vertices[:, 2] += trunk_h + r
                 out.setdefault("foliage_b", []).append(crown)
-    # light poles along one side at a fixed spacing: strong motion cues at low cost
+
+
+def _poles(out: dict, track: Track, s0: float, s1: float, style: dict, edge: float) -> None:
+    """Light poles along one side at a fixed spacing: strong motion cues at low cost."""
     if style["poles"]:
         first = math.ceil(s0 / 50.0) * 50.0
         for a in np.arange(first, s1, 50.0):
             x, y, h = track.pose(a, style["pole_side"] * (edge + 0.8))
-            out.setdefault("pole", []).append(tpl["trunk"].transformed(x, y, h, (0.22, 0.22, 8.0)))
-    # buildings, now and then, well back from the road
+            out.setdefault("pole", []).append(style["templates"]["trunk"].transformed(x, y, h, (0.22, 0.22, 8.0)))
+
+
+def _buildings(out: dict, track: Track, rng: np.random.Generator, s0: float, s1: float, style: dict,
+               edge: float) -> None:
+    """Buildings, now and then, well back from the road."""
     if rng.uniform() < style["building_rate"]:
         for _ in range(int(rng.integers(1, 4))):
             a = rng.uniform(s0, s1)
@@ -160,8 +179,11 @@ def _roadside(track: Track, rng: np.random.Generator, s0: float, s1: float, styl
                                         VERGE_WIDTH + 8.0)
             if corners_ok.all():
                 mat = ("building_a", "building_b", "building_c")[int(rng.integers(0, 3))]
-                out.setdefault(mat, []).append(tpl["block"].transformed(x, y, h, (w, dpt, ht)))
-    # guard rails on the outside of bends
+                out.setdefault(mat, []).append(style["templates"]["block"].transformed(x, y, h, (w, dpt, ht)))
+
+
+def _guard_rails(out: dict, track: Track, s0: float, s1: float, style: dict, edge: float) -> None:
+    """Guard rails on the outside of bends."""
     if style["barriers"]:
         for seg, start in zip(track.segments, track.starts):
             a, b = max(s0, start), min(s1, start + seg.length)
@@ -169,7 +191,11 @@ def _roadside(track: Track, rng: np.random.Generator, s0: float, s1: float, styl
                 outer = -1.0 if seg.curvature > 0 else 1.0
                 out.setdefault("barrier", []).append(
                     wall(track, road_samples(track, a, b), outer * (edge + 0.4), 0.8))
-    # grass patches: ground texture that moves past the camera
+
+
+def _grass_patches(out: dict, track: Track, rng: np.random.Generator, s0: float, s1: float, style: dict,
+                   edge: float) -> None:
+    """Grass patches: ground texture that moves past the camera."""
     n = rng.poisson(style["patch_density"] * (s1 - s0))
     for _ in range(n):
         a = rng.uniform(s0, s1 - 4.0)
@@ -179,7 +205,6 @@ def _roadside(track: Track, rng: np.random.Generator, s0: float, s1: float, styl
         ss = np.linspace(a, a + rng.uniform(3.0, 10.0), 3)
         patch = ribbon(track, ss, max(d0, d0 + side * width), min(d0, d0 + side * width), 0.0)
         out.setdefault("patch_dark" if rng.uniform() < 0.5 else "patch_light", []).append(patch)
-    return out
 
 
 def build_scenery(track: Track, seed: int) -> list[Chunk]:

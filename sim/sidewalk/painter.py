@@ -110,9 +110,35 @@ class StereoObjectPainter:
         index per face), e.g. the lead car) into both frames, for a car at (x, y, yaw). Returns the faces filled
         in the left frame."""
         eye, basis = self.camera.basis(x, y, yaw)
-        side = basis[0]
+        idx, dist = self._static_faces(static, chunk_visible, eye, basis)
+        faces, normals, colours = static.faces[idx], static.normals[idx], static.colours[idx]
+        first, piece = static.first[idx], static.piece[idx]
+        if dynamic is not None and len(dynamic[0]):
+            d_faces, d_normals, d_colours, d_centres, d_piece = dynamic
+            faces = np.concatenate([faces, d_faces])
+            normals = np.concatenate([normals, d_normals])
+            colours = np.concatenate([colours, d_colours])
+            first = np.concatenate([first, d_faces[:, 0, :]])
+            piece = np.concatenate([piece, d_piece + len(dist)])
+            dist = np.concatenate([dist, np.linalg.norm(d_centres - eye, axis=1)])
+        cam, colours, piece, facing, across = self._in_view(faces, normals, colours, first, piece, eye, basis)
+        if not len(cam):
+            return 0
+        whole_all = cam[..., 2].min(axis=1) >= self.camera.near
+        order = np.lexsort((np.arange(len(piece)), -dist[piece]))   # far pieces first, stable within a piece
+        n = 0
+        for frame, sign in ((left, 1.0), (right, -1.0)):
+            filled = self._paint_eye(frame, sign, order, facing, across, cam, colours, whole_all)
+            if sign > 0:
+                n = filled
+        return n
+
+    def _static_faces(self, static: PieceSet, chunk_visible: np.ndarray, eye: np.ndarray,
+                      basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The static faces to consider (indices into `static`, at the level of detail of their piece's distance)
+        and every piece's distance from the eye. A piece counts when it is in a visible chunk, within reach, big
+        enough, and its sphere is inside the frustum of an eye."""
         tx, ty, h = self._tx, self._ty, self.half
-        # pieces: in a visible chunk, within reach, big enough, and their sphere inside the frustum of an eye
         pc = (static.centres - eye) @ basis.T
         dist = np.linalg.norm(pc, axis=1)
         r = static.radius
@@ -125,18 +151,16 @@ class StereoObjectPainter:
         piece, lv = static.piece[idx], static.level[idx]
         near_lod = dist[piece] < LOD_DISTANCE
         idx = idx[(lv == 0) | ((lv == 1) & near_lod) | ((lv == 2) & ~near_lod)]
-        faces, normals, colours = static.faces[idx], static.normals[idx], static.colours[idx]
-        first, piece = static.first[idx], static.piece[idx]
-        if dynamic is not None and len(dynamic[0]):
-            d_faces, d_normals, d_colours, d_centres, d_piece = dynamic
-            faces = np.concatenate([faces, d_faces])
-            normals = np.concatenate([normals, d_normals])
-            colours = np.concatenate([colours, d_colours])
-            first = np.concatenate([first, d_faces[:, 0, :]])
-            piece = np.concatenate([piece, d_piece + len(dist)])
-            dist = np.concatenate([dist, np.linalg.norm(d_centres - eye, axis=1)])
+        return idx, dist
+
+    def _in_view(self, faces: np.ndarray, normals: np.ndarray, colours: np.ndarray, first: np.ndarray,
+                 piece: np.ndarray, eye: np.ndarray, basis: np.ndarray) -> tuple:
+        """The faces that face one eye or the other and are not wholly outside one plane of the frustum: (their
+        corners in the centre camera, colours, pieces, how much they face the centre eye, how that changes at
+        either eye)."""
+        h, tx, ty = self.half, self._tx, self._ty
         facing = np.einsum("ij,ij->i", normals, eye - first)      # > 0: faces the centre eye
-        across = normals @ side * h                               # how that changes at either eye
+        across = normals @ basis[0] * h                           # how that changes at either eye
         keep = facing + np.abs(across) > 0                        # faces one eye or the other
         cam = (faces[keep] - eye) @ basis.T                       # (F, 4, 3) in the centre camera: right, up, forward
         x_, y_, z_ = cam[..., 0], cam[..., 1], cam[..., 2]
@@ -144,34 +168,29 @@ class StereoObjectPainter:
         inside = (z_.max(axis=1) > near) & ((x_ - h - z_ * tx).min(axis=1) < 0) & \
             ((-x_ - h - z_ * tx).min(axis=1) < 0) & ((y_ - z_ * ty).min(axis=1) < 0) & \
             ((-y_ - z_ * ty).min(axis=1) < 0)
-        cam, colours, piece = cam[inside], colours[keep][inside], piece[keep][inside]
-        facing, across = facing[keep][inside], across[keep][inside]
-        if not len(cam):
-            return 0
-        whole_all = cam[..., 2].min(axis=1) >= near
-        order = np.lexsort((np.arange(len(piece)), -dist[piece]))   # far pieces first, stable within a piece
-        shift = np.array([h, 0.0, 0.0])
+        return (cam[inside], colours[keep][inside], piece[keep][inside], facing[keep][inside],
+                across[keep][inside])
+
+    def _paint_eye(self, frame: np.ndarray, sign: float, order: np.ndarray, facing: np.ndarray,
+                   across: np.ndarray, cam: np.ndarray, colours: np.ndarray, whole_all: np.ndarray) -> int:
+        """Fill the faces one eye sees (sign 1: left, -1: right), far pieces first; returns how many."""
+        # the eye at eye_c - sign * half * side: n . (eye - p) changes by -sign * half * (n . side)
+        idx = order[(facing - sign * across > 0)[order]]
+        c = cam[idx] + sign * np.array([self.half, 0.0, 0.0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pix = self._pixels(c)
+        polys = list(pix)
+        clip = np.flatnonzero(~whole_all[idx]).tolist()
+        if clip:   # the few faces that cross the near plane: clipped, then projected together
+            pieces_ = [clip_near(p, self.camera.near) for p in c[clip].tolist()]
+            flat = [q for p in pieces_ for q in p]
+            projected = self._pixels(np.array(flat).reshape(-1, 3)) if flat else np.zeros((0, 2), np.int32)
+            at = 0
+            for k, p in zip(clip, pieces_):
+                polys[k] = projected[at:at + len(p)] if len(p) >= 3 else None
+                at += len(p)
         fill, line = cv2.fillConvexPoly, cv2.LINE_8
-        n = 0
-        for frame, sign in ((left, 1.0), (right, -1.0)):
-            # the eye at eye_c - sign * half * side: n . (eye - p) changes by -sign * half * (n . side)
-            idx = order[(facing - sign * across > 0)[order]]
-            c = cam[idx] + sign * shift
-            with np.errstate(divide="ignore", invalid="ignore"):
-                pix = self._pixels(c)
-            polys = list(pix)
-            clip = np.flatnonzero(~whole_all[idx]).tolist()
-            if clip:   # the few faces that cross the near plane: clipped, then projected together
-                pieces_ = [clip_near(p, self.camera.near) for p in c[clip].tolist()]
-                flat = [q for p in pieces_ for q in p]
-                projected = self._pixels(np.array(flat).reshape(-1, 3)) if flat else np.zeros((0, 2), np.int32)
-                at = 0
-                for k, p in zip(clip, pieces_):
-                    polys[k] = projected[at:at + len(p)] if len(p) >= 3 else None
-                    at += len(p)
-            for poly, col in zip(polys, colours[idx].tolist()):
-                if poly is not None:
-                    fill(frame, poly, col, line, SUBPIXEL_BITS)
-            if sign > 0:
-                n = len(idx)
-        return n
+        for poly, col in zip(polys, colours[idx].tolist()):
+            if poly is not None:
+                fill(frame, poly, col, line, SUBPIXEL_BITS)
+        return len(idx)

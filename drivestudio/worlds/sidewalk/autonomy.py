@@ -13,10 +13,17 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
+
+from core.files import check_output
+from core.worlds.sidewalk import SIDEWALK
+from drivestudio import worlds
+from drivestudio.errors import UsageError
+from drivestudio.loop import in_process, run_loop
+from drivestudio.outputs import write_json, write_text
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
 HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
@@ -71,9 +78,7 @@ class Drive:
 
 def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
     """The model drives, the expert corrects under the rule; the run's steps become the dataset out/corrections-k."""
-    from drivestudio import worlds
-    from drivestudio.bridge_loop import supervised
-    from drivestudio.loop import in_process, run_loop
+    from drivestudio.bridge_loop import supervised  # lazy: the bridge, only when it runs (not for --help)
 
     plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
     args = SimpleNamespace(path=run.path, path_width=None, seed=run.seed, mode=run.mode, obstacles=str(run.obstacles),
@@ -122,7 +127,7 @@ class Recording:
     """A run's steps as a one-episode dataset in the format of `generate` (perception/shards.py)."""
 
     def __init__(self, root: Path, decl, run: Drive):
-        from perception.shards import ShardWriter, shard_name
+        from perception.shards import ShardWriter, shard_name  # lazy: pyarrow
         self.root, self.decl, self.run = root, decl, run
         self.writer = ShardWriter(root / shard_name(0), decl)
 
@@ -132,8 +137,8 @@ class Recording:
                         seed=self.run.seed, action=rec.action)
 
     def close(self) -> None:
-        from drivestudio.generate import _software
-        from perception.shards import SPLIT_RULE, ShardInfo, shard_name, write_manifest
+        from drivestudio.generate import _software  # lazy: pyarrow, tqdm
+        from perception.shards import SPLIT_RULE, ShardInfo, shard_name, write_manifest  # lazy: pyarrow
         run = self.run
         written = self.writer.close()
         entry = ShardInfo(shard_name(0), 0, written["frames"], "train", {"path": run.path, "mode": run.mode,
@@ -151,9 +156,9 @@ def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, d
     """Fine-tune `current` (its weights, its kind: MultiNet or the MTL net of one mode) for `epochs` epochs on
     `roots`, the original data first (whose held-out episodes stay the validation set) and the corrections after
     it; returns the new checkpoint."""
-    from perception.checkpoint import load_checkpoint
-    from perception.train import train
-    from perception.training import config_from
+    from perception.checkpoint import load_checkpoint  # lazy: torch
+    from perception.train import train  # lazy: torch, pyarrow
+    from perception.training import config_from  # lazy: torch, pyarrow
 
     options = load_checkpoint(current, world="sidewalk")["spec"]["options"]
     mtl = options.get("mtl")
@@ -166,9 +171,8 @@ def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, d
 def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
     """The datasets a retraining merges the corrections with (--data, else the checkpoint's own), checked before
     round 0 when there will be a retraining: each a sidewalk dataset that is there."""
-    from drivestudio.errors import UsageError
-    from perception.checkpoint import load_checkpoint
-    from perception.shards import Dataset, DatasetError
+    from perception.checkpoint import load_checkpoint  # lazy: torch
+    from perception.shards import Dataset, DatasetError  # lazy: pyarrow
 
     spec = load_checkpoint(model, world="sidewalk")
     roots = [r.strip() for r in (data or ",".join(spec.get("data", {}).get("roots", []))).split(",") if r.strip()]
@@ -192,9 +196,7 @@ def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
 def check_held_out(root: str, options: dict) -> None:
     """The retraining validates on whole episodes of the first dataset, at least one held out per mode the model
     learns (perception/moment_cache.py): each such mode needs two episodes there."""
-    from core.worlds.sidewalk import SIDEWALK
-    from drivestudio.errors import UsageError
-    from perception.shards import Dataset
+    from perception.shards import Dataset  # lazy: pyarrow
     # the retraining's modes: the MTL net's one, else those it was trained on (all the world's when not recorded)
     modes = [options["mtl"]] if options.get("mtl") else list(options.get("modes_trained") or SIDEWALK.modes)
     episodes: dict[str, int] = {}
@@ -216,8 +218,6 @@ def earlier_run(folder: Path) -> list[str]:
 
 def check_outputs(out: Path, rounds: int, video: bool) -> None:
     """Every file the run's rounds write, checked before round 0."""
-    from core.files import check_output
-
     for name in ("autonomy.md", "autonomy.json"):
         check_output(out / name, None, "report file")
     for k in range(rounds):
@@ -232,7 +232,6 @@ def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, roots: list[s
     """`rounds` rounds of drive, merge the corrections, retrain (fine-tuning the last model for `epochs` epochs on
     the original data `roots` plus every round's corrections); returns the autonomy of every round. autonomy.json is
     written after every round with "complete": false until the last (a run cut off says so)."""
-    from dataclasses import replace
 
     results: list[RoundResult] = []
     for k in range(rounds):
@@ -253,7 +252,6 @@ def clause_text(clauses: dict) -> str:
 
 
 def write_summary(out: Path, results: list[RoundResult], mode: str, complete: bool = True) -> str:
-    from drivestudio.outputs import write_json, write_text
     rows = ["| round | model | rule | autonomy % | corrections [s] | elapsed [s] | take-overs | by clause (take-overs, "
             "seconds) | collisions | while correcting | off path [s] | distance [m] |",
             "|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"]

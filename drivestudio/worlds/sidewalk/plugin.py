@@ -10,7 +10,10 @@ import numpy as np
 
 from controller.sidewalk.correction import RULES
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
+from drivestudio.checkpoints import load_predictor_for
+from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
+from drivestudio.loop import in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode, WorldOptions
@@ -18,6 +21,7 @@ from drivestudio.worlds.sidewalk.drivers import CorrectionalDriver, ExpertDriver
 from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
 from drivestudio.worlds.sidewalk.video import Recorder
+from sim.sidewalk.paths import load_path, preset_names
 
 if TYPE_CHECKING:
     from drivestudio.studio.kit import StudioKit
@@ -70,7 +74,7 @@ class Plugin(base.Plugin):
 
     # --- worlds ----------------------------------------------------------------------------------------------------
     def _stereo(self, args):
-        from sim.sidewalk.stereo import StereoConfig, with_size
+        from sim.sidewalk.stereo import StereoConfig, with_size  # lazy: the renderer, not for --help
         return with_size(StereoConfig(), getattr(args, "width", None), getattr(args, "height", None),
                          getattr(args, "fov", None))
 
@@ -81,7 +85,7 @@ class Plugin(base.Plugin):
                              "--renderer egl does not apply to it")
 
     def world(self, args, render: bool):
-        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
+        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # lazy: the renderer, not for --help
         self._check_renderer(args)
         with one_line():
             return SidewalkWorld(SidewalkConfig(path=args.path or DEFAULT_PATH, path_width=args.path_width,
@@ -90,7 +94,6 @@ class Plugin(base.Plugin):
                                                 render=render))
 
     def render(self, args) -> tuple[dict, dict]:
-        from drivestudio.loop import in_process, run_loop
         with self.world(args, render=False) as world:
             if args.warmup:
                 run_loop(world, in_process(ExpertDriver()), args.warmup, render=False, when_lost="recover")
@@ -104,8 +107,6 @@ class Plugin(base.Plugin):
             return ExpertDriver()
         if model == "poor":
             return PoorDriver(getattr(args, "seed", None) or 0)
-        from drivestudio.checkpoints import load_predictor_for
-        from drivestudio.drivers import DirectDriver
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         return DirectDriver(predictor, declaration or self.declaration, smooth=True)
 
@@ -142,16 +143,15 @@ class Plugin(base.Plugin):
 
     # --- overlays ----------------------------------------------------------------------------------------------------
     def overlay(self, images, record: dict, estimate: dict | None, label: str):
-        from drivestudio.worlds.sidewalk.overlay import overlay
+        from drivestudio.worlds.sidewalk.overlay import overlay  # lazy: the drawing, not for --help
         return overlay(images, record, estimate, label)
 
     def overlay_error(self, record: dict, estimate: dict | None) -> float:
-        from drivestudio.worlds.sidewalk.overlay import overlay_error
+        from drivestudio.worlds.sidewalk.overlay import overlay_error  # lazy: as for overlay()
         return overlay_error(record, estimate)
 
     # --- datasets ------------------------------------------------------------------------------------------------
     def generate_options(self, args) -> dict:
-        from sim.sidewalk.paths import load_path
         self._check_renderer(args)
         modes = mode_list(args.modes)
         density = obstacles_value(args.obstacles)
@@ -178,7 +178,6 @@ class Plugin(base.Plugin):
     def path_list(options: dict, seed_: int) -> list[str]:
         if options["paths"]:
             return list(options["paths"])
-        from sim.sidewalk.paths import preset_names
         return preset_names() + [f"procedural:{seed_ * 1000 + i}" for i in range(options["procedural"])]
 
     def plan(self, options: dict, frames: int, episode_frames: int, seed_: int) -> list[Episode]:
@@ -202,8 +201,8 @@ class Plugin(base.Plugin):
         return out
 
     def episode(self, ep: Episode, options: dict, renderer: str):
-        from sim.sidewalk.stereo import StereoConfig
-        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
+        from sim.sidewalk.stereo import StereoConfig  # lazy: the renderer, not for --help
+        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # lazy: as above
         p = ep.params
         stereo = StereoConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         world = SidewalkWorld(SidewalkConfig(path=p["path"], seed=ep.seed, mode=p["mode"],

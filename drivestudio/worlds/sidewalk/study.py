@@ -24,6 +24,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import resource
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -31,6 +34,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
+from drivestudio.errors import RunError
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
 
@@ -87,8 +91,6 @@ def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
     wastes no time in the threads' barriers when the cores are shared (measured on this machine under load: 180
     training moments per CPU-second with one thread, 40-60 with two). A failure ends the study (exit status 1) once
     the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps what it finished)."""
-    import os
-    import subprocess
     threads = max(1, (os.cpu_count() or 1) // parallel)
     env = os.environ | {"OMP_NUM_THREADS": str(threads)}
     logs.mkdir(parents=True, exist_ok=True)
@@ -113,7 +115,6 @@ def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
             proc.terminate()
             proc.wait()
     if failed:
-        from drivestudio.errors import RunError
         raise RunError(f"{', '.join(failed)} failed: see {logs}/{failed[0]}.log")
 
 
@@ -129,8 +130,6 @@ class Study:
             json.loads(self.times_path.read_text()) if self.times_path.exists() else {}
 
     def timed(self, name: str, fn, *args):
-        import resource
-
         def cpu() -> float:   # this process and every finished process it started (verbs, their workers)
             me, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
             return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
@@ -166,7 +165,7 @@ class Study:
 
     def cache(self) -> None:
         """The moments cached at 94 x 168 once, before the trainings that share them start together."""
-        from perception.moment_cache import Moments
+        from perception.moment_cache import Moments  # lazy: torch, pyarrow
         self.timed("cache", Moments, [self.data], (94, 168))
 
     # --- 2. training -------------------------------------------------------------------------------------------------

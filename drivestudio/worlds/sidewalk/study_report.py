@@ -10,6 +10,9 @@ from typing import Any
 
 import numpy as np
 
+from drivestudio.outputs import write_json, write_text
+from drivestudio.worlds.sidewalk.autonomy import clause_text
+
 MODES = ("direct", "follow", "furtive")
 EVALUATED = ("direct", "furtive")                   # follow mode is excluded from the autonomy test, as in the paper
 PAPER: dict[str, Any] = {
@@ -20,7 +23,7 @@ PAPER: dict[str, Any] = {
 
 def mean_ci(values) -> tuple[float, float | None]:
     """Mean and 95 % confidence half-width (Student's t) of some runs' values."""
-    from perception.multinet import t95
+    from perception.multinet import t95  # lazy: torch
     v = np.asarray(values, dtype=np.float64)
     if len(v) < 2:
         return float(v.mean()), None
@@ -38,17 +41,17 @@ PAPER_FIGURE8 = ("the paper's Figure 8 (furtive mode): level in epochs 1-4, Mult
 
 def summary(ckpt: Path) -> list[dict]:
     """Per epoch: means over trials and 95 % half-widths of a training (its checkpoint's record)."""
-    from perception.checkpoint import load_checkpoint
+    from perception.checkpoint import load_checkpoint  # lazy: torch
     return load_checkpoint(ckpt)["train"]["summary"]
 
 
 def figure(path: Path, multi: list[dict], mtl: list[list[dict]], key: str, title: str) -> Path:
     """Validation loss per epoch with 95 % confidence bands: MultiNet (`key` of its summary) against an MTL net,
     or the mean of several (their bands combined as for a mean of independent means)."""
-    import matplotlib
+    import matplotlib  # lazy: matplotlib, only when a figure is drawn
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import MaxNLocator
+    import matplotlib.pyplot as plt  # lazy: as above
+    from matplotlib.ticker import MaxNLocator  # lazy: as above
 
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
     x = [r["epoch"] for r in multi]
@@ -94,7 +97,7 @@ def verdicts(multi: list[dict], mtl: dict) -> dict:
 
 def corrected_moments(root: Path) -> tuple[int, int]:
     """(steps the expert corrected, data moments they add to training) of one recorded autonomy run."""
-    from perception.shards import Dataset
+    from perception.shards import Dataset  # lazy: pyarrow
     labels = Dataset(root).labels(columns=("operation", "correcting"))
     expert = labels["operation"] != 1
     starts = range(1, len(expert) - 10)
@@ -140,7 +143,6 @@ def autonomy_row(results: list[dict]) -> dict:
 
 
 def autonomy_table(autonomy: dict) -> str:
-    from drivestudio.worlds.sidewalk.autonomy import clause_text
     rows = ["| rule | mode | network | autonomy % (mean ± 95 % CI) | paper | runs x s | take-overs | by clause "
             "(take-overs, seconds) | collisions | while correcting | distance [m] |",
             "|---|---|---|---:|---:|---|---:|---|---:|---:|---:|"]
@@ -174,7 +176,7 @@ def rounds_table(study) -> tuple[str, dict]:
 
 
 def sizes(study) -> dict:
-    from perception.checkpoint import load_checkpoint
+    from perception.checkpoint import load_checkpoint  # lazy: torch
     out = {}
     for name in study.nets():
         ckpt = load_checkpoint(study.models / f"{name}.pt")
@@ -192,22 +194,48 @@ def times_table(timings: dict) -> str:
 
 
 def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: float) -> Path:
-    from drivestudio.outputs import write_json, write_text
+    """STUDY.md, study.json and the figures of a finished study; the report is printed too."""
     multi = summary(study.models / "multinet.pt")
     mtl = {m: summary(study.models / f"mtl-{m}.pt") for m in MODES}
     figures(study.out, multi, mtl)
     verdict = verdicts(multi, mtl)
     nets = sizes(study)
     rounds, added = rounds_table(study)
+    data = data_summary(study, nets["multinet"]["moments"], added)
+    wall = sum(v["wall_s"] for v in study.timings.values())
+    cpu = sum(v["cpu_s"] for v in study.timings.values())
+    text = report_text(study, data, multi, mtl, verdict, nets, rounds, autonomy, baseline, seconds)
+    write_text(study.out / "STUDY.md", text)
+    c = study.cfg
+    write_json(study.out / "study.json", {
+        "config": vars(c) | {"loops": list(c.loops)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
+        "verdicts": verdict, "final_networks": final, "sizes": nets,
+        "minutes": round(wall / 60, 1), "cpu_minutes": round(cpu / 60, 1),
+        "timings": study.timings,
+        "autonomy": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
+                     for rule, m in autonomy.items()},
+        "baseline": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
+                     for rule, m in baseline.items()}})
+    print(text)
+    return study.out / "STUDY.md"
+
+
+def data_summary(study, moments: dict, added: dict) -> dict:
+    """What the study's data holds: steps, episodes, data moments, sizes on disk, loops, the corrections added."""
     manifest = json.loads((study.data / "manifest.json").read_text())
-    moments = nets["multinet"]["moments"]
-    data = {"steps": manifest["frames"], "episodes": len(manifest["shards"]), "moments": moments,
+    return {"steps": manifest["frames"], "episodes": len(manifest["shards"]), "moments": moments,
             "shards_mb": round(sum(s["size"] for s in manifest["shards"]) / 1e6, 1),
             "cache_mb": round(folder_mb(study.data / ".moments"), 1),
             "paths": sorted({s["params"]["path"] for s in manifest["shards"]}),
             "corrections_added": added,
             "correctional_share": {n: round(a / (a + moments["train"]), 4) for n, a in added.items()}}
+
+
+def report_text(study, data: dict, multi: list[dict], mtl: dict, verdict: dict, nets: dict, rounds: str,
+                autonomy: dict, baseline: dict, seconds: float) -> str:
+    """STUDY.md: the data, the validation curves, the correction rounds, autonomy, the sizes and the times."""
     c = study.cfg
+    moments, added = data["moments"], data["corrections_added"]
     wall = sum(v["wall_s"] for v in study.timings.values())
     cpu = sum(v["cpu_s"] for v in study.timings.values())
     three = sum(nets[f"mtl-{m}"]["parameters"] for m in MODES)
@@ -261,15 +289,4 @@ nothing else ran on them):
 
 {times_table(study.timings)}
 """
-    write_text(study.out / "STUDY.md", text)
-    write_json(study.out / "study.json", {
-        "config": vars(c) | {"loops": list(c.loops)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
-        "verdicts": verdict, "final_networks": final, "sizes": nets,
-        "minutes": round(wall / 60, 1), "cpu_minutes": round(cpu / 60, 1),
-        "timings": study.timings,
-        "autonomy": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
-                     for rule, m in autonomy.items()},
-        "baseline": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
-                     for rule, m in baseline.items()}})
-    print(text)
-    return study.out / "STUDY.md"
+    return text

@@ -31,9 +31,12 @@ import numpy as np
 from controller.highway import ChenController
 from controller.highway.lookout import LookoutController, safe_gap
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, REAR, REAR_RANGE
+from drivestudio.outputs import VideoWriter
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 from drivestudio.worlds.highway.drivers import act_on, make_controller
+from drivestudio.worlds.highway.overlays import overlay_observation
+from perception.highway.overlay import ERROR_SCALE
 
 if TYPE_CHECKING:
     from sim.highway.world import Observation
@@ -99,7 +102,6 @@ class ShadowController:
 def largest_error(entries: list[Entry]) -> dict | None:
     """The indicator whose error divided by its error-bar scale was largest on average over `entries`
     (None when the estimates are exact: the oracle)."""
-    from perception.highway.overlay import ERROR_SCALE
     rows = [(e.obs.truth, e.estimate) for e in entries if e.estimate is not None and
             np.isfinite(e.estimate[:len(PAPER_INDICATORS)]).all()]
     if not rows:
@@ -252,7 +254,6 @@ class ClipRecorder:
 
     # --- writing ---------------------------------------------------------------------------------------------
     def _write(self, p: _Pending) -> None:
-        from drivestudio.outputs import VideoWriter
         self.pending.remove(p)
         event_entry = p.before[-1]
         t = float(event_entry.obs.t)
@@ -282,7 +283,6 @@ class ClipRecorder:
 
     def frame(self, entry: Entry, t_event: float, info: dict, mark: bool = True) -> np.ndarray:
         """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""
-        from drivestudio.worlds.highway.overlays import overlay_observation
         obs = entry.obs
         truth = obs.truth
         title = (f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, "

@@ -25,8 +25,12 @@ import sys
 
 import numpy as np
 
+from core.files import atomic_write, check_output
+from core.inputs import show_path
+from drivestudio.errors import input_errors
 from drivestudio.numbers import count, finite
 from drivestudio.parsing import Parser
+from drivestudio.worlds.highway.benchmark.suite import parse_suite
 from sim.track import TrackError, load_track
 
 TRACK_SEEDS = (3, 1_000_000)    # procedural track seeds are drawn from [3, 1e6) ...
@@ -85,10 +89,6 @@ def suite_text(name: str, gen: dict) -> str:
 
 
 def main(argv=None) -> int:
-    from core.files import atomic_write, check_output
-    from core.inputs import show_path
-    from drivestudio.errors import input_errors
-    from drivestudio.worlds.highway.benchmark.suite import parse_suite
     ap = Parser(prog="python -m drivestudio.worlds.highway.benchmark.draw",
                  description="Draw a benchmark suite of random routes from a generator seed.")
     ap.add_argument("--seed", type=count(0, 2**32 - 1), required=True, help="the generator seed")

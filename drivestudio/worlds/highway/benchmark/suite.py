@@ -129,7 +129,7 @@ def _route(obj, i: int, base: Path) -> Route:
     except TrackError as e:
         raise SuiteError(f"{where}: track {show(track, 60)}: {e}") from None
     start = number(obj, "start_lane", where, lo=0, hi=tr.lanes - 1, integer=True, default=None, error=SuiteError)
-    from sim.highway.sumo_traffic import MIN_SPACING
+    from sim.highway.sumo_traffic import MIN_SPACING  # lazy: the SUMO traffic module (trimesh, PIL)
     capacity = int(tr.lanes * tr.length / MIN_SPACING)
     if cars > capacity:
         raise SuiteError(f"{where}: {cars} cars do not fit on track {show(track, 60)} with {tr.lanes} lane(s) "
