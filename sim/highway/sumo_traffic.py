@@ -39,18 +39,26 @@ DRIVER_STYLES = (
 )
 
 
+def car_count_problem(track: Track, n_cars) -> str | None:
+    """Why `n_cars` AI cars cannot drive on `track` (None: they can), checked before SUMO starts."""
+    if isinstance(n_cars, bool) or not isinstance(n_cars, (int, np.integer)) or not 0 <= n_cars <= MAX_CARS:
+        return f"the number of AI cars must be an integer from 0 to {MAX_CARS}, got {n_cars!r}"
+    capacity = int(track.lanes * track.length / MIN_SPACING)
+    if n_cars > capacity:
+        return (f"{n_cars} cars do not fit on track '{track.name}' with {track.lanes} lane(s) "
+                f"({track.length:.0f} m): at most {capacity}")
+    return None
+
+
 class SumoTraffic:
     _started = False
     _conn: SumoConnection | None = None
 
     def __init__(self, track: Track, n_cars: int, seed: int = 0, dt: float = 0.1, ego: np.ndarray | None = None,
                  ego_speed: float = 0.0, transport: str = "auto"):
-        if isinstance(n_cars, bool) or not isinstance(n_cars, (int, np.integer)) or not 0 <= n_cars <= MAX_CARS:
-            raise TrafficError(f"the number of AI cars must be an integer from 0 to {MAX_CARS}, got {n_cars!r}")
-        capacity = int(track.lanes * track.length / MIN_SPACING)
-        if n_cars > capacity:
-            raise TrafficError(f"{n_cars} cars do not fit on track '{track.name}' with {track.lanes} lane(s) "
-                               f"({track.length:.0f} m): at most {capacity}")
+        problem = car_count_problem(track, n_cars)
+        if problem:
+            raise TrafficError(problem)
         if transport not in TRANSPORTS:
             raise TrafficError(f"unknown SUMO transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
         self.track, self.n_cars, self.seed, self.dt = track, int(n_cars), int(seed), float(dt)
