@@ -6,10 +6,12 @@ canonical order (docs/affordances.md) then the host car's speed [m/s], within BO
 unless render() asks);
 "both", a Dict of the frame ("front") and the affordances ("affordances").
 Action: [steer, accel, brake] in [-1, 1] x [0, 1] x [0, 1] (steer positive left).
-Reward, per step, the sum of three terms, also in info["reward_terms"]:
+Reward, per step, the sum of four terms, also in info["reward_terms"]:
   progress   metres driven along the track in the step (negative when driving backwards)
   collision  -50 on every step the host car touches another car
   off_road   -5 on every step its centre is beyond a road edge
+  lost       -50 on the step the car is lost off the road (the episode ends: as costly as a collision, so that
+             leaving the road for good is never a way out of the off_road term)
 An episode ends (terminated) on a collision or when the car is lost off the road (6 m beyond the edge); it is
 truncated after `max_steps`. info carries the ground truth: the 14 indicators by name, `indicators` as an array in
 canonical order, lanes_left, lanes, speed, the poses, collision, off_road and t.
@@ -34,6 +36,7 @@ from sim.track import load_track
 ENV = "drivestudio/Highway-v0"
 COLLISION_PENALTY = 50.0
 OFF_ROAD_PENALTY = 5.0
+LOST_PENALTY = 50.0
 MAX_LANES = 4
 MAX_START_SPEED = 60.0   # [m/s] as the CLI's --start-speed
 MAX_EPISODE = 1_000_000  # steps
@@ -126,8 +129,9 @@ class HighwayEnv(gym.Env):
         self._last = obs
         self._steps += 1
         terms = {"progress": float(self._world.track.gap(s_before, self._world.ego.s)),
-                 "collision": -COLLISION_PENALTY * obs.collision, "off_road": -OFF_ROAD_PENALTY * obs.off_road}
-        reward = terms["progress"] + terms["collision"] + terms["off_road"]
+                 "collision": -COLLISION_PENALTY * obs.collision, "off_road": -OFF_ROAD_PENALTY * obs.off_road,
+                 "lost": -LOST_PENALTY * obs.lost}
+        reward = sum(terms.values())
         terminated = bool(obs.collision or obs.lost)
         truncated = self._steps >= self.max_steps
         info = self._info(obs)

@@ -89,6 +89,12 @@ def test_highway_reward_terms():
                 break
         assert info["off_road"] and info["reward_terms"]["off_road"] == -5.0
         assert reward == pytest.approx(sum(info["reward_terms"].values()))
+        assert info["reward_terms"]["lost"] == 0.0
+        for _ in range(200):                                               # on, until lost: the episode ends
+            _, reward, terminated, _, info = env.step(np.array([1.0, 0.3, 0.0], np.float32))
+            if terminated:
+                break
+        assert terminated and info["reward_terms"]["lost"] == -50.0 and info["reward_terms"]["off_road"] == -5.0
     finally:
         env.close()
 

@@ -167,9 +167,12 @@ _PREDICTORS: dict = {}
 
 def driver_for(model: ModelSpec, device: str):
     """The driver `drive --model` makes: the Chen controller on the truth (oracle), the lookout controller on the
-    truth (oracle-extended) or the Chen controller on a checkpoint's estimates, smoothed as the model asks. A worker
-    keeps each checkpoint's predictor for its next routes."""
+    truth (oracle-extended), the Chen controller on a checkpoint's estimates, smoothed as the model asks, or a policy
+    on the exact affordances. A worker keeps each checkpoint's predictor for its next routes."""
     from drivestudio.worlds.highway.drivers import ChenDriver
+    if model.policy:
+        from drivestudio.worlds.highway.policy import PolicyDriver
+        return PolicyDriver(str(model.path), device)
     if model.path is None:
         return ChenDriver(None, lookout=model.lookout)
     key = (model.path, device)
