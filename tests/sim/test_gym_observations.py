@@ -113,3 +113,37 @@ def test_sidewalk_reward_terms():
         assert info["reward_terms"]["progress"] < 0
     finally:
         env.close()
+
+
+def test_bounds_hold_the_values_of_normal_driving_unclipped():
+    # the Box bounds clip only a car far off its road: an oracle lap on four lanes and a sidewalk run never touch them
+    from controller.highway import ChenController
+    from core.worlds.highway import HIGHWAY
+    from core.worlds.sidewalk import SIDEWALK
+    from sim.highway.gym_env import AFFORDANCES as HIGHWAY_VIEW
+    from sim.sidewalk.gym_env import AFFORDANCES as SIDEWALK_VIEW
+    env = gym.make("drivestudio/Highway-v0", track="hairpins", lanes=4, cars=30, observation="affordances")
+    try:
+        _, info = env.reset(seed=0)
+        ctrl = ChenController(4)
+        for _ in range(300):
+            a = ctrl.act(info["indicators"], info["speed"])
+            _, _, terminated, _, info = env.step(np.array([a.steer, a.accel, a.brake], np.float32))
+            raw = np.array([info[n] for n in HIGHWAY.observable])
+            assert (raw >= HIGHWAY_VIEW.low).all() and (raw <= HIGHWAY_VIEW.high).all()
+            if terminated:   # a collision in dense traffic: drive on in the next episode
+                _, info = env.reset()
+                ctrl = ChenController(4)
+    finally:
+        env.close()
+    env = gym.make("drivestudio/Sidewalk-v0", mode="follow", observation="affordances")
+    try:
+        env.reset(seed=0)
+        for k in range(300):
+            _, _, terminated, _, info = env.step(np.array([0.5 + 0.1 * np.sin(k / 20), 0.75], np.float32))
+            raw = SIDEWALK.values(info["record"], SIDEWALK.observable)
+            assert (raw >= SIDEWALK_VIEW.low).all() and (raw <= SIDEWALK_VIEW.high).all()
+            if terminated:
+                break
+    finally:
+        env.close()

@@ -4,12 +4,14 @@
     drivestudio benchmark --model runs/ppo-highway.zip          # its row of the leaderboard, beside the oracle's
 
 PPO on drivestudio/Highway-v0's affordance observation (the 14 indicators and the speed: no pixels, so nothing is
-rendered and a world steps about 2,000 times a second), the environment's own reward (docs/gymnasium.md), actions
-rescaled to [-1, 1] (gymnasium.wrappers.RescaleAction: a Gaussian policy centred on 0 then presses the pedals half
-the time, not never). Each episode drives another of the tracks `generate` records datasets on (the presets and
-procedural:0-2, 1 to 3 lanes, 12 to 30 cars), none of the benchmark's default routes. Training stops after
+rendered and a world steps about 2,000 times a second) and the environment's own reward (docs/gymnasium.md), in the
+world's own action space (Stable-Baselines3 clips the Gaussian policy's samples into it: a first policy coasts,
+pressing a pedal half the time). Each episode drives another of the tracks `generate` records datasets on (the
+presets and procedural:0-2, 1 to 3 lanes, 12 to 30 cars), none of the benchmark's default routes, and ends when the
+car has been off the road for OFF_ROAD_LIMIT, with the environment's `lost` term: a car standing beside the road
+would otherwise collect the off_road term for the rest of a long episode and teach nothing. Training stops after
 --minutes of wall time or --steps, whichever comes first, and the model is saved (a .zip that
-`drivestudio benchmark --model` and `drivestudio drive --model` accept).
+`drivestudio benchmark --model` accepts).
 """
 from __future__ import annotations
 
@@ -22,13 +24,14 @@ import gymnasium as gym
 import numpy as np
 
 import sim  # noqa: F401  registers drivestudio/Highway-v0
-from core.worlds.highway import HIGHWAY
+from sim.highway.gym_env import LOST_PENALTY
 from sim.track import preset_names
 
 TRACKS = tuple(preset_names()) + ("procedural:0", "procedural:1", "procedural:2")
 LANES = (1, 3)        # lane counts drawn per episode, inclusive (generate's default plan: 1, 2, 3)
 CARS = (12, 30)       # AI cars drawn per episode, inclusive (generate's default: 12-30)
 EPISODE_STEPS = 1000  # 100 simulated seconds
+OFF_ROAD_LIMIT = 20   # steps (2 s) off the road that end a training episode
 # PPO as Stable-Baselines3's defaults for continuous control, with a smaller network (15 inputs) and a larger
 # batch, which keeps the update cheap next to the simulation
 ROLLOUT = 2048        # steps per update
@@ -45,6 +48,7 @@ class VariedHighway(gym.Env):
         self._rng = np.random.default_rng(seed)
         self._max_steps = max_steps
         self._env: gym.Env | None = None
+        self._off_road = 0
         probe = gym.make("drivestudio/Highway-v0", observation="affordances", cars=0)
         self.observation_space, self.action_space = probe.observation_space, probe.action_space
         probe.close()
@@ -64,11 +68,18 @@ class VariedHighway(gym.Env):
                 break
             except ValueError:
                 continue
+        self._off_road = 0
         return self._env.reset(seed=int(self._rng.integers(0, 2**31 - 1)))
 
     def step(self, action):
         assert self._env is not None, "call reset() first"
-        return self._env.step(action)
+        obs, reward, terminated, truncated, info = self._env.step(action)
+        self._off_road = self._off_road + 1 if info["off_road"] else 0
+        if self._off_road >= OFF_ROAD_LIMIT and not terminated:
+            reward = float(reward) - LOST_PENALTY   # as the environment scores a car lost off the road
+            info["reward_terms"]["lost"] = -LOST_PENALTY
+            terminated = True
+        return obs, reward, terminated, truncated, info
 
     def render(self):
         return None if self._env is None else self._env.render()
@@ -80,10 +91,8 @@ class VariedHighway(gym.Env):
 
 
 def make_env(seed: int) -> gym.Env:
-    """The training environment: VariedHighway with actions in [-1, 1], episode statistics recorded."""
-    env = VariedHighway(seed)
-    one = np.ones(len(HIGHWAY.action), np.float32)
-    return gym.wrappers.RecordEpisodeStatistics(gym.wrappers.RescaleAction(env, -one, one))
+    """The training environment: VariedHighway, episode statistics recorded."""
+    return gym.wrappers.RecordEpisodeStatistics(VariedHighway(seed))
 
 
 def train(minutes: float, steps: int, out: Path, seed: int = 0, log=print) -> dict:
