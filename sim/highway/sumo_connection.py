@@ -11,6 +11,7 @@ A TraCI process is ended when its traffic closes, when its traffic is garbage-co
 """
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import tempfile
@@ -55,9 +56,12 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _end_process(conn, proc: subprocess.Popen) -> None:
+def _end_process(conn, proc: subprocess.Popen, owner: int) -> None:
     """Close the TraCI connection (sumo then exits by itself); kill sumo if it does not. Runs once: at close,
-    at garbage collection or at interpreter exit, whichever comes first."""
+    at garbage collection or at interpreter exit, whichever comes first; and only in the process that started it
+    (a forked child, an async vector env's worker, must not close its parent's socket)."""
+    if os.getpid() != owner:
+        return
     try:
         conn.close(wait=False)
     except Exception:   # a sumo that died already: nothing to say goodbye to
@@ -69,9 +73,11 @@ def _end_process(conn, proc: subprocess.Popen) -> None:
         proc.wait()
 
 
-def _end_libsumo(api) -> None:
-    """Close libsumo's simulation and free the slot. Runs once, as _end_process."""
+def _end_libsumo(api, owner: int) -> None:
+    """Close libsumo's simulation and free the slot. Runs once, as _end_process, in the process that started it."""
     global _libsumo_busy
+    if os.getpid() != owner:
+        return
     try:
         api.close()
     except Exception:   # libsumo raises when SUMO already ended; closing is all we wanted
@@ -99,10 +105,10 @@ class SumoConnection:
             self.api = _load_libsumo()
             self.api.start(args)   # raises on a bad command line; nothing is held then
             _libsumo_busy = True
-            self._finalizer = weakref.finalize(self, _end_libsumo, self.api)
+            self._finalizer = weakref.finalize(self, _end_libsumo, self.api, os.getpid())
         else:
             self.api, proc = self._start_process(args)
-            self._finalizer = weakref.finalize(self, _end_process, self.api, proc)
+            self._finalizer = weakref.finalize(self, _end_process, self.api, proc, os.getpid())
             self.pid = proc.pid
 
     @staticmethod
