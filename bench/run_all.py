@@ -66,9 +66,11 @@ def rows_traffic(j: dict) -> list[tuple]:
 
 def rows_gym_worlds(j: dict) -> list[tuple]:
     one = j["one_world"]
-    before = f"; {j['base']}: {_f(one['base'])}, ratio {one['ratio']:.2f}" if j.get("base") else ""
+    before = (f"; {j['base']}: {_f(one['base'])}, ratio {one['ratio']:.2f} (per CPU second {one['ratio_cpu']:.2f})"
+              if j.get("base") else "")
     out = [("Gymnasium steps/s, drivestudio/Highway-v0 (oval, 3 lanes, 12 cars, a 280x210 frame, Chen on the truth), "
-            "one world", f"**{_f(one['this'])} steps/s** (median of {j['rounds']}){before}",
+            "one world", f"**{_f(one['this'])} steps/s** (median of {j['rounds']}; {_f(one['this_cpu'])} per CPU "
+            f"second){before}",
             "not below the single-world speed before many worlds (issue 24)"),
            ("same, affordance observation (no frame)", f"{_f(j['affordances'])} steps/s", "")]
     for m in j["many"]:
