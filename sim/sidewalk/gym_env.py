@@ -101,7 +101,7 @@ class SidewalkEnv(gym.Env):
         super().reset(seed=seed)
         if seed is None:
             seed = int(self.np_random.integers(0, 2**31 - 1))
-        mode = opt.check_choice(ENV, "reset options' mode", (options or {}).get("mode", self.mode), MODES)
+        mode = opt.check_choice(ENV, "mode (of reset's options)", (options or {}).get("mode", self.mode), MODES)
         self.close()
         self._world = SidewalkWorld(SidewalkConfig(path=self.path, seed=seed, mode=mode, obstacles=self.obstacles,
                                                    stereo=self.stereo, render=self._render))
