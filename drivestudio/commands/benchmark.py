@@ -81,9 +81,6 @@ def run(args) -> int:
             raise UsageError("--routes names no route")
         suite = suite.select(names)
     models = check_models(args.model)
-    if args.shm and any(m.policy for m in models):
-        raise UsageError("--shm: a policy row drives in process (the bridge's driver side loads checkpoints); "
-                         "leave out --shm to benchmark it")
     out = run_dir(args.out, "benchmark")
     if args.shm:   # segments of earlier benchmarks whose whole process group was killed (nobody left to clean up)
         from drivestudio.worlds.highway.benchmark.route import SHM_PREFIX

@@ -4,6 +4,7 @@ sim/highway/gym_env.py), or any Python callable from that observation to an acti
 
     drivestudio benchmark --model runs/ppo-highway.zip
     drivestudio benchmark --model policy:mypackage.drivers:careful
+    drivestudio drive --model runs/ppo-highway.zip
 
 The driver builds the observation from the truth record exactly as the environment does (one code path,
 sim/gym_options.py's Affordances), so a policy drives the benchmark's routes on what it was trained on. A model
