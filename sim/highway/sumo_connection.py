@@ -20,6 +20,8 @@ import weakref
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sim.highway.errors import TrafficError
 
 TRANSPORTS = ("auto", "libsumo", "traci")
@@ -97,6 +99,7 @@ class SumoConnection:
         if transport == "auto":
             self.transport = "traci" if _libsumo_busy else "libsumo"
         self.pid: int | None = None
+        self._subscribed: set[str] = set()
         self._finalizer: weakref.finalize[..., Any]
         if self.transport == "libsumo":
             if _libsumo_busy:
@@ -142,6 +145,24 @@ class SumoConnection:
 
     def close(self) -> None:
         self._finalizer()   # idempotent: a finalizer runs at most once
+
+    def car_readings(self, ids: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(front bumper positions (n, 2), compass angles [deg], speeds [m/s]) of vehicles `ids`, all present.
+        Over TraCI each getter is a socket round trip (36 for 12 cars), so these come by subscription: SUMO sends
+        every subscribed value with its step's answer, and a car is subscribed once, when first read. libsumo's
+        getters are plain calls, cheaper than subscriptions' bookkeeping: it reads them one by one."""
+        v = self.api.vehicle
+        if self.transport == "libsumo":
+            return (np.array([v.getPosition(i) for i in ids]), np.array([v.getAngle(i) for i in ids]),
+                    np.array([v.getSpeed(i) for i in ids]))
+        import traci.constants as tc  # lazy, as traci
+        for i in ids:
+            if i not in self._subscribed:
+                v.subscribe(i, (tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED))
+                self._subscribed.add(i)
+        got = v.getAllSubscriptionResults()
+        return (np.array([got[i][tc.VAR_POSITION] for i in ids]), np.array([got[i][tc.VAR_ANGLE] for i in ids]),
+                np.array([got[i][tc.VAR_SPEED] for i in ids]))
 
 
 def libsumo_free() -> bool:

@@ -210,9 +210,9 @@ class SumoTraffic:
         if not present_idx:
             return CarStates.empty()
         idx = np.array(present_idx)
-        front = np.array([ls.vehicle.getPosition(self._ids[i]) for i in idx])
-        yaw = np.radians(90.0 - np.array([ls.vehicle.getAngle(self._ids[i]) for i in idx]))
-        speed = np.array([ls.vehicle.getSpeed(self._ids[i]) for i in idx])
+        assert self._conn is not None, "SUMO traffic is closed"
+        front, angle, speed = self._conn.car_readings([self._ids[i] for i in idx])
+        yaw = np.radians(90.0 - angle)
         half = self.length[idx] / 2
         x, y = front[:, 0] - half * np.cos(yaw), front[:, 1] - half * np.sin(yaw)
         hint = None if self._last_s is None else self._last_s[idx]
