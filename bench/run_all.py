@@ -64,6 +64,21 @@ def rows_traffic(j: dict) -> list[tuple]:
              ">= 1,000 steps/s" if r["cars"] == 12 else "") for r in j["runs"]]
 
 
+def rows_gym_worlds(j: dict) -> list[tuple]:
+    one = j["one_world"]
+    before = (f"; {j['base']}: {_f(one['base'])}, ratio {one['ratio']:.2f} (per CPU second {one['ratio_cpu']:.2f})"
+              if j.get("base") else "")
+    out = [("Gymnasium steps/s, drivestudio/Highway-v0 (oval, 3 lanes, 12 cars, a 280x210 frame, Chen on the truth), "
+            "one world", f"**{_f(one['this'])} steps/s** (median of {j['rounds']}; {_f(one['this_cpu'])} per CPU "
+            f"second){before}",
+            "not below the single-world speed before many worlds (issue 24)"),
+           ("same, affordance observation (no frame)", f"{_f(j['affordances'])} steps/s", "")]
+    for m in j["many"]:
+        out.append((f"same, {m['worlds']} worlds in one process (1 libsumo, {m['worlds'] - 1} TraCI), all together",
+                    f"{_f(m['steps_per_s'])} steps/s", ""))
+    return out
+
+
 def _rows_bridge(j: dict, target: str) -> list[tuple]:
     lock, free = j["lockstep"], j.get("free_running")
     images = " + ".join("x".join(str(v) for v in (s[1], s[0], s[2])) for s in lock["images"])
@@ -219,6 +234,8 @@ class Bench:
 
 BENCHES = [
     Bench("render", "bench_render.py", ["--frames", "2000"], ["--frames", "60"], rows_render),
+    Bench("gym-worlds", "bench_gym_worlds.py", ["--rounds", "5", "--steps", "300"], ["--rounds", "1", "--steps", "20"],
+          rows_gym_worlds),
     Bench("traffic", "bench_traffic.py", ["--cars", "12", "50", "100", "--seconds", "300"],
           ["--cars", "12", "--seconds", "20"], rows_traffic),
     Bench("bridge", "bench_bridge.py", ["--trips", "5000"],

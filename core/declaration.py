@@ -142,7 +142,9 @@ class WorldDeclaration:
     (typed by kind); every label is also a truth field of the same name. columns: what datasets record besides
     (strings, lists). action: the driver's command, in order. modes: behavioural modes (shared flag `behaviour` on
     the bridge; `mode_field` of the truth record holds the index). targets: the labels a model learns by default.
-    label_sets: named lists of labels a model may learn instead (`train --labels NAME`).
+    label_sets: named lists of labels a model may learn instead (`train --labels NAME`). observable: the truth
+    fields a driving agent may read (the Gymnasium environments' affordance observation): what the car could sense
+    of its surroundings and itself, not the map position nor the outcomes its reward scores.
     """
 
     name: str
@@ -158,6 +160,7 @@ class WorldDeclaration:
     moment: Moment = Moment()
     targets: tuple[str, ...] = ()
     label_sets: tuple[tuple[str, tuple[str, ...]], ...] = ()   # named target lists: (("paper", (...)), ...)
+    observable: tuple[str, ...] = ()              # truth fields an agent may observe (the affordance observation)
     version: int = 1                              # bump when the meaning of a field changes
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -201,6 +204,10 @@ class WorldDeclaration:
             if not names or unknown:
                 raise DeclarationError(f"world {self.name!r}: label set {set_name!r} names no label or unknown "
                                        f"labels {unknown}")
+        unknown = [n for n in self.observable if n not in index]
+        if unknown or len(set(self.observable)) != len(self.observable):
+            raise DeclarationError(f"world {self.name!r}: observable fields {unknown or list(self.observable)} are "
+                                   "not distinct fields of the truth record")
         if self.modes and (self.mode_field is None or self.mode_field not in index):
             raise DeclarationError(f"world {self.name!r}: behavioural modes need a mode_field of the truth record")
         if not self.moment.instants or self.moment.horizon < 0 or max(self.moment.instants) > 0:
@@ -376,7 +383,8 @@ class WorldDeclaration:
                 "mode_field": self.mode_field, "moment": {"instants": list(self.moment.instants),
                                                           "horizon": self.moment.horizon},
                 "targets": list(self.targets),
-                **({"label_sets": {n: list(v) for n, v in self.label_sets}} if self.label_sets else {})}
+                **({"label_sets": {n: list(v) for n, v in self.label_sets}} if self.label_sets else {}),
+                **({"observable": list(self.observable)} if self.observable else {})}
 
     @classmethod
     def from_json(cls, obj: Mapping) -> WorldDeclaration:
@@ -397,7 +405,8 @@ class WorldDeclaration:
                        moment=Moment(tuple(obj.get("moment", {}).get("instants", (0,))),
                                      int(obj.get("moment", {}).get("horizon", 0))),
                        targets=tuple(obj.get("targets", ())),
-                       label_sets=tuple((str(n), tuple(v)) for n, v in dict(obj.get("label_sets", {})).items()))
+                       label_sets=tuple((str(n), tuple(v)) for n, v in dict(obj.get("label_sets", {})).items()),
+                       observable=tuple(obj.get("observable", ())))
         except (KeyError, TypeError, ValueError) as e:
             if isinstance(e, DeclarationError):
                 raise
@@ -407,6 +416,7 @@ class WorldDeclaration:
         """A short digest of everything that decides what the data means (titles and prose excluded)."""
         obj = self.to_json()
         obj.pop("title")
+        obj.pop("observable", None)   # what an agent may read does not change what recorded data means
         for group in ("cameras", "labels", "truth", "action", "columns"):
             for item in obj[group]:
                 item.pop("meaning", None)

@@ -8,6 +8,7 @@ import numpy as np
 
 from core.worlds.highway import FRAME
 
+RENDERERS = ("tiny", "egl")   # how sim/highway/bullet_scene.py draws: TinyRenderer or the EGL plugin
 
 @dataclass(frozen=True)
 class CameraConfig:

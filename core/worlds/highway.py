@@ -191,6 +191,8 @@ HIGHWAY = WorldDeclaration(
              Column("cars", "f32[5]*", "other cars: x, y, yaw, s, d")),
     targets=PAPER_INDICATORS,
     label_sets=tuple(LABEL_SETS.items()),
+    # an agent reads the 14 indicators and its own speedometer, as the Chen controller does (docs/gymnasium.md)
+    observable=INDICATORS + ("speed",),
 )
 
 # The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came

@@ -78,4 +78,9 @@ SIDEWALK = WorldDeclaration(
     mode_field="behaviour",
     moment=Moment(instants=(-1, 0), horizon=HORIZON),
     targets=("steer", "motor"),
+    # what the car could sense of itself and its surroundings (docs/gymnasium.md); not its map position (x, y, yaw,
+    # s), the recording's bookkeeping (operation, correcting) nor the outcomes the reward scores (collision, off_path)
+    observable=("steer", "motor", "behaviour", "speed", "d", "heading", "path_width", "curvature", "curvature_ahead",
+                "border_left", "border_right", "obstacle_gap", "obstacle_d", "obstacle_width", "lead_gap", "lead_d",
+                "lead_speed", "obstacle_near"),
 )

@@ -4,7 +4,8 @@
     drive --model M [--world W ...] --seconds S            world and driver as two processes over the bridge
     drive ... --in-process                                 the same loop in one process (no bridge)
 
-M is one of the world's own drivers (highway: oracle; sidewalk: expert) or a checkpoint of that world.
+M is one of the world's own drivers (highway: oracle; sidewalk: expert), a checkpoint of that world, or (highway)
+a trained policy: a saved Stable-Baselines3 .zip or policy:MODULE:NAME (docs/gymnasium.md).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from core.files import check_output
+from drivestudio import worlds
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.commands.studio import add_view_options, bind_view
@@ -54,7 +56,8 @@ def run(args) -> int:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name  # lazy: the bridge, only when it runs (not for --help)
         validate_name(args.shm)
-        if args.model is not None and Path(args.model).is_file():   # a checkpoint: checked before attaching
+        if args.model is not None and Path(args.model).is_file() and \
+                not any(p.own_model(args.model) for p in worlds.all_plugins()):   # a checkpoint: checked now
             check_checkpoint(args.model, None)
         return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
     if args.attach_wait is not None:
@@ -63,8 +66,7 @@ def run(args) -> int:
     args.model = args.model or plugin.expert_names[0]
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    if args.model not in plugin.expert_names:
-        check_checkpoint(args.model, plugin.name)   # before the world starts: one line, exit 2
+    plugin.check_model(args.model)   # before the world starts: one line, exit 2
     bind_view(args)
     out = run_dir(args.out, "drive")
     if args.in_process:

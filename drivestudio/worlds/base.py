@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 from core.declaration import WorldDeclaration
-from drivestudio.checkpoints import load_predictor_for
+from drivestudio.checkpoints import check_checkpoint, load_predictor_for
 from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Metrics, StepRecord, Supervisor, World
@@ -83,6 +83,17 @@ class Plugin:
     def render(self, args) -> tuple[dict, dict]:
         """({camera: RGB image}, truth as JSON-able dict) of the scene the options describe (drivestudio render)."""
         raise UsageError(f"the {self.name} world cannot render from options")
+
+    def own_model(self, model: str) -> bool:
+        """Whether --model MODEL names a driver this world makes itself, not a checkpoint (highway: a trained
+        policy, drivestudio/worlds/highway/policy.py); the generic checkpoint checks then leave it to check_model."""
+        return False
+
+    def check_model(self, model: str) -> None:
+        """Check --model MODEL before any world starts: one of expert_names, a driver of own_model, or a checkpoint
+        of this world; else one line and exit status 2."""
+        if model not in self.expert_names:
+            check_checkpoint(model, self.name)
 
     def driver(self, model: str, args, declaration: WorldDeclaration | None = None) -> Driver:
         """The driver for --model MODEL: one of expert_names or a checkpoint of this world. By default a

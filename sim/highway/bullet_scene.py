@@ -14,6 +14,7 @@ import os
 import shutil
 import sys
 import tempfile
+import weakref
 from pathlib import Path
 
 import cv2
@@ -44,13 +45,12 @@ with _quiet():
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
 
-from sim.camera import CameraConfig  # noqa: E402  (below pybullet's quietened import, which must come first)
+from sim.camera import RENDERERS, CameraConfig  # noqa: E402  (below pybullet's quietened import, which must come first)
 from sim.highway.car_models import PAINTS, PART_COLOURS, car_models  # noqa: E402
 from sim.highway.errors import RendererError  # noqa: E402
 from sim.highway.mesh import MeshData  # noqa: E402
 from sim.scene import Chunk, Look  # noqa: E402
 
-RENDERERS = ("tiny", "egl")
 CAR_PARTS = ("paint", "glass", "tyres", "taillights", "headlights")  # base first, then links
 
 
@@ -64,6 +64,23 @@ def egl_available() -> bool:
     return _egl_plugin_file() is not None
 
 
+class _Held:
+    """What a scene holds outside Python: its pybullet client, the EGL plugin, a temporary folder. Released once,
+    by close() or else by a weakref.finalize: at garbage collection or, at the latest, at interpreter exit, before
+    modules are torn down (pybullet's own BulletClient.__del__ would run after, and fail noisily)."""
+
+    def __init__(self, bc):
+        self.bc, self.plugin, self.tmp = bc, None, None
+
+    def release(self) -> None:
+        with _quiet():
+            if self.plugin is not None and self.plugin >= 0:
+                self.bc.unloadPlugin(self.plugin)
+            self.bc.disconnect()
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
 class BulletScene:
     def __init__(self, chunks: list[Chunk], look: Look, camera: CameraConfig, renderer: str = "tiny"):
         if renderer not in RENDERERS:
@@ -71,6 +88,8 @@ class BulletScene:
         self.camera, self.look, self.renderer = camera, look, renderer
         with _quiet():
             self._bc = BulletClient(connection_mode=pb.DIRECT)
+        self._held = _Held(self._bc)
+        self._finalizer = weakref.finalize(self, self._held.release)
         self._tmp: Path | None = None
         self._plugin = None
         if renderer == "egl":
@@ -78,11 +97,11 @@ class BulletScene:
             if plugin_file is None:
                 raise RendererError("the EGL renderer plugin is not available in this pybullet build")
             with _quiet():
-                self._plugin = self._bc.loadPlugin(plugin_file, "_eglRendererPlugin")
+                self._plugin = self._held.plugin = self._bc.loadPlugin(plugin_file, "_eglRendererPlugin")
             if self._plugin < 0:
                 raise RendererError("the EGL renderer plugin failed to load (no EGL driver?)")
             # the EGL plugin draws meshes from files only
-            self._tmp = Path(tempfile.mkdtemp(prefix="drivestudio-egl-"))
+            self._tmp = self._held.tmp = Path(tempfile.mkdtemp(prefix="drivestudio-egl-"))
         self._flag = pb.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else pb.ER_TINY_RENDERER
         self._projection = camera.projection_matrix()
         self._n_shapes = 0
@@ -189,18 +208,6 @@ class BulletScene:
         return rgb, drawn.view(np.uint8)
 
     def close(self) -> None:
-        if self._bc is not None:
-            with _quiet():
-                if self._plugin is not None and self._plugin >= 0:
-                    self._bc.unloadPlugin(self._plugin)
-                self._bc.disconnect()
-            self._bc = None
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:
-            pass
+        self._finalizer()   # runs the release at most once
+        self._bc = None
+        self._tmp = None

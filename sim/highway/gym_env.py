@@ -1,22 +1,55 @@
 """The world as a Gymnasium environment: `gymnasium.make("drivestudio/Highway-v0", track="oval", lanes=3)`.
 
-Observation: the camera frame (height, width, 3) uint8. Action: [steer, accel, brake] in [-1, 1] x [0, 1] x
-[0, 1] (steer positive left). info carries the ground truth: the 14 indicators by name, `indicators` as an
-array in canonical order, lanes_left, lanes, speed and the poses. Reward: metres driven along the track in
-the step, minus 50 on a collision and 5 per step off the road. An episode ends (terminated) on a collision
-or when the car is lost off the road; it is truncated after `max_steps`.
+Observation (`observation=`): "camera" (default), the front camera's frame (height, width, 3) uint8;
+"affordances", the exact values of the fields HIGHWAY marks observable as a float32 Box: the 14 indicators in
+canonical order (docs/affordances.md) then the host car's speed [m/s], within BOUNDS below (nothing is rendered,
+unless render() asks);
+"both", a Dict of the frame ("front") and the affordances ("affordances").
+Action: [steer, accel, brake] in [-1, 1] x [0, 1] x [0, 1] (steer positive left).
+Reward, per step, the sum of four terms, also in info["reward_terms"]:
+  progress   metres driven along the track in the step (negative when driving backwards)
+  collision  -50 on every step the host car touches another car
+  off_road   -5 on every step its centre is beyond a road edge
+  lost       -50 on the step the car is lost off the road (the episode ends: as costly as a collision, so that
+             leaving the road for good is never a way out of the off_road term)
+An episode ends (terminated) on a collision or when the car is lost off the road (6 m beyond the edge); it is
+truncated after `max_steps`. info carries the ground truth: the 14 indicators by name, `indicators` as an array in
+canonical order, lanes_left, lanes, speed, the poses, collision, off_road and t.
+Every option is checked here, before any SUMO starts; the world opens on the first reset().
 """
 from __future__ import annotations
+
+import math
+import weakref
 
 import gymnasium as gym
 import numpy as np
 
-from core.worlds.highway import FRAME, Action
-from sim.camera import CameraConfig
+from core.worlds.highway import FRAME, GAP_INACTIVE, GAPS, HIGHWAY, INDICATORS, Action
+from sim import gym_options as opt
+from sim.camera import RENDERERS, CameraConfig
+from sim.highway.sumo_traffic import MAX_CARS, car_count_problem
+from sim.highway.vehicle import VehicleParams
 from sim.highway.world import Observation, World, WorldConfig
+from sim.track import load_track
 
+ENV = "drivestudio/Highway-v0"
 COLLISION_PENALTY = 50.0
 OFF_ROAD_PENALTY = 5.0
+LOST_PENALTY = 50.0
+MAX_LANES = 4
+MAX_START_SPEED = 60.0   # [m/s] as the CLI's --start-speed
+MAX_EPISODE = 1_000_000  # steps
+MARKING_RANGE = 15.0     # [m] |toMarking_*| bound: 1.5 lanes of the widest lane and more (docs/affordances.md)
+
+# the affordance observation's bounds: angle in [-pi, pi], distances to markings, gaps up to the inactive 75 m,
+# fast 0/1, the speed up to the car's top speed (sim/highway/vehicle.py)
+BOUNDS: dict[str, tuple[float, float]] = {
+    "angle": (-math.pi, math.pi), "fast": (0.0, 1.0), "speed": (0.0, VehicleParams().top_speed),
+    **{n: (-MARKING_RANGE, MARKING_RANGE) for n in INDICATORS if n.startswith("toMarking")},
+    **{n: (0.0, GAP_INACTIVE) for n in GAPS},
+}
+AFFORDANCES = opt.Affordances(HIGHWAY, BOUNDS)
 
 
 class HighwayEnv(gym.Env):
@@ -24,15 +57,36 @@ class HighwayEnv(gym.Env):
 
     def __init__(self, track="oval", lanes: int | None = None, cars: int = 12, renderer: str = "tiny",
                  width: int = FRAME[1], height: int = FRAME[0], max_steps: int = 3000, start_speed: float = 15.0,
-                 render_mode: str | None = "rgb_array"):
+                 render_mode: str | None = "rgb_array", observation: str = "camera"):
+        self.observation = opt.check_choice(ENV, "observation", observation, opt.OBSERVATIONS)
+        if lanes is not None:
+            lanes = opt.check_int(ENV, "lanes", lanes, 1, MAX_LANES)
+        cars = opt.check_int(ENV, "cars", cars, 0, MAX_CARS)
+        opt.check_choice(ENV, "renderer", renderer, RENDERERS)
+        width, height = opt.check_side(ENV, "width", width), opt.check_side(ENV, "height", height)
+        self.max_steps = opt.check_int(ENV, "max_steps", max_steps, 1, MAX_EPISODE)
+        start_speed = opt.check_number(ENV, "start_speed", start_speed, 0.0, MAX_START_SPEED)
+        if render_mode is not None:
+            opt.check_choice(ENV, "render_mode", render_mode, tuple(self.metadata["render_modes"]))
+        try:
+            road = load_track(track, lanes=lanes)
+        except ValueError as e:   # TrackError: an unknown preset, a bad file, arcs too tight for the lanes
+            raise opt.fail(ENV, "track" if lanes is None else "track/lanes", str(e)) from None
+        problem = car_count_problem(road, cars)
+        if problem:
+            raise opt.fail(ENV, "cars", problem)
         camera = CameraConfig(width=width, height=height)
         self._config = WorldConfig(track=track, lanes=lanes, cars=cars, renderer=renderer, camera=camera,
-                                   start_speed=start_speed)
+                                   start_speed=start_speed, render=self.observation != "affordances")
+        self.declaration = HIGHWAY.with_camera("front", height, width)
         self._world: World | None = None
+        self._finalizer: weakref.finalize | None = None
         self.dt = self._config.dt   # [s] simulated per step
-        self.max_steps = max_steps
         self.render_mode = render_mode
-        self.observation_space = gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8)
+        spaces: dict[str, gym.spaces.Space] = {"camera": gym.spaces.Box(0, 255, (height, width, 3), dtype=np.uint8),
+                                               "affordances": AFFORDANCES.space,
+                                               "both": opt.both_space(self.declaration, AFFORDANCES)}
+        self.observation_space = spaces[self.observation]
         self.action_space = gym.spaces.Box(np.array([-1, 0, 0], dtype=np.float32),
                                            np.array([1, 1, 1], dtype=np.float32), dtype=np.float32)
         self._last: Observation | None = None
@@ -45,6 +99,13 @@ class HighwayEnv(gym.Env):
                     off_road=obs.off_road)
         return info
 
+    def _observation(self, obs: Observation):
+        if self.observation == "camera":
+            return obs.frame
+        if self.observation == "affordances":
+            return AFFORDANCES(obs.record)
+        return opt.both(self.declaration, AFFORDANCES, obs.frames, obs.record)
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         if seed is None:
@@ -52,28 +113,40 @@ class HighwayEnv(gym.Env):
         if self._world is None:
             self._config.seed = seed
             self._world = World(self._config)
+            # closed however the interpreter ends: SUMO and the pybullet client go before modules are torn down
+            self._finalizer = weakref.finalize(self, self._world.close)
             obs = self._world.observe()
         else:
             obs = self._world.reset(seed)
         self._last, self._steps = obs, 0
-        return obs.frame, self._info(obs)
+        return self._observation(obs), self._info(obs)
 
     def step(self, action):
-        assert self._world is not None, "call reset() first"
+        if self._world is None:
+            raise RuntimeError(f"{ENV}: call reset() before step()")
         s_before = self._world.ego.s
         obs = self._world.step(Action.from_array(action))
         self._last = obs
         self._steps += 1
-        reward = float(self._world.track.gap(s_before, self._world.ego.s))
-        reward -= COLLISION_PENALTY * obs.collision + OFF_ROAD_PENALTY * obs.off_road
+        terms = {"progress": float(self._world.track.gap(s_before, self._world.ego.s)),
+                 "collision": -COLLISION_PENALTY * obs.collision, "off_road": -OFF_ROAD_PENALTY * obs.off_road,
+                 "lost": -LOST_PENALTY * obs.lost}
+        reward = sum(terms.values())
         terminated = bool(obs.collision or obs.lost)
         truncated = self._steps >= self.max_steps
-        return obs.frame, reward, terminated, truncated, self._info(obs)
+        info = self._info(obs)
+        info["reward_terms"] = terms
+        return self._observation(obs), reward, terminated, truncated, info
 
     def render(self):
-        return None if self._last is None else self._last.frame
+        if self._last is None or self._world is None:
+            return None
+        if self._last.frame is None:   # the affordance observation renders nothing; draw this instant now
+            self._last = self._world.observe(render=True)
+        return self._last.frame
 
     def close(self):
-        if self._world is not None:
-            self._world.close()
-            self._world = None
+        if self._finalizer is not None:
+            self._finalizer()
+            self._finalizer = None
+        self._world = None

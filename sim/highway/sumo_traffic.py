@@ -1,13 +1,15 @@
-"""AI traffic driven by SUMO: the only module that imports libsumo.
+"""AI traffic driven by SUMO.
 
-SUMO runs in this process (libsumo), in lock-step with the world at the world's step. The AI cars use SUMO's
+SUMO runs in lock-step with the world at the world's step. The AI cars use SUMO's
 own car-following (Krauss) and lane-change (LC2013) models with varied desired speeds and driver styles, so
 they overtake each other and the host car. The host car is a SUMO vehicle too, moved to its true pose every
 step, so AI cars brake behind it and change lanes around it. Poses come back with the conventions of
 docs/affordances.md: SUMO's position is the front bumper and its angle is a compass heading; SUMO's lane 0
 is the rightmost.
 
-libsumo holds one simulation per process; a second SumoTraffic while one is open is refused.
+The first SumoTraffic of a process runs SUMO inside it (libsumo, the fastest); any other open at the same time
+runs its own `sumo` process over TraCI (sim/highway/sumo_connection.py). The same seed gives the same traffic
+either way, so any number of worlds can run in one process.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 
 from sim.highway.car_models import car_models
 from sim.highway.errors import TrafficError
+from sim.highway.sumo_connection import TRANSPORTS, SumoConnection
 from sim.highway.sumo_network import SumoNetwork, network_for
 from sim.highway.traffic import CarStates, assign_looks
 from sim.track import Track
@@ -36,31 +39,31 @@ DRIVER_STYLES = (
 )
 
 
-def _load_libsumo():
-    try:
-        import libsumo  # lazy: libsumo takes 0.65 s to import and only a world with AI cars needs it
-    except ImportError as e:  # pragma: no cover - libsumo is a declared dependency
-        raise TrafficError(f"libsumo cannot be loaded: {e}") from None
-    return libsumo
+def car_count_problem(track: Track, n_cars) -> str | None:
+    """Why `n_cars` AI cars cannot drive on `track` (None: they can), checked before SUMO starts."""
+    if isinstance(n_cars, bool) or not isinstance(n_cars, (int, np.integer)) or not 0 <= n_cars <= MAX_CARS:
+        return f"the number of AI cars must be an integer from 0 to {MAX_CARS}, got {n_cars!r}"
+    capacity = int(track.lanes * track.length / MIN_SPACING)
+    if n_cars > capacity:
+        return (f"{n_cars} cars do not fit on track '{track.name}' with {track.lanes} lane(s) "
+                f"({track.length:.0f} m): at most {capacity}")
+    return None
 
 
 class SumoTraffic:
-    _open: SumoTraffic | None = None
     _started = False
+    _conn: SumoConnection | None = None
 
     def __init__(self, track: Track, n_cars: int, seed: int = 0, dt: float = 0.1, ego: np.ndarray | None = None,
-                 ego_speed: float = 0.0):
-        if isinstance(n_cars, bool) or not isinstance(n_cars, (int, np.integer)) or not 0 <= n_cars <= MAX_CARS:
-            raise TrafficError(f"the number of AI cars must be an integer from 0 to {MAX_CARS}, got {n_cars!r}")
-        capacity = int(track.lanes * track.length / MIN_SPACING)
-        if n_cars > capacity:
-            raise TrafficError(f"{n_cars} cars do not fit on track '{track.name}' with {track.lanes} lane(s) "
-                               f"({track.length:.0f} m): at most {capacity}")
-        if SumoTraffic._open is not None:
-            raise TrafficError("SUMO is already running in this process (libsumo runs one simulation at a time)")
+                 ego_speed: float = 0.0, transport: str = "auto"):
+        problem = car_count_problem(track, n_cars)
+        if problem:
+            raise TrafficError(problem)
+        if transport not in TRANSPORTS:
+            raise TrafficError(f"unknown SUMO transport {transport!r} (choose from {', '.join(TRANSPORTS)})")
         self.track, self.n_cars, self.seed, self.dt = track, int(n_cars), int(seed), float(dt)
         self.net: SumoNetwork = network_for(track)
-        self._ls = _load_libsumo()
+        self._transport = transport
         self._ids = [f"ai{i}" for i in range(self.n_cars)]
         self.models, self.paints = assign_looks(self.n_cars, seed)
         dims = np.array([(m.length, m.width) for m in car_models()])
@@ -69,19 +72,20 @@ class SumoTraffic:
         self._started = False
         self._last_s: np.ndarray | None = None  # per AI car, for cheap projection next step
         self._start(ego if ego is not None else np.array([*track.pose(0.0, 0.0), 0.0, 0.0]), ego_speed)
-        SumoTraffic._open = self
 
     # --- set-up ----------------------------------------------------------------------------------------------
     def _start(self, ego: np.ndarray, ego_speed: float) -> None:
-        ls = self._ls
         args = ["sumo", "-n", str(self.net.path), "--step-length", f"{self.dt}", "--seed", str(self.seed),
                 "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
                 "--time-to-teleport", "-1", "--collision.action", "warn", "--collision.mingap-factor", "0",
                 "--lanechange.duration", "2.0", "--default.speeddev", "0"]
         try:
-            ls.start(args)
-        except Exception as e:  # libsumo raises its own TraCIException / FatalTraCIError
+            self._conn = SumoConnection(args, self._transport)
+        except TrafficError:
+            raise
+        except Exception as e:  # libsumo and traci raise their own TraCIException / FatalTraCIError
             raise TrafficError(f"SUMO failed to start on track '{self.track.name}': {e}") from None
+        self._ls = self._conn.api
         self._started = True
         try:
             self._populate(ego, ego_speed)
@@ -206,9 +210,9 @@ class SumoTraffic:
         if not present_idx:
             return CarStates.empty()
         idx = np.array(present_idx)
-        front = np.array([ls.vehicle.getPosition(self._ids[i]) for i in idx])
-        yaw = np.radians(90.0 - np.array([ls.vehicle.getAngle(self._ids[i]) for i in idx]))
-        speed = np.array([ls.vehicle.getSpeed(self._ids[i]) for i in idx])
+        assert self._conn is not None, "SUMO traffic is closed"
+        front, angle, speed = self._conn.car_readings([self._ids[i] for i in idx])
+        yaw = np.radians(90.0 - angle)
         half = self.length[idx] / 2
         x, y = front[:, 0] - half * np.cos(yaw), front[:, 1] - half * np.sin(yaw)
         hint = None if self._last_s is None else self._last_s[idx]
@@ -223,15 +227,13 @@ class SumoTraffic:
         """Our lane (0 = leftmost) that SUMO has AI car i on."""
         return self.track.lanes - 1 - int(self._ls.vehicle.getLaneIndex(self._ids[i]))
 
-    def close(self) -> None:
-        if self._started:
-            try:
-                self._ls.close()
-            except Exception:
-                pass
-            self._started = False
-        if SumoTraffic._open is self:
-            SumoTraffic._open = None
+    @property
+    def transport(self) -> str:
+        """How this traffic talks to SUMO: "libsumo" (in this process) or "traci" (its own sumo process)."""
+        return self._conn.transport if self._conn is not None else "closed"
 
-    def __del__(self):
-        self.close()
+    def close(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+        self._started = False

@@ -38,6 +38,7 @@ class WorldConfig:
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
     start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
+    sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
 
 
 @dataclass
@@ -114,7 +115,7 @@ class World:
         if self.config.cars == 0:
             return ScriptedTraffic(self.track, [], [], [], seed=self.seed)
         return SumoTraffic(self.track, self.config.cars, seed=self.seed, dt=self.config.dt, ego=self.ego_pose(),
-                           ego_speed=self.ego.speed)
+                           ego_speed=self.ego.speed, transport=self.config.sumo)
 
     def close(self) -> None:
         if self._traffic is not None:

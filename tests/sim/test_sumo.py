@@ -1,4 +1,5 @@
-"""SUMO traffic with a real SUMO (libsumo in this process, networks from netconvert)."""
+"""SUMO traffic with a real SUMO (libsumo in this process, a sumo process over TraCI beside it, networks from
+netconvert)."""
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -71,10 +72,10 @@ def test_too_many_cars_for_the_track():
         World(WorldConfig(track="ring", lanes=1, cars=100, render=False))
 
 
-def test_only_one_sumo_per_process():
-    with World(WorldConfig(cars=4, render=False)):
-        with pytest.raises(TrafficError, match="already running"):
-            World(WorldConfig(cars=4, render=False))
+def test_a_second_world_runs_beside_the_first():
+    # libsumo serves one; the second gets its own sumo process over TraCI (tests/sim/test_sumo_transports.py)
+    with World(WorldConfig(cars=4, render=False)) as a, World(WorldConfig(cars=4, render=False)) as b:
+        assert a.step([0.0, 0.0, 0.0]).t == b.step([0.0, 0.0, 0.0]).t
     World(WorldConfig(cars=4, render=False)).close()  # and after closing, a new one starts
 
 

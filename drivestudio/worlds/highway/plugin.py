@@ -16,6 +16,7 @@ from drivestudio.worlds.base import Episode, WorldOptions
 from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.overlays import overlay_record
+from drivestudio.worlds.highway.policy import PolicyDriver, is_policy, load_policy
 from drivestudio.worlds.highway.video import OverlayRecorder
 from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
@@ -104,7 +105,18 @@ class Plugin(base.Plugin):
             obs = world.observe(render=True)
             return {"front": obs.frame}, obs.truth.as_dict()
 
+    def own_model(self, model: str) -> bool:
+        return is_policy(model)
+
+    def check_model(self, model: str) -> None:
+        if is_policy(model):
+            load_policy(model)   # opened and checked now: one line, exit 2
+        else:
+            super().check_model(model)
+
     def driver(self, model: str, args, declaration=None) -> Driver:
+        if is_policy(model):
+            return PolicyDriver(model, getattr(args, "device", "cpu"))
         if model in ORACLES or model == "expert":
             return ChenDriver(None, lookout=ORACLES.get(model, False))
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))

@@ -1,7 +1,7 @@
 """The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound),
 `oracle-extended` (the lookout controller, controller/highway/lookout.py, on the exact extended labels: it also
 sees the cars beside and behind) or a checkpoint of the highway world, optionally with the controller-side filters
-of its estimates.
+of its estimates, or a trained policy on the exact affordances (drivestudio/worlds/highway/policy.py).
 
     --model oracle
     --model oracle-extended
@@ -9,6 +9,8 @@ of its estimates.
     --model runs/alexnet.pt@smoothing=0.5      e = 0.5 e_previous + 0.5 e_now before the Chen controller
     --model runs/alexnet.pt@gap_hold=0.8       gaps: g = min(g_now, 0.8 g_held + 0.2 g_now)
     --model runs/alexnet.pt@smoothing=0.3,gap_hold=0.8
+    --model runs/ppo-highway.zip               a saved Stable-Baselines3 policy (drivestudio/worlds/highway/rl_train.py)
+    --model policy:mypackage.drivers:careful   any callable from the affordance observation to an action
 
 Every checkpoint is opened and checked before anything is driven: a missing file, a file that is no checkpoint,
 or a model of another world (a sidewalk Z2Color) is refused in one line (exit status 2).
@@ -20,7 +22,9 @@ import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from drivestudio.checkpoints import check_checkpoint_path
 from drivestudio.errors import UsageError
+from drivestudio.worlds.highway.policy import CALLABLE, is_policy
 
 ORACLE = "oracle"
 EXTENDED = "oracle-extended"
@@ -40,10 +44,13 @@ class ModelSpec:
     outputs: tuple = ()
     gap_hold: float = 0.0
     lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
+    policy: bool = False       # a policy on the exact affordances (path: its .zip or policy:MODULE:NAME)
 
     @property
     def key(self) -> str:
         """What identifies the row: the same checkpoint with other filters is another row."""
+        if self.policy and self.path is not None:
+            return self.path if self.path.startswith(CALLABLE) else f"policy:{Path(self.path).resolve()}"
         return self.family if self.path is None else \
             f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
 
@@ -106,12 +113,16 @@ def parse_model(text: str) -> tuple[str, dict[str, float]]:
 
 def check_model(text: str) -> ModelSpec:
     """The model of a --model value, its checkpoint opened and checked (a model of the highway world)."""
+    if is_policy(text):   # opened now, as a checkpoint is: one line and exit 2 when it cannot drive
+        from drivestudio.worlds.highway.policy import (
+            PolicyDriver,  # lazy: Stable-Baselines3 and torch, only for a policy row
+        )
+        return ModelSpec(text, text, label=PolicyDriver(text).name, family="policy", policy=True)
     path, filters = parse_model(text)
     if path in EXACT:
         return ModelSpec(text, None, label=path, family=path, lookout=path == EXTENDED)
-    from drivestudio.checkpoints import check_checkpoint_path
-    from perception.checkpoint import load_checkpoint
-    from perception.models import check_spec, describe
+    from perception.checkpoint import load_checkpoint  # lazy: torch
+    from perception.models import check_spec, describe  # lazy: torch
     check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]

@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 
 from core.worlds.highway import lane_centres
+from drivestudio.errors import RunError
+from drivestudio.loop import in_process, run_loop
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
 
@@ -153,8 +155,8 @@ class RouteWorld:
 
 def world_for(route: Route, renderer: str = "tiny"):
     """The route's world, built as `drive` builds it (the highway plugin's defaults) at the route's start lane."""
-    from drivestudio import worlds
-    from sim.highway.world import World
+    from drivestudio import worlds  # lazy: the plugin registry loads the worlds, only in a route's process
+    from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
     ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                             cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None)
     plugin: Any = worlds.get("highway")   # the highway plugin: its config() builds the WorldConfig
@@ -167,14 +169,19 @@ _PREDICTORS: dict = {}
 
 def driver_for(model: ModelSpec, device: str):
     """The driver `drive --model` makes: the Chen controller on the truth (oracle), the lookout controller on the
-    truth (oracle-extended) or the Chen controller on a checkpoint's estimates, smoothed as the model asks. A worker
-    keeps each checkpoint's predictor for its next routes."""
-    from drivestudio.worlds.highway.drivers import ChenDriver
+    truth (oracle-extended), the Chen controller on a checkpoint's estimates, smoothed as the model asks, or a policy
+    on the exact affordances. A worker keeps each checkpoint's predictor for its next routes."""
+    from drivestudio.worlds.highway.drivers import ChenDriver  # lazy: the controller, only in a route's process
+    if model.policy:
+        from drivestudio.worlds.highway.policy import (
+            PolicyDriver,  # lazy: Stable-Baselines3 and torch, only for a policy row
+        )
+        return PolicyDriver(str(model.path), device)
     if model.path is None:
         return ChenDriver(None, lookout=model.lookout)
     key = (model.path, device)
     if key not in _PREDICTORS:
-        from drivestudio.checkpoints import load_predictor_for
+        from drivestudio.checkpoints import load_predictor_for  # lazy: as the drivers, only in a route's process
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
     return ChenDriver(_PREDICTORS[key], smoothing=model.smoothing, gap_hold=model.gap_hold)
 
@@ -194,9 +201,10 @@ _runs = iter(range(1 << 30))
 def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path | None = None,
               progress=None) -> dict:
     """Drive `route` with `model`; returns the route's metrics, how it ended and its clips."""
-    from drivestudio.loop import in_process, run_loop
-    from drivestudio.worlds.highway.benchmark.clips import ClipRecorder
-    from drivestudio.worlds.highway.metrics import HighwayMetrics
+    from drivestudio.worlds.highway.benchmark.clips import (
+        ClipRecorder,  # lazy: OpenCV video writing, only in a route's process
+    )
+    from drivestudio.worlds.highway.metrics import HighwayMetrics  # lazy: only in a route's process
 
     world = world_for(route, opts.renderer)
     t0 = time.perf_counter()
@@ -239,11 +247,9 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
 def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, seconds: float, metrics, on_step):
     """The world here, the driver in a `drivestudio drive --shm` process, in lock-step (drive without
     --in-process)."""
-    from drivestudio.bridge_loop import ShmExchange
-    from drivestudio.drive_session import _wait_for_driver
-    from drivestudio.errors import RunError
-    from drivestudio.loop import run_loop
-    from shm_bridge.endpoints import WorldEndpoint
+    from drivestudio.bridge_loop import ShmExchange  # lazy: the bridge, only for --shm
+    from drivestudio.drive_session import _wait_for_driver  # lazy: the bridge, only for --shm
+    from shm_bridge.endpoints import WorldEndpoint  # lazy: the bridge, only for --shm
 
     name = f"{SHM_PREFIX}{os.getpid()}-b{next(_runs)}"
     log = tempfile.TemporaryFile()

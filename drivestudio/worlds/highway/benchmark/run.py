@@ -15,6 +15,7 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
+from core.signals import exit_on_sigterm
 from drivestudio.worker_pool import run_pool, serve
 from drivestudio.worlds.highway.benchmark.models import ModelSpec, slug
 from drivestudio.worlds.highway.benchmark.route import RunOptions, run_route
@@ -42,14 +43,13 @@ def _job_name(job: dict) -> str:
 
 def _worker_job(job: dict, progress) -> dict:
     if job["model"]["path"] is not None:
-        import torch
+        import torch  # lazy: torch, only to set its threads in a worker
         torch.set_num_threads(1)   # the parallelism is the routes'
     return run_job(job, progress)
 
 
 def worker_main() -> int:
     """A worker (worker_pool): jobs of jobs_for(), results of run_job()."""
-    from core.signals import exit_on_sigterm
     with exit_on_sigterm():   # SIGTERM from the parent unwinds: worlds, bridges and half-written clips are closed
         return serve(_worker_job, _job_name)
 
@@ -73,10 +73,9 @@ def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
 def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
                   show_progress: bool = True) -> dict:
     """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # lazy: 20 ms, only while routes are driven
 
-    from core.signals import exit_on_sigterm
-    from drivestudio.worlds.highway.benchmark.score import leaderboard
+    from drivestudio.worlds.highway.benchmark.score import leaderboard  # lazy: only once routes are driven
     jobs = jobs_for(suite, models, opts, out)
     results: list[dict] = []
     total = sum(j["route"]["seconds"] for j in jobs)

@@ -1,0 +1,87 @@
+"""The options of the Gymnasium environments, checked in their constructors, before anything is started.
+
+`gymnasium.make("drivestudio/Highway-v0", observation="pixels")` raises one EnvOptionError (a ValueError) that
+names the environment, the option and what it accepts, and no SUMO, renderer or world is left half-started: the
+environments open their worlds only in reset(). The observation kinds and how an observation is built from a
+world's frames and truth record are here too, shared by both worlds.
+"""
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+
+from core.declaration import WorldDeclaration
+
+OBSERVATIONS = ("camera", "affordances", "both")
+AFFORDANCES = "affordances"   # the key of the affordance vector in a "both" observation
+MIN_SIDE, MAX_SIDE = 16, 4096   # [px] a camera's width and height, as the CLI's --width and --height
+
+
+class EnvOptionError(ValueError):
+    """An option given to gymnasium.make that the environment cannot use; the message names it."""
+
+
+def fail(env: str, option: str, message: str) -> EnvOptionError:
+    return EnvOptionError(f"{env}: option {option}: {message}")
+
+
+def check_choice(env: str, option: str, value, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise fail(env, option, f"must be one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def check_int(env: str, option: str, value, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise fail(env, option, f"must be an integer from {low} to {high}, got {value!r}")
+    return int(value)
+
+
+def check_number(env: str, option: str, value, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
+            not (math.isfinite(value) and low <= value <= high):
+        raise fail(env, option, f"must be a number from {low:g} to {high:g}, got {value!r}")
+    return float(value)
+
+
+def check_side(env: str, option: str, value) -> int:
+    return check_int(env, option, value, MIN_SIDE, MAX_SIDE)
+
+
+# --- observations ----------------------------------------------------------------------------------------------
+class Affordances:
+    """The affordance observation of a world: the exact values of the fields its declaration marks observable, in
+    its order, float32, in a Box with finite bounds (`bounds`: {field: (low, high)}, one per observable field).
+    A value beyond its bounds (only a car far off its road gets there) is clipped to them. The environment and a
+    policy driver (drivestudio/worlds/highway/policy.py) both build observations here, so they read the same."""
+
+    def __init__(self, decl: WorldDeclaration, bounds: dict[str, tuple[float, float]]):
+        missing = [n for n in decl.observable if n not in bounds]
+        if missing or not decl.observable:
+            raise ValueError(f"world {decl.name!r}: no bounds for observable fields {missing}")
+        self.names = decl.observable
+        self._index = [decl.index(n) for n in self.names]
+        self.low = np.array([bounds[n][0] for n in self.names], dtype=np.float32)
+        self.high = np.array([bounds[n][1] for n in self.names], dtype=np.float32)
+        self.space = gym.spaces.Box(self.low, self.high, dtype=np.float32)
+
+    def __call__(self, record) -> np.ndarray:
+        values = np.asarray(record, dtype=np.float64)[..., self._index].astype(np.float32)
+        return np.clip(values, self.low, self.high)
+
+
+def camera_spaces(decl: WorldDeclaration) -> dict[str, gym.spaces.Box]:
+    """One uint8 image space per camera of the declaration, by the camera's name."""
+    return {c.name: gym.spaces.Box(0, 255, c.shape, dtype=np.uint8) for c in decl.cameras}
+
+
+def both_space(decl: WorldDeclaration, view: Affordances) -> gym.spaces.Dict:
+    """Every camera's image by its name and the affordances, in one Dict: each entry an image or a vector, which
+    Stable-Baselines3's MultiInputPolicy reads without a wrapper."""
+    return gym.spaces.Dict({**camera_spaces(decl), AFFORDANCES: view.space})
+
+
+def both(decl: WorldDeclaration, view: Affordances, frames, record) -> dict[str, np.ndarray]:
+    return {**{c.name: f for c, f in zip(decl.cameras, frames)}, AFFORDANCES: view(record)}
