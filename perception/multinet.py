@@ -353,6 +353,10 @@ def train_multinet(cfg, log=print) -> dict:
     """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
     if Path(cfg.out).exists() and not Path(str(cfg.out) + ".state").exists():
         done = load_checkpoint(cfg.out, model=cfg.model)
+        if done["spec"]["options"].get("mtl") != cfg.mtl:   # an MTL net is not MultiNet, nor another mode's net
+            was = done["spec"]["options"].get("mtl")
+            raise CheckpointError(f"{cfg.out} is a finished {'MTL net of mode ' + was if was else 'MultiNet'}, not "
+                                  f"{'the MTL net of mode ' + cfg.mtl if cfg.mtl else 'MultiNet'}; use another --out")
         log(f"{cfg.out} is trained already ({done['train'].get('trials', 1)} trial(s)): nothing to do (remove it, or "
             "give another --out, to train again)")
         return done["train"]
