@@ -20,6 +20,8 @@ from sim.highway.truth import affordances
 from sim.track import load_track
 from tests.perception.frames import dataset, tiny_config, workdir
 
+pytestmark = pytest.mark.slow   # closed-loop rounds with real training (about 40 s); run with pytest -m slow
+
 
 @pytest.fixture(scope="module")
 def model():

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow   # the whole demo at its smallest (about a minute); run with pytest -m slow
+
 REPO = Path(__file__).resolve().parents[2]
 
 
