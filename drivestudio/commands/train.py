@@ -62,7 +62,9 @@ def register(sub) -> None:
     p.add_argument("--weight-decay", type=finite(0.0, 1.0), default=0.0,
                    help="L2 weight decay (default 0)")
     add_device_option(p, "auto")
-    p.add_argument("--no-amp", dest="amp", action="store_false", help="no mixed precision on CUDA")
+    p.add_argument("--no-amp", dest="amp", action="store_false",
+                   help="train in float32 throughout: no mixed precision on CUDA, no bfloat16 autocast for Z2Color "
+                        "on the CPU")
     p.add_argument("--workers", type=count(0, 64), default=1, help="processes decoding frames (1)")
     p.add_argument("--val-every", type=count(1, 10**8), default=500,
                    help="iterations between validations and checkpoints")
