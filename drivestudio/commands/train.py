@@ -17,7 +17,7 @@ TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_ga
                    "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze", "batch_norm")
 APPLIES = {
     "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials"},
-    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init"},
+    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init", "amp"},
     "closed-form": {"regressor", "val_frames"},
 }
 _DEFAULTS: dict[str, object] = {}

@@ -40,6 +40,19 @@ def test_train_refuses_options_its_trainer_would_ignore(tmp_path, capsys, extra,
     assert list(tmp_path.iterdir()) == []
 
 
+
+def test_options_the_multinet_trainer_reads_are_accepted():
+    """--no-amp (float32 throughout, docs/sidewalk.md) is read by Z2Color's trainer, so it is not refused."""
+    from argparse import Namespace
+
+    from drivestudio.cli import build_parser
+    from drivestudio.commands.train import _DEFAULTS, check_applies
+    build_parser()   # registers the train parser's defaults
+    check_applies(Namespace(**(_DEFAULTS | {"model": "z2color", "amp": False, "trials": 3, "mtl": "direct"})),
+                  "multinet")
+    with pytest.raises(Exception, match="--no-amp does not apply to --model gist"):
+        check_applies(Namespace(**(_DEFAULTS | {"model": "gist", "amp": False})), "closed-form")
+
 def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path, capsys):
     torch.manual_seed(0)
     for name, model in (("highway.pt", Regressor(make_spec("gist", HIGHWAY))),
