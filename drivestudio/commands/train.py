@@ -36,7 +36,8 @@ def register(sub) -> None:
                                    "batch 10 for 15,000; Euclidean loss on targets normalised to [0.1, 0.9]. GIST is "
                                    "fitted in closed form. Running the same command again continues from the "
                                    "checkpoint; loss curves are written beside it as CKPT.loss.csv and .png.")
-    p.add_argument("--data", required=True, help="dataset folder written by `drivestudio generate`")
+    p.add_argument("--data", required=True, help="dataset folder written by `drivestudio generate` (for --model "
+                                                "z2color: several, comma-separated)")
     p.add_argument("--model", required=True, help="the model family: one that fits the dataset's world")
     p.add_argument("--out", required=True, help="checkpoint file to write (and to continue from if it exists)")
     p.add_argument("--targets", help="comma-separated labels to learn (default: the world's); +NAME adds to the "
@@ -117,10 +118,16 @@ def check_batch_for(args) -> None:
     from perception.shards import Dataset  # lazy: pyarrow
     from perception.training import history_moment  # lazy: torch, pyarrow
 
-    decl = Dataset(Path(args.data)).declaration
+    decl = Dataset(first_root(args.data)).declaration
     moment = history_moment(decl, args.history)
     spec = make_spec(args.model, decl, instants=None if moment is None else moment.instants)
     check_batch(args.batch_size, spec["input"])
+
+
+def first_root(data: str) -> Path:
+    """The first of --data's folders: Z2Color's trainer takes several, comma-separated (a data set and the
+    corrections of later rounds; perception/multinet.py), all of one world and declaration."""
+    return Path(next((r for r in str(data).split(",") if r), data))
 
 
 def _flag(dest: str) -> str:
@@ -152,7 +159,7 @@ def run(args) -> int:
         from perception.shards import Dataset  # lazy: pyarrow
         if not Path(args.init).is_file():
             raise UsageError(f"--init: no such file: {args.init}")
-        check_checkpoint(args.init, Dataset(Path(args.data)).world)
+        check_checkpoint(args.init, Dataset(first_root(args.data)).world)
     if args.modes is not None and not [m for m in args.modes.split(",") if m.strip()]:
         raise UsageError(f"--modes {args.modes!r} names no mode (leave it out for all the dataset has)")
     if args.weights:

@@ -65,6 +65,18 @@ def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path
     assert not out.exists()
 
 
+
+def test_train_opens_the_first_of_several_data_folders_for_its_checks(tmp_path, capsys):
+    """Z2Color trains on a data set and the corrections of later rounds (--data A,B): the checks before work (the
+    --init checkpoint's world, the batch's size) read the first folder instead of refusing the list."""
+    torch.manual_seed(0)
+    model = Regressor(make_spec("z2color", SIDEWALK))
+    save_checkpoint(tmp_path / "sidewalk.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    _refused(capsys, ["train", "--data", f"{V1},{V1}", "--model", "z2color", "--out", str(tmp_path / "m.pt"),
+                      "--init", str(tmp_path / "sidewalk.pt"), "--batch-size", "60"],
+             "sidewalk.pt is a model of the sidewalk world, not of the highway world")
+    assert not (tmp_path / "m.pt").exists()
+
 @pytest.mark.parametrize("extra, words", [
     (["--out", "{tmp}/pngs", "--video", "{tmp}/v.mp4"], "--out FOLDER (PNGs) and --video FILE.mp4"),
     (["--video", "{tmp}/v.mp4", "--select", "worst"], "--select goes with PNGs"),
