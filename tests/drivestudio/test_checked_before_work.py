@@ -11,6 +11,7 @@ import torch
 from core.worlds.highway import HIGHWAY
 from core.worlds.sidewalk import SIDEWALK
 from drivestudio.cli import main
+from drivestudio.errors import UsageError
 from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 
@@ -40,9 +41,8 @@ def test_train_refuses_options_its_trainer_would_ignore(tmp_path, capsys, extra,
     assert list(tmp_path.iterdir()) == []
 
 
-
 def test_options_the_multinet_trainer_reads_are_accepted():
-    """--no-amp (float32 throughout, docs/sidewalk.md) is read by Z2Color's trainer, so it is not refused."""
+    """--no-amp (float32 throughout, perception/multinet.py) is read by Z2Color's trainer, so it is not refused."""
     from argparse import Namespace
 
     from drivestudio.cli import build_parser
@@ -50,8 +50,9 @@ def test_options_the_multinet_trainer_reads_are_accepted():
     build_parser()   # registers the train parser's defaults
     check_applies(Namespace(**(_DEFAULTS | {"model": "z2color", "amp": False, "trials": 3, "mtl": "direct"})),
                   "multinet")
-    with pytest.raises(Exception, match="--no-amp does not apply to --model gist"):
+    with pytest.raises(UsageError, match="--no-amp does not apply to --model gist"):
         check_applies(Namespace(**(_DEFAULTS | {"model": "gist", "amp": False})), "closed-form")
+
 
 def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path, capsys):
     torch.manual_seed(0)
@@ -65,10 +66,9 @@ def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path
     assert not out.exists()
 
 
-
 def test_train_opens_the_first_of_several_data_folders_for_its_checks(tmp_path, capsys):
-    """Z2Color trains on a data set and the corrections of later rounds (--data A,B): the checks before work (the
-    --init checkpoint's world, the batch's size) read the first folder instead of refusing the list."""
+    """Z2Color trains on a data set and the corrections of later rounds (--data A,B): the check of the --init
+    checkpoint's world reads the first folder instead of refusing the list as no dataset."""
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", SIDEWALK))
     save_checkpoint(tmp_path / "sidewalk.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
@@ -76,6 +76,7 @@ def test_train_opens_the_first_of_several_data_folders_for_its_checks(tmp_path, 
                       "--init", str(tmp_path / "sidewalk.pt"), "--batch-size", "60"],
              "sidewalk.pt is a model of the sidewalk world, not of the highway world")
     assert not (tmp_path / "m.pt").exists()
+
 
 @pytest.mark.parametrize("extra, words", [
     (["--out", "{tmp}/pngs", "--video", "{tmp}/v.mp4"], "--out FOLDER (PNGs) and --video FILE.mp4"),
