@@ -97,10 +97,17 @@ def swerve_distance(speed: float, lateral: float, heading: float = 0.0) -> float
     swerves to), from a heading `heading` [rad] relative to the path (positive: already turned towards that side):
     the reaction, then an arc of radius max(SWERVE_RADIUS, speed^2 / SWERVE_ACCEL) up to SWERVE_ANGLE, then straight
     on at that angle. Both the expert (when to swerve at once) and the correction rule (when the expert must take
-    over) judge an obstacle ahead by it."""
-    if lateral <= 0.0:
-        return 0.0
+    over) judge an obstacle ahead by it.
+
+    A car already clear (`lateral` <= 0) needs no swerve, unless it is heading back towards the obstacle and would
+    use up its room to spare (-lateral) while it turns parallel: then it needs the way covered while it does (the
+    reaction, then the arc to the path's heading). A car passing an obstacle with a millimetre to spare at 2.9 m/s,
+    0.08 rad towards it, needs 0.7 m of way; one passing with half a metre to spare needs none."""
     r = max(SWERVE_RADIUS, speed * speed / SWERVE_ACCEL)
+    if lateral <= 0.0:
+        closing = max(0.0, min(math.pi / 2, -heading))
+        closes = abs(speed) * REACTION * math.sin(closing) + r * (1.0 - math.cos(closing))
+        return abs(speed) * REACTION + r * math.sin(closing) if closes > -lateral else 0.0
     psi0 = max(-math.pi / 2, min(SWERVE_ANGLE, heading))
     arc = r * (math.cos(psi0) - math.cos(SWERVE_ANGLE))       # sideways while turning to the steepest heading
     if arc >= lateral:
@@ -118,7 +125,7 @@ def swerve_needed(record, margin: float) -> float:
     od, ow = field(record, "obstacle_d"), field(record, "obstacle_width")
     lim = field(record, "path_width") / 2 - CAR_WIDTH / 2
     tight = ow / 2 + CAR_WIDTH / 2 + margin
-    out = [swerve_distance(v, max(0.0, (x - d) * side), psi * side)
+    out = [swerve_distance(v, (x - d) * side, psi * side)
            for x, side in ((od + tight, 1.0), (od - tight, -1.0)) if abs(x) <= lim]
     return min(out, default=math.inf)
 
@@ -166,7 +173,9 @@ class SidewalkExpert:
         and `pass_margin` more where the path leaves room; of the two sides the one that costs the least swerving,
         2 |side - d| + |side - want|, wins (moving from where the car is counts double). So a car already beside an
         obstacle's edge stays there, and one that would have to cut across in front of it passes on its side. Closer
-        than ramp[1] it never cuts across, and where the swerve needs all the room left (a car the expert takes
+        than ramp[1] it never cuts across, not even where its own side is narrower than the expert would choose (a
+        car a driver left squeezed between the obstacle and the path's edge squeezes by, as far from the obstacle as
+        the edge allows), and where the swerve needs all the room left (a car the expert takes
         over near an obstacle, from wherever the driver left it) it swerves fully at once rather than blending
         in."""
         gap = field(record, "obstacle_gap")
@@ -188,8 +197,13 @@ class SidewalkExpert:
             sides = [lim if lim - od >= od + lim else -lim]
         side = min(sides, key=lambda p: 2 * abs(p - d) + abs(p - want))
         late = self.urgent(record)
-        if gap < self.p.ramp[1] and len(sides) > 1:    # too close to cut across in front of it: the car's own side
-            side = min([p for p in sides if (p - od) * (d - od) > 0] or sides, key=lambda p: abs(p - d))
+        if gap < self.p.ramp[1]:                       # too close to cut across in front of it: the car's own side
+            own = [p for p in sides if (p - od) * (d - od) > 0]
+            if own:
+                side = min(own, key=lambda p: abs(p - d))
+            elif abs(d - od) >= ow / 2 + CAR_WIDTH / 2:  # beside it where the expert would not have passed: it
+                edge = field(record, "path_width") / 2 - CAR_WIDTH / 2   # squeezes by, as far from it as the
+                side = min(edge, max(-edge, od + math.copysign(tight, d - od)))   # path's edge allows
         ramp = _smooth((self.p.ramp[1] - gap) / (self.p.ramp[1] - self.p.ramp[0]))
         w = 1.0 if gap <= self.p.ramp[0] or late else ramp
         return (1.0 - w) * want + w * side
@@ -228,8 +242,8 @@ class SidewalkExpert:
     def act(self, record, mode: str | None = None) -> tuple[float, float, str]:
         """(steer, motor, what it is doing) for a truth record; the mode defaults to the record's behaviour."""
         mode = mode or MODES[int(field(record, "behaviour"))]
-        lim = field(record, "path_width") / 2 - CAR_WIDTH / 2 - min(self.p.edge_margin, self.p.hug_margin)
-        target = min(lim, max(-lim, self.around_obstacle(record, self.nominal(record, mode))))
+        edge = field(record, "path_width") / 2 - CAR_WIDTH / 2   # around_obstacle keeps its margins where there
+        target = min(edge, max(-edge, self.around_obstacle(record, self.nominal(record, mode))))   # is room
         v, why = self.speed(record, mode)
         base, gain, most = self.p.lookahead
         look = min(most, base + gain * abs(field(record, "speed")))

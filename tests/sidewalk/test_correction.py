@@ -66,6 +66,16 @@ def test_an_obstacle_in_the_way_is_taken_over_when_the_swerve_needs_the_room_lef
     assert takes_over(rule, record(obstacle_gap=0.3, **base), (0.5, motor)) == f"{COLLISION}: an obstacle"
 
 
+def test_a_car_clear_of_an_obstacle_but_closing_on_it_is_taken_over_before_it_touches():
+    """The MultiNet study's contact while correcting: the car cleared the obstacle by a millimetre and the rule
+    judged the swerve from the present state (none needed), so it waited until the expert could no longer turn
+    away. Closing on it, the swerve needs the way the car takes to turn parallel."""
+    from tests.sidewalk.test_experts import SQUEEZED
+    assert foresee(record(**SQUEEZED), (0.52, 0.69)) == f"{COLLISION}: an obstacle"
+    parallel = record(**{**SQUEEZED, "d": 1.2, "heading": 0.0, "steer": 0.466})      # 1.5 cm clear, following
+    assert foresee(parallel, (0.466, 0.69)) is None                                   # the bend: no hazard
+
+
 @pytest.mark.parametrize("rule", RULES)
 def test_an_obstacle_the_driver_clears_is_no_hazard(rule):
     # beside the car's lane, or the driver already turning away from it, or the car alongside and clear of it

@@ -115,6 +115,37 @@ def test_the_swerve_round_an_obstacle_is_an_arc_then_a_straight():
     assert swerve_distance(1.0, 0.3, heading=0.4) < swerve_distance(1.0, 0.3) < swerve_distance(1.0, 0.3, -0.4)
 
 
+def test_a_car_clear_of_an_obstacle_but_closing_on_it_needs_the_way_it_takes_to_turn_parallel():
+    """Clear by a millimetre at 2.9 m/s, 0.08 rad towards it: the reaction and the arc back to the path's heading
+    (radius 2.9^2 / 2.5 m); clear by half a metre, or heading away, it needs nothing."""
+    import math
+
+    from controller.sidewalk.experts import REACTION, swerve_distance
+    r = 2.9 ** 2 / 2.5
+    assert swerve_distance(2.9, -0.001, heading=-0.08) == pytest.approx(2.9 * REACTION + r * math.sin(0.08))
+    assert swerve_distance(2.9, -0.5, heading=-0.08) == 0.0
+    assert swerve_distance(2.9, -0.001, heading=0.08) == 0.0
+
+
+# a car a network left squeezed between an obstacle (its left edge at 1.06 m) and the path's left edge (1.33 m),
+# closing on the obstacle at 2.9 m/s: the MultiNet study's one contact while the expert held the wheel
+SQUEEZED = {"d": 1.186, "heading": -0.082, "speed": 2.88, "steer": 0.536, "path_width": 2.66,
+            "curvature_ahead": 0.10, "border_left": 0.355, "obstacle_gap": 0.27, "obstacle_d": 0.885,
+            "obstacle_width": 0.339}
+
+
+def test_a_car_squeezed_beside_an_obstacle_is_steered_away_from_it_not_across_it():
+    from tests.sidewalk.helpers import record
+    expert = SidewalkExpert()
+    squeezed = record(**SQUEEZED)
+    assert expert.around_obstacle(squeezed, 0.0) > SQUEEZED["d"]           # its own side, farther from it
+    steer, _, _ = expert.act(squeezed, "direct")
+    assert steer < 0.5                                                      # left: away from the obstacle
+    mirrored = record(**{**SQUEEZED, **{k: -SQUEEZED[k] for k in ("d", "heading", "curvature_ahead", "obstacle_d")},
+                         "steer": 1 - SQUEEZED["steer"], "border_left": 5.0, "border_right": 0.355})
+    assert expert.act(mirrored, "direct")[0] > 0.5                          # and right where it is on the right
+
+
 def test_an_expert_taken_over_late_swerves_at_once_sharply_and_slowly():
     from tests.sidewalk.helpers import record
     expert = SidewalkExpert()

@@ -51,8 +51,9 @@ class StudyConfig:
     epochs: int = 10
     trials: int = 3
     batch_size: int = 120
-    rounds: int = 1                 # correction rounds before the final autonomy runs
-    round_seconds: float = 60.0     # simulated seconds per network and mode in each round
+    rounds: int = 2                 # correction rounds before the final autonomy runs,
+    round_seconds: float = 180.0    # simulated seconds per network and mode in each (together about the paper's
+                                    # 19 % of correctional data)
     round_epochs: int = 2           # fine-tuning after each round
     loops: tuple = HELD_OUT_PATHS
     runs: int = 3                   # autonomy runs per loop (seeds 100, 101, ...)
