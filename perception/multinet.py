@@ -47,6 +47,7 @@ from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpo
 from perception.curves import write_curves
 from perception.models import Regressor, family, make_spec
 from perception.moment_cache import Moments
+from perception.optimizers import make_optimizer as optimizer
 from perception.training import open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
@@ -195,14 +196,10 @@ def resolve(cfg, log=print) -> MultiNetRun:
 
 # --- the steps of the loop ---------------------------------------------------------------------------------------
 def make_optimizer(name: str, model: torch.nn.Module, lr: float) -> torch.optim.Optimizer:
-    params = [p for p in model.parameters() if p.requires_grad]
-    if name == "adadelta":
-        return torch.optim.Adadelta(params, lr=lr)
-    if name == "adam":
-        return torch.optim.Adam(params, lr=lr)
-    if name == "sgd":
-        return torch.optim.SGD(params, lr=lr, momentum=0.9)
-    raise CheckpointError(f"unknown optimizer '{name}' (adadelta, adam or sgd)")
+    try:
+        return optimizer(name, (p for p in model.parameters() if p.requires_grad), lr)
+    except ValueError as e:
+        raise CheckpointError(str(e)) from None
 
 
 def new_network(run: MultiNetRun, trial: int) -> tuple[Regressor, torch.optim.Optimizer]:

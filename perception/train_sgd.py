@@ -41,6 +41,7 @@ from perception.models import (
     load_trunk,
     make_spec,
 )
+from perception.optimizers import make_optimizer as optimizer
 from perception.shards import Dataset, DatasetError
 from perception.training import (
     TrainConfig,
@@ -52,8 +53,6 @@ from perception.training import (
     load_frames,
     validate,
 )
-
-OPTIMIZERS = ("sgd", "adam", "adadelta")
 
 
 @dataclass
@@ -176,13 +175,10 @@ def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regr
 
 
 def make_optimizer(name: str, params, lr: float, cfg: TrainConfig) -> torch.optim.Optimizer:
-    if name == "sgd":
-        return torch.optim.SGD(params, lr=lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
-    if name == "adam":
-        return torch.optim.Adam(params, lr=lr, weight_decay=cfg.weight_decay)
-    if name == "adadelta":
-        return torch.optim.Adadelta(params, lr=lr, weight_decay=cfg.weight_decay)
-    raise TrainingError(f"unknown optimizer '{name}' ({', '.join(OPTIMIZERS)})")
+    try:
+        return optimizer(name, params, lr, cfg.momentum, cfg.weight_decay)
+    except ValueError as e:
+        raise TrainingError(str(e)) from None
 
 
 def frame_cache(data: Dataset, dist: Distributed, log) -> FrameCache:
