@@ -116,11 +116,12 @@ def foresee(record, command: tuple[float, float], p: CorrectionParams = Correcti
     lead_gap, lead_d, lead_v = value(record, "lead_gap"), value(record, "lead_d"), value(record, "lead_speed")
     reach_left, reach_right = d + half_extent(psi), -d + half_extent(psi)   # the body's reach to either side now
     need = swerve_needed(record, p.clearance) + p.swerve_margin if gap < GAP_CAP else 0.0
+    lead = -2 * CAR_LENGTH < lead_gap < GAP_CAP      # ahead or alongside: a lead car the car left behind is no hazard
     travelled, obstacle = 0.0, gap < GAP_CAP
     for k in range(int(round(p.longest / dt)) + 1):
         t = k * dt
         if t > max(p.path_preview, p.contact_preview) and \
-                travelled > max(need if obstacle else 0.0, p.contact_distance if lead_gap < GAP_CAP else 0.0):
+                travelled > max(need if obstacle else 0.0, p.contact_distance if lead else 0.0):
             return None                                   # nothing further ahead is the expert's concern yet
         e = half_extent(psi)
         if (t <= p.path_preview and abs(d) > hw) or (t == 0.0 and abs(psi) > p.heading_max):
@@ -135,7 +136,7 @@ def foresee(record, command: tuple[float, float], p: CorrectionParams = Correcti
             if travelled <= need:
                 return f"{COLLISION}: an obstacle"
             obstacle = False
-        if (soon or travelled <= p.contact_distance) and lead_gap < GAP_CAP and \
+        if (soon or travelled <= p.contact_distance) and lead and \
                 lead_gap + lead_v * t - travelled < p.clearance and abs(d - lead_d) < CAR_WIDTH / 2 + e + p.clearance:
             return f"{COLLISION}: the lead car"
         delta += max(-p.servo_rate * dt, min(p.servo_rate * dt, target - delta))

@@ -21,7 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.worlds.sidewalk import CAR_WIDTH, MODES, REAR_TO_CG, SIDEWALK, STEER_LOCK_RAD, TOP_SPEED, WHEELBASE
+from core.worlds.sidewalk import (
+    CAR_LENGTH,
+    CAR_WIDTH,
+    MODES,
+    REAR_TO_CG,
+    SIDEWALK,
+    STEER_LOCK_RAD,
+    TOP_SPEED,
+    WHEELBASE,
+)
 
 BORDER_CAP = 5.0     # [m] the record's border distance where there is no border
 GAP_CAP = 30.0       # [m] the record's obstacle_gap / lead_gap when there is nothing
@@ -208,6 +217,17 @@ class SidewalkExpert:
         w = 1.0 if gap <= self.p.ramp[0] or late else ramp
         return (1.0 - w) * want + w * side
 
+    def beside_lead(self, record, target: float) -> float:
+        """`target`, or, with the lead car alongside (a driver drew level with it or passed it: lead_gap between
+        minus two car lengths and 0), the nearest offset on the car's own side of it that keeps the bodies
+        pass_margin apart: the expert stops and lets it go on rather than steer back into it."""
+        gap = field(record, "lead_gap")
+        if not -2 * CAR_LENGTH - self.p.pass_margin < gap < 0.0:
+            return target
+        d, ld = field(record, "d"), field(record, "lead_d")
+        apart = CAR_WIDTH + self.p.pass_margin
+        return max(target, ld + apart) if d >= ld else min(target, ld - apart)
+
     def urgent(self, record) -> bool:
         """The next obstacle is in the way and the swerve round it needs all the room left but swerve_margin: swerve
         fully at once, sharply (a short pursuit distance) and slowly (a car the expert takes over late, from
@@ -243,7 +263,8 @@ class SidewalkExpert:
         """(steer, motor, what it is doing) for a truth record; the mode defaults to the record's behaviour."""
         mode = mode or MODES[int(field(record, "behaviour"))]
         edge = field(record, "path_width") / 2 - CAR_WIDTH / 2   # around_obstacle keeps its margins where there
-        target = min(edge, max(-edge, self.around_obstacle(record, self.nominal(record, mode))))   # is room
+        target = self.beside_lead(record, self.around_obstacle(record, self.nominal(record, mode)))   # is room
+        target = min(edge, max(-edge, target))
         v, why = self.speed(record, mode)
         base, gain, most = self.p.lookahead
         look = min(most, base + gain * abs(field(record, "speed")))

@@ -66,6 +66,12 @@ def test_an_obstacle_in_the_way_is_taken_over_when_the_swerve_needs_the_room_lef
     assert takes_over(rule, record(obstacle_gap=0.3, **base), (0.5, motor)) == f"{COLLISION}: an obstacle"
 
 
+def test_a_lead_car_alongside_is_a_hazard_and_one_left_behind_is_not():
+    beside = {"speed": 2.0, "d": 0.3, "heading": -0.15, "lead_d": 0.05, "lead_speed": 1.0}
+    assert foresee(record(lead_gap=-0.5, **beside), (0.55, 0.61)) == f"{COLLISION}: the lead car"   # drifting into it
+    assert foresee(record(lead_gap=-3.0, **beside), (0.55, 0.61)) is None        # 2.5 m behind: the car's past
+
+
 def test_a_car_clear_of_an_obstacle_but_closing_on_it_is_taken_over_before_it_touches():
     """The MultiNet study's contact while correcting: the car cleared the obstacle by a millimetre and the rule
     judged the swerve from the present state (none needed), so it waited until the expert could no longer turn

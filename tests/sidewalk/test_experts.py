@@ -156,3 +156,17 @@ def test_an_expert_taken_over_late_swerves_at_once_sharply_and_slowly():
     assert why == "swerving round an obstacle" and motor <= 0.5 + 1.0 / 18 + 1e-9           # 1 m/s at most
     assert steer > 0.8                                                                      # hard right: it is left
     assert abs(expert.act(early, "direct")[0] - 0.5) < 0.1                                  # early: a gentle start
+
+
+def test_the_expert_keeps_its_side_of_a_lead_car_alongside():
+    """The study's contact while correcting in follow mode: a network drew level with the lead car on its left and
+    the expert, steering back to the path's centre, drove into it. Alongside, the expert keeps its own side."""
+    from tests.sidewalk.helpers import record
+    expert = SidewalkExpert()
+    left_of_it = record(d=0.6, heading=0.0, speed=2.0, lead_gap=-0.5, lead_d=0.26, lead_speed=1.2)
+    assert expert.beside_lead(left_of_it, 0.0) >= 0.26 + 0.2
+    assert expert.act(left_of_it, "follow")[0] <= 0.5 + 1e-9                      # not to the right, into it
+    right_of_it = record(d=-0.6, heading=0.0, speed=2.0, lead_gap=-0.5, lead_d=-0.26, lead_speed=1.2)
+    assert expert.act(right_of_it, "follow")[0] >= 0.5 - 1e-9
+    ahead = record(d=0.6, speed=2.0, lead_gap=1.5, lead_d=0.26, lead_speed=1.2)
+    assert expert.beside_lead(ahead, 0.0) == 0.0                                  # ahead: it follows, as before
