@@ -34,7 +34,8 @@ def register(sub) -> None:
                        description="Generate the expert dataset, train a MobileNet that reads the previous frame too, "
                                    "run data-aggregation rounds (the model drives, its frames get exact labels, it is "
                                    "fine-tuned), then benchmark every round's model beside the oracle on the "
-                                   "held-out suite. About 90 minutes on a 2-core CPU (docs/aggregation.md); running "
+                                   "held-out suite. About 3.5 hours on a 2-core CPU, from its stages' measured times "
+                                   "(docs/aggregation.md); running "
                                    "the same command again continues where it stopped.")
     p.add_argument("--out", default="out/recipe", help="output folder (default out/recipe)")
     p.add_argument("--quick", action="store_true", help="every step at its smallest (what the tests run)")
