@@ -7,8 +7,11 @@ Every configuration trains the same model from the same seed on the same frames;
 round, so that the machine's drift hits every configuration alike; the figure of a run is its samples/s over the
 iterations after the first logged row (start-up excluded), and a configuration's figure is its best round.
 
+`--before-tree DIR` runs the "before" configuration from another checkout of the project (say, a commit before a
+speed-up that has no option to turn it off, such as the fused optimisers): `git worktree add DIR <commit>`.
+
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
-                                   [--json F]
+                                   [--before-tree DIR] [--json F]
 """
 from __future__ import annotations
 
@@ -31,9 +34,10 @@ VARIANTS = {"before (contiguous, PNG every epoch)": ["--no-channels-last", "--no
             "channels-last + frame cache, no loader process": ["--workers", "0"]}
 
 
-def drivestudio(*args: str) -> None:
+def drivestudio(*args: str, tree: Path | None = None) -> None:
+    """A verb of this checkout, or of the checkout `tree` (python -m puts the working folder first on the path)."""
     subprocess.run([sys.executable, "-m", "drivestudio", *args], check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL)
+                   stderr=subprocess.DEVNULL, cwd=tree)
 
 
 def samples_per_s(ckpt: Path) -> float:
@@ -48,8 +52,12 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=600, help="frames of the dataset trained on")
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds (the best is reported)")
     ap.add_argument("--families", default=",".join(FAMILIES))
+    ap.add_argument("--before-tree", type=Path, help="run the first configuration from this checkout")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
+    if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
+        ap.error(f"--before-tree: {args.before_tree} is not a checkout of this project")
+    before = next(iter(VARIANTS))
     work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-train-"))
     try:
         data = work / "data"
@@ -65,7 +73,7 @@ def main() -> None:
                     shutil.rmtree(data / ".frames", ignore_errors=True)   # every cached run decodes once, as a user's
                     drivestudio("train", "--data", str(data), "--out", str(ckpt), *options, *extra, "--iterations",
                                 str(iterations), "--val-every", str(10 * iterations),
-                                "--device", "cpu")
+                                "--device", "cpu", tree=args.before_tree if variant == before else None)
                     rate = samples_per_s(ckpt)
                     best[(fam, variant)] = max(best.get((fam, variant), 0.0), rate)
         rows = []
