@@ -26,7 +26,7 @@ def register(sub) -> None:
                                    "--device cuda the defaults are the paper's 24 epochs and 8 trials "
                                    "(docs/results.md).")
     p.add_argument("--out", default=d.out, help=f"folder of the study (default {d.out})")
-    p.add_argument("--quick", action="store_true", help="a tiny study (about two minutes), as the tests run it")
+    p.add_argument("--quick", action="store_true", help="a tiny study (3-4 minutes), as the tests run it")
     p.add_argument("--moments", type=count(100, 10**8), help=f"data moments at least (default {d.moments:,})")
     p.add_argument("--episode-frames", type=count(20, 10**5), help=f"steps per episode (default {d.episode_frames})")
     p.add_argument("--procedural", type=count(0, 1000),

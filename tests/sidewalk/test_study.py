@@ -111,7 +111,9 @@ def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
                 a = study["autonomy"][rule][mode][net]
                 assert a["runs"] == 2 and 0.0 <= a["autonomy_mean"] <= 100.0
                 assert a["collisions_while_correcting"] == 0
-    assert study["final_networks"]["multinet"].endswith("multinet-round1.pt")
+    rounds = StudyConfig().rounds                    # --quick keeps the default number of rounds, shorter
+    assert rounds >= 2 and study["final_networks"]["multinet"].endswith(f"multinet-round{rounds}.pt")
+    assert sorted(p.name for p in (out / "rounds").iterdir()) == [f"round{k}" for k in range(1, rounds + 1)]
     assert len(study["validation"]["multinet"]) == 2 and (out / "figure7-all-modes.png").stat().st_size > 10_000
     assert "## Percentage autonomy" in (out / "STUDY.md").read_text()
     again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)   # all done: nothing redone
