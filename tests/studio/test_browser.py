@@ -46,9 +46,16 @@ def label(driver, name: str) -> float:
     return driver.execute_script(f"return window.studio.state.labels.find(l => l.name === '{name}').truth;")
 
 
+def sim_wait(driver, seconds: float) -> None:
+    """Until the world has run `seconds` of simulated time (a loaded machine steps it slower than the wall clock)."""
+    t0 = page_state(driver, "window.studio.state.t")
+    wait_page(driver, f"window.studio.state.t >= {t0 + seconds}")
+
+
 def hold(driver, key, seconds: float) -> None:
+    """Hold a key for `seconds` of simulated time."""
     ActionChains(driver).key_down(key).perform()
-    time.sleep(seconds)
+    sim_wait(driver, seconds)
     ActionChains(driver).key_up(key).perform()
 
 
@@ -72,12 +79,13 @@ def test_a_key_press_steers_the_car(page, highway):
     before_marking, before_angle = label(page, "toMarking_ML"), label(page, "angle")
     hold(page, Keys.ARROW_LEFT, 1.2)
     steered = page_state(page, "window.studio.state.command[0]")
-    time.sleep(0.3)
+    sim_wait(page, 0.3)
     after_marking, after_angle = label(page, "toMarking_ML"), label(page, "angle")
     assert steered >= 0.0
     # turned left: the car's nose points left of the road (angle < 0) and it moved toward its left marking
     assert after_angle < before_angle - 0.02
-    assert after_marking > before_marking + 0.3
+    # toward its left marking, or onto it (the in-lane system then inactive: toMarking_ML at its floor, -5.5 m)
+    assert after_marking > before_marking + 0.3 or after_marking <= -5.5 + 1e-6
     assert page_state(page, "window.studio.latencies.length") >= 1
 
 
