@@ -14,8 +14,8 @@ in the world's process whatever transport the driver uses):
 - **imminent collision**: its body will touch a border (hedge, bushes) within `contact_preview` seconds; or it will
   touch the next obstacle, and the way left to it is no more than the expert needs to swerve clear of it
   (controller/sidewalk/experts.py's swerve_distance, from the car's offset, heading and speed) plus
-  `swerve_margin`; or it will touch the lead car within `contact_preview` seconds or `contact_distance` metres
-  (closer than `clearance` counts as touching);
+  `swerve_margin`; or it will touch the lead car (ahead or alongside, not one it has left behind) within
+  `contact_preview` seconds or `contact_distance` metres (closer than `clearance` counts as touching);
 - **stalled**: it has crept slower than `stall_speed` for `stall_time` seconds while the expert would drive on (its
   motor above 0.5 + `stall_motor`): a car that stops where it should go is not driving, and a person watching it
   would take over (without this clause a network that learned to stand still would score 100 % autonomy);

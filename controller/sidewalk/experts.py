@@ -262,8 +262,9 @@ class SidewalkExpert:
     def act(self, record, mode: str | None = None) -> tuple[float, float, str]:
         """(steer, motor, what it is doing) for a truth record; the mode defaults to the record's behaviour."""
         mode = mode or MODES[int(field(record, "behaviour"))]
-        edge = field(record, "path_width") / 2 - CAR_WIDTH / 2   # around_obstacle keeps its margins where there
-        target = self.beside_lead(record, self.around_obstacle(record, self.nominal(record, mode)))   # is room
+        # clamped to the path's edge only: around_obstacle keeps the expert's margins where the path has room for them
+        edge = field(record, "path_width") / 2 - CAR_WIDTH / 2
+        target = self.beside_lead(record, self.around_obstacle(record, self.nominal(record, mode)))
         target = min(edge, max(-edge, target))
         v, why = self.speed(record, mode)
         base, gain, most = self.p.lookahead

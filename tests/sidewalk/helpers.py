@@ -12,6 +12,13 @@ from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 STRAIGHT = 60.0   # [m]
 RADIUS = 10.0     # [m]
 
+# a car a network left squeezed between an obstacle (its left edge at 1.06 m) and the path's left edge (1.33 m),
+# closing on the obstacle at 2.9 m/s: the recorded state of the MultiNet study's contact while the expert held the
+# wheel (fields for record())
+SQUEEZED = {"d": 1.186, "heading": -0.082, "speed": 2.88, "steer": 0.536, "path_width": 2.66,
+            "curvature_ahead": 0.10, "border_left": 0.355, "obstacle_gap": 0.27, "obstacle_d": 0.885,
+            "obstacle_width": 0.339}
+
 
 def stadium(width: float = 2.0, name: str = "stadium") -> dict:
     return {"name": name, "style": "park", "width": width,

@@ -11,7 +11,7 @@ from controller.sidewalk.experts import swerve_needed
 from controller.sidewalk.poor import PoorParams
 from drivestudio.worlds.sidewalk.drivers import Supervisor
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
-from tests.sidewalk.helpers import record
+from tests.sidewalk.helpers import SQUEEZED, record
 
 SAME = ((0.5, 0.6), (0.5, 0.6))   # driver and expert agree: straight on at about 1.8 m/s
 WILD = PoorParams(bias_sigma=0.2, lapse_every=(2.0, 5.0), lapse_length=(1.0, 3.0), speed_factor=1.6)
@@ -76,7 +76,6 @@ def test_a_car_clear_of_an_obstacle_but_closing_on_it_is_taken_over_before_it_to
     """The MultiNet study's contact while correcting: the car cleared the obstacle by a millimetre and the rule
     judged the swerve from the present state (none needed), so it waited until the expert could no longer turn
     away. Closing on it, the swerve needs the way the car takes to turn parallel."""
-    from tests.sidewalk.test_experts import SQUEEZED
     assert foresee(record(**SQUEEZED), (0.52, 0.69)) == f"{COLLISION}: an obstacle"
     parallel = record(**{**SQUEEZED, "d": 1.2, "heading": 0.0, "steer": 0.466})      # 1.5 cm clear, following
     assert foresee(parallel, (0.466, 0.69)) is None                                   # the bend: no hazard

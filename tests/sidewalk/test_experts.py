@@ -127,15 +127,8 @@ def test_a_car_clear_of_an_obstacle_but_closing_on_it_needs_the_way_it_takes_to_
     assert swerve_distance(2.9, -0.001, heading=0.08) == 0.0
 
 
-# a car a network left squeezed between an obstacle (its left edge at 1.06 m) and the path's left edge (1.33 m),
-# closing on the obstacle at 2.9 m/s: the MultiNet study's one contact while the expert held the wheel
-SQUEEZED = {"d": 1.186, "heading": -0.082, "speed": 2.88, "steer": 0.536, "path_width": 2.66,
-            "curvature_ahead": 0.10, "border_left": 0.355, "obstacle_gap": 0.27, "obstacle_d": 0.885,
-            "obstacle_width": 0.339}
-
-
 def test_a_car_squeezed_beside_an_obstacle_is_steered_away_from_it_not_across_it():
-    from tests.sidewalk.helpers import record
+    from tests.sidewalk.helpers import SQUEEZED, record
     expert = SidewalkExpert()
     squeezed = record(**SQUEEZED)
     assert expert.around_obstacle(squeezed, 0.0) > SQUEEZED["d"]           # its own side, farther from it
