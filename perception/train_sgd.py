@@ -44,10 +44,10 @@ from perception.models import (
 from perception.optimizers import make_optimizer as optimizer
 from perception.shards import Dataset, DatasetError
 from perception.training import (
+    LOSSES,
     TrainConfig,
     TrainingError,
     data_summary,
-    euclidean_loss,
     history_moment,
     input_statistics,
     load_frames,
@@ -63,6 +63,7 @@ class Plan:
     batch_size: int
     lr: float
     optimizer: str
+    loss: str               # a name of LOSSES
     spec: dict
     ckpt: dict | None       # the checkpoint at `out` this run continues, or None
     init: dict | None = None   # the checkpoint a new run starts from (--init), or None
@@ -87,21 +88,24 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     optimizer = cfg.optimizer or paper.get("optimizer", "sgd")
     out = Path(cfg.out)
     if not out.exists() and cfg.init:
-        init = initial_checkpoint(cfg, decl, labels)
-        return Plan(iterations, batch_size, lr, optimizer, init["spec"], None, init)
+        init = initial_checkpoint(cfg, decl, labels)   # fine-tuning keeps the loss the model learned under
+        loss = cfg.loss or init.get("train", {}).get("config", {}).get("loss") or "euclidean"
+        return Plan(iterations, batch_size, lr, optimizer, loss, init["spec"], None, init)
     if not out.exists():
-        return Plan(iterations, batch_size, lr, optimizer, new_spec(cfg, decl, labels, dist, log), None)
+        return Plan(iterations, batch_size, lr, optimizer, cfg.loss or "euclidean",
+                    new_spec(cfg, decl, labels, dist, log), None)
     ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
     check_spec(ckpt["spec"], str(out))
     if "optimizer" not in ckpt:
         raise CheckpointError(f"{out} holds no training state to continue from")
     check_continuation(cfg, decl, ckpt, optimizer)
     old = ckpt["train"]["config"]
+    loss = old.get("loss") or "euclidean"   # checkpoints from before --loss were all Euclidean
     if old.get("lr") != lr or old.get("batch_size") != batch_size:
         log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
             f"batch {old.get('batch_size')}); the settings of this run are ignored")
         lr, batch_size = old.get("lr", lr), old.get("batch_size", batch_size)
-    return Plan(iterations, batch_size, lr, optimizer, ckpt["spec"], ckpt)
+    return Plan(iterations, batch_size, lr, optimizer, loss, ckpt["spec"], ckpt)
 
 
 def earlier_frames(decl: WorldDeclaration, history: int) -> int:
@@ -125,6 +129,9 @@ def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, opt
     if old.get("optimizer") != optimizer:
         raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
                               "optimiser to continue it, or another --out")
+    if cfg.loss and cfg.loss != (old.get("loss") or "euclidean"):
+        raise CheckpointError(f"{out} was trained with --loss {old.get('loss') or 'euclidean'}; use the same loss "
+                              "to continue it, or another --out")
 
 
 def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict:
@@ -267,7 +274,8 @@ class SGDRun:
             return
         cfg, plan = self.cfg, self.plan
         config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
-        config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer)
+        config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer,
+                      loss=plan.loss)
         payload: dict = {"spec": plan.spec, "state_dict": self.model.state_dict(), "optimizer": self.opt.state_dict(),
                    "scheduler": self.sched.state_dict(), "rng": torch.get_rng_state(),
                    "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
@@ -277,15 +285,15 @@ class SGDRun:
         if self.scaler.is_enabled():
             payload["scaler"] = self.scaler.state_dict()
         save_checkpoint(self.out, payload)
-        title = f"{describe(plan.spec)} on {self.data.root.name}: {plan.optimizer}, lr {plan.lr:g}, " \
-                f"batch {plan.batch_size}"
+        title = f"{describe(plan.spec)} on {self.data.root.name}: {plan.loss} loss, {plan.optimizer}, " \
+                f"lr {plan.lr:g}, batch {plan.batch_size}"
         write_curves(self.out, self.state["history"], title=title)
 
     def validate_into(self, row: dict) -> None:
         if self.val is None:
             return
         images, modes, targets = self.val
-        v = validate(self.model, images, modes, targets, self.device)
+        v = validate(self.model, images, modes, targets, self.device, loss=self.plan.loss)
         row["val_loss"] = v["val_loss"]
         row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
         shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
@@ -297,7 +305,8 @@ class SGDRun:
         cfg, plan, dist = self.cfg, self.plan, self.dist
         self.log(f"training {describe(plan.spec)} ({sum(p.numel() for p in self.params):,} trainable parameters) "
                  f"on {len(self.stream)} frames of {cfg.data} on {self.device}: {plan.iterations} iterations of "
-                 f"{plan.batch_size}, {plan.optimizer} lr {plan.lr:g} x{cfg.lr_gamma} every {cfg.lr_step}"
+                 f"{plan.batch_size}, {plan.loss} loss, {plan.optimizer} lr {plan.lr:g} x{cfg.lr_gamma} every "
+                 f"{cfg.lr_step}"
                  + (f", {self.amp_dtype}" if self.amp_dtype else "")
                  + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {plan.batch_size} samples "
                     f"each per iteration, {plan.batch_size * dist.world_size} in all" if dist.active else ""))
@@ -318,7 +327,7 @@ class SGDRun:
             x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(dev.type, dtype=self.amp_dtype or torch.float32, enabled=self.amp_dtype is not None):
             pred = self.net(x, m)
-        loss = euclidean_loss(pred, y)
+        loss = LOSSES[self.plan.loss](pred, y)
         value, due = loss, None
         if self.dist.active:   # the mean loss over ranks, and whether any rank is due to save, before backward
             late = time.monotonic() - self.last_save > self.cfg.checkpoint_every

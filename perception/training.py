@@ -39,6 +39,7 @@ class TrainConfig:
     lr_step: int = 1000               # iterations between learning-rate decays
     lr_gamma: float = 0.9
     optimizer: str | None = None      # sgd (Liu and Wang's, momentum 0.9) | adam | adadelta; None: the family's
+    loss: str | None = None           # a name of LOSSES; None: the checkpoint's (continued, --init) or euclidean
     momentum: float = 0.9
     weight_decay: float = 0.0
     device: str = "auto"              # auto | cpu | cuda | cuda:N
@@ -110,6 +111,17 @@ def euclidean_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return ((pred.float() - target.float()) ** 2).sum(1).mean() / 2
 
 
+def absolute_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """The L1 counterpart: 1/m sum_i ||y_hat_i - y_i||_1. Why it exists: under the Euclidean loss an output's pull
+    on the shared trunk grows with its error, so the gaps' misses of tens of metres drown the angle's hundredths of
+    a radian; under L1 every output pulls alike, and the loss is the mean absolute error the reports measure."""
+    return (pred.float() - target.float()).abs().sum(1).mean()
+
+
+# `train --loss`: the Euclidean loss is the paper's (Liu and Wang; Chen et al.), the default of every family.
+LOSSES = {"euclidean": euclidean_loss, "l1": absolute_loss}
+
+
 def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -178,9 +190,10 @@ def predict_all(model: Regressor, images: torch.Tensor, modes: torch.Tensor, dev
 
 
 def validate(model: Regressor, images: torch.Tensor, modes: torch.Tensor, targets: torch.Tensor, device,
-             batch: int = 50) -> dict:
-    """Euclidean loss (normalised) and mean absolute error per output (in the labels' units)."""
+             batch: int = 50, loss: str = "euclidean") -> dict:
+    """The training loss `loss` (normalised; so the curves compare like with like) and mean absolute error per
+    output (in the labels' units)."""
     preds = predict_all(model, images, modes, device, batch)
     mae = np.abs(model.denormalise(preds) - model.denormalise(targets)).mean(0)
-    return {"val_loss": float(euclidean_loss(preds, targets)),
+    return {"val_loss": float(LOSSES[loss](preds, targets)),
             "val_mae": {n: float(v) for n, v in zip(model.outputs, mae)}}

@@ -12,9 +12,10 @@ from perception.memory import check_batch
 
 # The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a
 # family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
-TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "weight_decay",
-                   "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights", "regressor", "modes",
-                   "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze", "batch_norm")
+TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss",
+                   "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
+                   "regressor", "modes", "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze",
+                   "batch_norm")
 APPLIES = {
     "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials"},
     "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init", "amp"},
@@ -60,6 +61,10 @@ def register(sub) -> None:
                    help="learning-rate decay factor (0.9)")
     p.add_argument("--optimizer", choices=("sgd", "adam", "adadelta"), default=None,
                    help="sgd with momentum 0.9 (default for the highway models), adam, adadelta (MultiNet's)")
+    p.add_argument("--loss", choices=("euclidean", "l1"), default=None,
+                   help="euclidean (the papers' and the default: half the squared error) or l1 (the absolute error "
+                        "the MAE reports measure; every indicator pulls alike: docs/aggregation.md); a continued or "
+                        "--init run keeps its checkpoint's")
     p.add_argument("--weight-decay", type=finite(0.0, 1.0), default=0.0,
                    help="L2 weight decay (default 0)")
     add_device_option(p, "auto")

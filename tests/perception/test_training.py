@@ -5,12 +5,12 @@ import pytest
 import torch
 
 from core.worlds.highway import label_set
-from perception.checkpoint import load_checkpoint
+from perception.checkpoint import CheckpointError, load_checkpoint
 from perception.curves import curve_paths
 from perception.datasets import FrameDataset
 from perception.models import family
 from perception.train import train
-from perception.training import TrainConfig, euclidean_loss
+from perception.training import TrainConfig, absolute_loss, euclidean_loss
 from tests.perception.frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
 
 
@@ -24,6 +24,40 @@ def test_paper_settings_are_the_defaults():
 def test_euclidean_loss_is_half_the_mean_squared_norm():
     pred, target = torch.tensor([[1.0, 2.0], [0.0, 0.0]]), torch.tensor([[0.0, 0.0], [0.0, 3.0]])
     assert float(euclidean_loss(pred, target)) == pytest.approx((5 + 9) / (2 * 2))
+
+
+def test_absolute_loss_is_the_mean_l1_norm():
+    pred, target = torch.tensor([[1.0, -2.0], [0.0, 0.0]]), torch.tensor([[0.0, 0.0], [0.0, 3.0]])
+    assert float(absolute_loss(pred, target)) == pytest.approx((3 + 3) / 2)
+
+
+def test_absolute_loss_pulls_every_output_alike_whatever_its_error():
+    """The reason for --loss l1: an error of 0.01 and one of 0.5 get gradients of the same size (the Euclidean
+    loss's would differ fifty-fold)."""
+    pred = torch.tensor([[0.51, 1.0], [0.49, 0.0]], requires_grad=True)
+    absolute_loss(pred, torch.tensor([[0.5, 0.5], [0.5, 0.5]])).backward()
+    assert torch.equal(pred.grad, torch.tensor([[0.5, 0.5], [-0.5, -0.5]]))
+    pred.grad = None
+    euclidean_loss(pred, torch.tensor([[0.5, 0.5], [0.5, 0.5]])).backward()
+    assert pred.grad[0, 1] / pred.grad[0, 0] == pytest.approx(50)
+
+
+def test_l1_training_records_its_loss_and_continues_only_with_it():
+    path = workdir() / "mobilenet-l1.pt"
+    train(tiny_config("mobilenet", path, iterations=2, loss="l1"), log=lambda *x: None)
+    ckpt = load_checkpoint(path)
+    assert ckpt["train"]["config"]["loss"] == "l1"
+    # its validation loss is the L1 one: near the training loss, not a tenth of it as a Euclidean value would be
+    row = ckpt["train"]["history"][-1]
+    assert row["val_loss"] > 0.3 * row["train_loss"]
+    with pytest.raises(CheckpointError, match="--loss l1"):
+        train(tiny_config("mobilenet", path, iterations=4, loss="euclidean"), log=lambda *x: None)
+    # without --loss it continues with the checkpoint's, and so does a run that starts from it (--init)
+    train(tiny_config("mobilenet", path, iterations=4), log=lambda *x: None)
+    assert load_checkpoint(path)["train"]["config"]["loss"] == "l1"
+    tuned = workdir() / "mobilenet-l1-tuned.pt"
+    train(tiny_config("mobilenet", tuned, iterations=2, init=str(path)), log=lambda *x: None)
+    assert load_checkpoint(tuned)["train"]["config"]["loss"] == "l1"
 
 
 def test_alexnet_training_lowers_the_loss_on_real_frames():
