@@ -16,7 +16,10 @@ positions and distances in the image, not a class.
 
 The input may hold several instants (the current frame and the previous one or two, `train --history K`, as
 Conditional Affordance Learning feeds its temporal heads): 3 channels per instant. No ImageNet weights exist for
-this trunk here; it trains from scratch (Adam, batches of 32).
+this trunk here; it trains from scratch, the modern way rather than the papers': Adam, batches of 32, the L1 loss
+(the Euclidean one let the gaps' large misses drown the angle) and a moving average of the weights as the model
+(perception/weight_average.py). On validation frames made like the demo's, these two took the angle's error from
+0.048 to 0.036 rad at 1,500 iterations and the markings' down by about a third (docs/aggregation.md).
 """
 from __future__ import annotations
 
@@ -69,5 +72,5 @@ def _describe(spec: dict) -> str:
 
 register(Family(
     "mobilenet", "MobileNet", _build, one_camera_now, trainer="sgd", size=_size, temporal=True,
-    defaults={"iterations": 20_000, "batch_size": 32, "lr": 1e-3, "optimizer": "adam"},
+    defaults={"iterations": 20_000, "batch_size": 32, "lr": 1e-3, "optimizer": "adam", "loss": "l1", "ema": 0.995},
     describe=_describe))

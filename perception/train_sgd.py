@@ -18,6 +18,7 @@ import sys
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import torch
@@ -53,6 +54,7 @@ from perception.training import (
     load_frames,
     validate,
 )
+from perception.weight_average import WeightAverage
 
 
 @dataclass
@@ -64,6 +66,7 @@ class Plan:
     lr: float
     optimizer: str
     loss: str               # a name of LOSSES
+    ema: float              # decay of the weights' moving average, 0 for none (perception/weight_average.py)
     spec: dict
     ckpt: dict | None       # the checkpoint at `out` this run continues, or None
     init: dict | None = None   # the checkpoint a new run starts from (--init), or None
@@ -86,26 +89,27 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
         iterations = cfg.iterations if cfg.iterations is not None else paper["iterations"]
     lr = cfg.lr if cfg.lr is not None else paper["lr"]
     optimizer = cfg.optimizer or paper.get("optimizer", "sgd")
+    loss = cfg.loss or paper.get("loss", "euclidean")
+    ema = cfg.ema if cfg.ema is not None else paper.get("ema", 0.0)
     out = Path(cfg.out)
     if not out.exists() and cfg.init:
         init = initial_checkpoint(cfg, decl, labels)   # fine-tuning keeps the loss the model learned under
         loss = cfg.loss or init.get("train", {}).get("config", {}).get("loss") or "euclidean"
-        return Plan(iterations, batch_size, lr, optimizer, loss, init["spec"], None, init)
+        return Plan(iterations, batch_size, lr, optimizer, loss, ema, init["spec"], None, init)
     if not out.exists():
-        return Plan(iterations, batch_size, lr, optimizer, cfg.loss or "euclidean",
-                    new_spec(cfg, decl, labels, dist, log), None)
+        return Plan(iterations, batch_size, lr, optimizer, loss, ema, new_spec(cfg, decl, labels, dist, log), None)
     ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
     check_spec(ckpt["spec"], str(out))
     if "optimizer" not in ckpt:
         raise CheckpointError(f"{out} holds no training state to continue from")
-    check_continuation(cfg, decl, ckpt, optimizer)
+    check_continuation(cfg, decl, ckpt, optimizer, ema)
     old = ckpt["train"]["config"]
     loss = old.get("loss") or "euclidean"   # checkpoints from before --loss were all Euclidean
     if old.get("lr") != lr or old.get("batch_size") != batch_size:
         log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
             f"batch {old.get('batch_size')}); the settings of this run are ignored")
         lr, batch_size = old.get("lr", lr), old.get("batch_size", batch_size)
-    return Plan(iterations, batch_size, lr, optimizer, loss, ckpt["spec"], ckpt)
+    return Plan(iterations, batch_size, lr, optimizer, loss, ema, ckpt["spec"], ckpt)
 
 
 def earlier_frames(decl: WorldDeclaration, history: int) -> int:
@@ -113,7 +117,7 @@ def earlier_frames(decl: WorldDeclaration, history: int) -> int:
     return history or len(decl.moment.instants) - 1
 
 
-def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, optimizer: str) -> None:
+def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, optimizer: str, ema: float) -> None:
     """A checkpoint is continued only with the options it was trained with."""
     out, o = cfg.out, ckpt["spec"]["options"]
     if cfg.model == "vgg16" and o.get("frozen") == cfg.unfreeze:
@@ -131,6 +135,9 @@ def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, opt
                               "optimiser to continue it, or another --out")
     if cfg.loss and cfg.loss != (old.get("loss") or "euclidean"):
         raise CheckpointError(f"{out} was trained with --loss {old.get('loss') or 'euclidean'}; use the same loss "
+                              "to continue it, or another --out")
+    if ema != (old.get("ema") or 0.0):
+        raise CheckpointError(f"{out} was trained with --ema {old.get('ema') or 0:g}; use the same moving average "
                               "to continue it, or another --out")
 
 
@@ -164,8 +171,8 @@ def new_spec(cfg: TrainConfig, decl: WorldDeclaration, labels, dist: Distributed
 def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regressor:
     """The model: the checkpoint's weights, a trunk of ImageNet weights, or a fresh initialisation."""
     model = Regressor(plan.spec)
-    if plan.ckpt is not None:
-        model.load_state_dict(plan.ckpt["state_dict"])
+    if plan.ckpt is not None:   # with a moving average, "state_dict" holds the average, not the trained weights
+        model.load_state_dict(plan.ckpt.get("training_state_dict", plan.ckpt["state_dict"]))
     elif plan.init is not None:
         model.load_state_dict(plan.init["state_dict"])
         log(f"{cfg.model}: starting from the weights of {cfg.init}")
@@ -225,6 +232,7 @@ class SGDRun:
         self.params = [p for p in self.model.parameters() if p.requires_grad]
         self.opt = make_optimizer(plan.optimizer, self.params, plan.lr, cfg)
         self.sched = torch.optim.lr_scheduler.StepLR(self.opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
+        self.average = WeightAverage(self.model, plan.ema) if plan.ema else None
         self.amp_dtype = None
         if cfg.amp and device.type == "cuda":
             self.amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
@@ -244,6 +252,8 @@ class SGDRun:
             return True
         self.opt.load_state_dict(ckpt["optimizer"])
         self.sched.load_state_dict(ckpt["scheduler"])
+        if self.average is not None:
+            self.average.load(ckpt["state_dict"], ckpt["train"].get("averaged_steps", 0))
         if "scaler" in ckpt and self.scaler.is_enabled():
             self.scaler.load_state_dict(ckpt["scaler"])
         if "rng" in ckpt:
@@ -275,11 +285,14 @@ class SGDRun:
         cfg, plan = self.cfg, self.plan
         config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
         config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer,
-                      loss=plan.loss)
-        payload: dict = {"spec": plan.spec, "state_dict": self.model.state_dict(), "optimizer": self.opt.state_dict(),
+                      loss=plan.loss, ema=plan.ema)
+        payload: dict = {"spec": plan.spec, "state_dict": self.used().state_dict(), "optimizer": self.opt.state_dict(),
                    "scheduler": self.sched.state_dict(), "rng": torch.get_rng_state(),
                    "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
                    "data": data_summary(self.data)}
+        if self.average is not None:   # the weights it trains, to continue from; the average is what is used
+            payload["training_state_dict"] = self.model.state_dict()
+            payload["train"]["averaged_steps"] = self.average.steps
         if self.dist.active:
             payload["train"]["world_size"] = self.dist.world_size
         if self.scaler.is_enabled():
@@ -289,11 +302,15 @@ class SGDRun:
                 f"lr {plan.lr:g}, batch {plan.batch_size}"
         write_curves(self.out, self.state["history"], title=title)
 
+    def used(self) -> Regressor:
+        """The model the run validates and saves: the moving average of the weights where there is one."""
+        return self.model if self.average is None else cast(Regressor, self.average.module)
+
     def validate_into(self, row: dict) -> None:
         if self.val is None:
             return
         images, modes, targets = self.val
-        v = validate(self.model, images, modes, targets, self.device, loss=self.plan.loss)
+        v = validate(self.used(), images, modes, targets, self.device, loss=self.plan.loss)
         row["val_loss"] = v["val_loss"]
         row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
         shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
@@ -341,6 +358,8 @@ class SGDRun:
         self.scaler.step(self.opt)
         self.scaler.update()
         self.sched.step()
+        if self.average is not None:
+            self.average.update(self.model)
         return value.item(), due
 
     def after_step(self, step: int, loss: float, due: bool | None) -> None:

@@ -39,7 +39,8 @@ class TrainConfig:
     lr_step: int = 1000               # iterations between learning-rate decays
     lr_gamma: float = 0.9
     optimizer: str | None = None      # sgd (Liu and Wang's, momentum 0.9) | adam | adadelta; None: the family's
-    loss: str | None = None           # a name of LOSSES; None: the checkpoint's (continued, --init) or euclidean
+    loss: str | None = None           # a name of LOSSES; None: the checkpoint's (continued, --init), else the family's
+    ema: float | None = None          # decay of the weights' moving average (0: none); None: the family's
     momentum: float = 0.9
     weight_decay: float = 0.0
     device: str = "auto"              # auto | cpu | cuda | cuda:N

@@ -1,5 +1,5 @@
 """drivestudio demo: the whole mission for both worlds at small scale on built-in defaults, every step through the
-same verbs a user would run, everything in one folder, ending with REPORT.md (about 7 minutes on a 2-core machine;
+same verbs a user would run, everything in one folder, ending with REPORT.md (about 8 minutes on a 2-core machine;
 --quick: about 3)."""
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ class Size:
     oracle_seconds: int = 60
     frames: int = 6000          # highway dataset: 100 episodes, the test split (episodes 9, 19, ... 99) 600 frames
     episode_frames: int = 60    # over 1, 2 and 3 lanes; 2,000 frames left the MobileNet behind GIST on 8 of 13
-    iterations: int = 1500      # MobileNet (3.7 minutes)
+    iterations: int = 1800      # MobileNet (3.6 minutes)
     overlays: int = 6
     deep_seconds: int = 30
     expert_seconds: int = 20    # each sidewalk expert mode's video

@@ -13,7 +13,7 @@ from perception.memory import check_batch
 # The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a
 # family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
 TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss",
-                   "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
+                   "ema", "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
                    "regressor", "modes", "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze",
                    "batch_norm")
 APPLIES = {
@@ -62,9 +62,12 @@ def register(sub) -> None:
     p.add_argument("--optimizer", choices=("sgd", "adam", "adadelta"), default=None,
                    help="sgd with momentum 0.9 (default for the highway models), adam, adadelta (MultiNet's)")
     p.add_argument("--loss", choices=("euclidean", "l1"), default=None,
-                   help="euclidean (the papers' and the default: half the squared error) or l1 (the absolute error "
-                        "the MAE reports measure; every indicator pulls alike: docs/aggregation.md); a continued or "
-                        "--init run keeps its checkpoint's")
+                   help="euclidean (the papers': half the squared error; the default but for mobilenet) or l1 (the "
+                        "absolute error the MAE reports measure, every indicator pulling alike; mobilenet's "
+                        "default); a continued or --init run keeps its checkpoint's")
+    p.add_argument("--ema", metavar="DECAY", type=finite(0.0, 0.9999), default=None,
+                   help="save and validate the moving average of the weights, decay per step DECAY (0.995: about "
+                        "the last 200 steps; 0: none; default 0.995 mobilenet, else 0)")
     p.add_argument("--weight-decay", type=finite(0.0, 1.0), default=0.0,
                    help="L2 weight decay (default 0)")
     add_device_option(p, "auto")
