@@ -105,6 +105,9 @@ CASES = [
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--batch-size", "0"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--device", "banana"),
     ("train", "--data", D, "--model", "resnet", "--out", "{root}/a.pt"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--loss", "l3"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--ema", "1.5"),
+    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--loss", "l1"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
     # files and their content
     ("probe", "/dev/zero"),

@@ -227,6 +227,33 @@ def test_controller_hard_holds_the_four_routes_the_paper_controller_crashed_on()
 
 
 # --- models ---------------------------------------------------------------------------------------------------
+def test_a_checkpoint_that_reads_the_cars_behind_drives_with_the_lookout(tmp_path, blind):
+    """The extended label set's rear labels are what the lookout controller needs: a model that estimates them
+    drives with it (as the extended oracle does on the exact labels), any other with Chen's controller."""
+    from core.worlds.highway import LABEL_SETS
+    from drivestudio.worlds.highway.drivers import reads_behind
+    from drivestudio.worlds.highway.plugin import Plugin
+
+    extended = tmp_path / "extended.pt"
+    model = build("gist", HIGHWAY, LABEL_SETS["extended"])
+    save_checkpoint(extended, {"spec": model.spec, "state_dict": model.state_dict()})
+    rows = check_models([str(blind), str(extended)])
+    assert [(m.lookout, m.label.endswith(", lookout")) for m in rows[1:]] == [(False, False), (True, True)]
+    assert not reads_behind(LABEL_SETS["paper"]) and not reads_behind(LABEL_SETS["extended"][:-1])
+    args = SimpleNamespace(device="cpu", smoothing=None, gap_hold=None)
+    assert Plugin().driver(str(extended), args).lookout and not Plugin().driver(str(blind), args).lookout
+
+
+def test_checkpoints_of_one_name_are_told_apart_by_their_folder(tmp_path, blind):
+    a, b = tmp_path / "round-1" / "model.pt", tmp_path / "round-2" / "model.pt"
+    for p in (a, b):
+        p.parent.mkdir()
+        p.write_bytes(blind.read_bytes())
+    rows = check_models(["oracle", str(a), str(b), str(blind)])
+    assert [m.label for m in rows] == ["oracle", "GIST + ridge (round-1/model.pt)", "GIST + ridge (round-2/model.pt)",
+                                       "GIST + ridge (blind.pt)"]
+
+
 def test_the_extended_oracle_is_a_model_of_its_own():
     assert parse_model("oracle-extended") == ("oracle-extended", {})
     with pytest.raises(UsageError, match="oracle-extended reads the exact labels"):

@@ -24,6 +24,13 @@ _REAR = [ESTIMATE_INDEX[n] for n in REAR]
 ORACLES = {"oracle": False, "oracle-extended": True}
 
 
+def reads_behind(outputs) -> bool:
+    """Whether a model estimates the cars beside and behind (the four rear labels of the extended set): such a
+    model drives with the lookout controller, as the extended oracle does on the exact labels; any other with
+    Chen's, which sees only ahead."""
+    return set(REAR) <= set(outputs)
+
+
 def make_controller(lanes: int, lookout: bool) -> ChenController:
     """The controller of a driver: the Chen controller, or the lookout controller (rules L1-L3 on top)."""
     return LookoutController(lanes) if lookout else ChenController(lanes)

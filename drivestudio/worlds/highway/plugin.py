@@ -13,7 +13,7 @@ from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_lo
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode, WorldOptions
-from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver
+from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, reads_behind
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.overlays import overlay_record
 from drivestudio.worlds.highway.policy import PolicyDriver, is_policy, load_policy
@@ -121,7 +121,7 @@ class Plugin(base.Plugin):
             return ChenDriver(None, lookout=ORACLES.get(model, False))
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
-                          gap_hold=getattr(args, "gap_hold", None) or 0.0)
+                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs))
 
     def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS

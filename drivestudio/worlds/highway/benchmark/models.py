@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from drivestudio.checkpoints import check_checkpoint_path
@@ -121,16 +121,19 @@ def check_model(text: str) -> ModelSpec:
     path, filters = parse_model(text)
     if path in EXACT:
         return ModelSpec(text, None, label=path, family=path, lookout=path == EXTENDED)
+    from drivestudio.worlds.highway.drivers import reads_behind  # lazy: the controllers, only for a checkpoint
     from perception.checkpoint import load_checkpoint  # lazy: torch
     from perception.models import check_spec, describe  # lazy: torch
     check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]
     check_spec(spec, path)
+    lookout = reads_behind(spec["outputs"])
     label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
-                                                               for f, a in filters.items())
+                                                               for f, a in filters.items()) \
+        + (", lookout" if lookout else "")
     return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
-                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0))
+                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout)
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:
@@ -143,7 +146,17 @@ def check_models(texts: list[str] | None) -> list[ModelSpec]:
             raise UsageError(f"--model {m.text} is the same model as --model {seen[m.key]}; give each once")
         seen[m.key] = m.text
     oracle = [m for m in models if m.is_oracle] or [ModelSpec(ORACLE, None)]
-    return oracle + [m for m in models if m.exact and not m.is_oracle] + [m for m in models if not m.exact]
+    return distinct_labels(oracle + [m for m in models if m.exact and not m.is_oracle]
+                           + [m for m in models if not m.exact])
+
+
+def distinct_labels(models: list[ModelSpec]) -> list[ModelSpec]:
+    """Rows whose labels coincide (checkpoints of one name in different folders, as the aggregation rounds'
+    round-1/model.pt, round-2/model.pt) are named by their folder too, so the leaderboard tells them apart."""
+    labels = [m.label for m in models]
+    return [replace(m, label=m.label.replace(f"({Path(m.path).name})", f"({Path(m.path).parent.name}/"
+                                                                        f"{Path(m.path).name})"))
+            if m.path is not None and not m.policy and labels.count(m.label) > 1 else m for m in models]
 
 
 def slug(model: ModelSpec, taken: set[str]) -> str:
