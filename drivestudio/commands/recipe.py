@@ -34,7 +34,7 @@ def register(sub) -> None:
                        description="Generate the expert dataset, train a MobileNet that reads the previous frame too, "
                                    "run data-aggregation rounds (the model drives, its frames get exact labels, it is "
                                    "fine-tuned), then benchmark every round's model beside the oracle on the "
-                                   "held-out suite. About 3.5 hours on a 2-core CPU, from its stages' measured times "
+                                   "held-out suite. About 50 minutes on a 2-core CPU, timed as one run "
                                    "(docs/aggregation.md); running "
                                    "the same command again continues where it stopped.")
     p.add_argument("--out", default="out/recipe", help="output folder (default out/recipe)")
