@@ -119,7 +119,8 @@ def absolute_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return (pred.float() - target.float()).abs().sum(1).mean()
 
 
-# `train --loss`: the Euclidean loss is the paper's (Liu and Wang; Chen et al.), the default of every family.
+# `train --loss` (its choices are these names): the Euclidean loss is the papers' (Liu and Wang; Chen et al.) and the
+# default of every family but the MobileNet, which trains with L1 (perception/mobilenet.py).
 LOSSES = {"euclidean": euclidean_loss, "l1": absolute_loss}
 
 

@@ -61,6 +61,7 @@ def register(sub) -> None:
                    help="learning-rate decay factor (0.9)")
     p.add_argument("--optimizer", choices=("sgd", "adam", "adadelta"), default=None,
                    help="sgd with momentum 0.9 (default for the highway models), adam, adadelta (MultiNet's)")
+    # the names of perception/training.py's LOSSES, written out: the parser must not import torch
     p.add_argument("--loss", choices=("euclidean", "l1"), default=None,
                    help="euclidean (the papers': half the squared error; the default but for mobilenet) or l1 (the "
                         "absolute error the MAE reports measure, every indicator pulling alike; mobilenet's "

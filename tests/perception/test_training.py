@@ -42,6 +42,18 @@ def test_absolute_loss_pulls_every_output_alike_whatever_its_error():
     assert pred.grad[0, 1] / pred.grad[0, 0] == pytest.approx(50)
 
 
+def test_the_command_line_offers_every_loss_and_no_other():
+    import argparse
+
+    from drivestudio.commands import train as command
+    from perception.training import LOSSES
+
+    sub = argparse.ArgumentParser().add_subparsers()
+    command.register(sub)
+    option = next(a for a in sub.choices["train"]._actions if a.dest == "loss")
+    assert tuple(option.choices) == tuple(LOSSES)
+
+
 def test_l1_training_records_its_loss_and_continues_only_with_it():
     path = workdir() / "mobilenet-l1.pt"
     train(tiny_config("mobilenet", path, iterations=2, loss="l1"), log=lambda *x: None)
