@@ -23,6 +23,7 @@ import numpy as np
 
 NAME = re.compile(r"[A-Za-z][A-Za-z0-9_+]{0,30}")     # field, label, camera and mode names (C identifiers + '+')
 SCALAR_KINDS = ("f32", "f64", "i8", "i32", "i64", "bool")   # how a dataset stores a scalar of the truth record
+INSETS = ("", "mirror")   # what a world may composite into a camera's image (Camera.inset)
 COLUMN_KIND = re.compile(r"(str|f32|f64)(\[\d+\])?(\*)?")   # str, f32[5] (fixed list), f32[5]* (list of them)
 
 
@@ -39,12 +40,20 @@ def _name(value: str, what: str) -> str:
 
 @dataclass(frozen=True)
 class Camera:
-    """One camera of the world: its name and the size of the RGB image it renders [px]."""
+    """One camera of the world: its name and the size of the RGB image it renders [px]. `inset` names what the
+    world composites into that image besides the scene ("" nothing; "mirror": a rear-view mirror, docs/rendering.md):
+    a model learns the frames it was shown, so it is part of what a frame means."""
 
     name: str
     height: int
     width: int
     channels: int = 3
+    inset: str = ""
+
+    def __post_init__(self):
+        if self.inset not in INSETS:
+            raise DeclarationError(f"camera {self.name!r}: unknown inset {self.inset!r} (known: "
+                                   f"{', '.join(repr(i) for i in INSETS)})")
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -362,10 +371,11 @@ class WorldDeclaration:
         hi = np.array([c.high for c in self.action])
         return np.clip(np.where(np.isfinite(a), a, self.neutral_action()), lo, hi)
 
-    def with_camera(self, name: str, height: int, width: int) -> WorldDeclaration:
-        """This declaration with camera `name` rendering height x width (a world configured for other frames)."""
-        cams = tuple(Camera(c.name, int(height), int(width), c.channels) if c.name == name else c
-                     for c in self.cameras)
+    def with_camera(self, name: str, height: int, width: int, inset: str | None = None) -> WorldDeclaration:
+        """This declaration with camera `name` rendering height x width (a world configured for other frames), and
+        with `inset` composited into its image when given."""
+        cams = tuple(Camera(c.name, int(height), int(width), c.channels, c.inset if inset is None else inset)
+                     if c.name == name else c for c in self.cameras)
         if cams == self.cameras:
             return self
         self.camera(name)
@@ -376,8 +386,14 @@ class WorldDeclaration:
         def plain(obj):
             return {f.name: (list(getattr(obj, f.name)) if isinstance(getattr(obj, f.name), tuple)
                              else getattr(obj, f.name)) for f in fields(obj)}
+
+        def camera(c: Camera) -> dict:
+            out = plain(c)
+            if not c.inset:   # absent unless used: declarations, datasets and fingerprints without one are unchanged
+                out.pop("inset")
+            return out
         return {"name": self.name, "title": self.title, "dt": self.dt, "version": self.version,
-                "cameras": [plain(c) for c in self.cameras], "labels": [plain(x) for x in self.labels],
+                "cameras": [camera(c) for c in self.cameras], "labels": [plain(x) for x in self.labels],
                 "truth": [plain(q) for q in self.truth], "action": [plain(a) for a in self.action],
                 "columns": [plain(c) for c in self.columns], "modes": list(self.modes),
                 "mode_field": self.mode_field, "moment": {"instants": list(self.moment.instants),

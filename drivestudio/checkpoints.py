@@ -3,6 +3,7 @@
 below drivestudio/commands/."""
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -40,6 +41,19 @@ def check_checkpoint(model: str, world: str | None) -> dict:
     path = check_checkpoint_path(model)
     from perception.models import load_model  # lazy: torch
     return load_model(path, world=world)[1]["spec"]
+
+
+@functools.lru_cache(maxsize=8)
+def _inset(path: str, mtime_ns: int) -> str:
+    from perception.models import frame_inset  # lazy: torch
+    return frame_inset(check_checkpoint(path, None))
+
+
+def checkpoint_inset(model: str) -> str:
+    """What the frames checkpoint `model` learned held besides the scene ("" or "mirror"): the world that feeds it
+    renders the same. Read once per file version; a bad file is refused in one line (exit status 2)."""
+    path = check_checkpoint_path(model)
+    return _inset(str(path), path.stat().st_mtime_ns)
 
 
 def load_predictor_for(model: str, world: str, device: str = "cpu") -> Predictor:

@@ -138,12 +138,19 @@ def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=No
     std = [1.0] * channels if std is None else [float(v) for v in std]
     if len(mean) != channels or len(std) != channels:
         raise ValueError(f"mean and std need {channels} values, one per input channel")
+    inset = {"inset": cam.inset} if cam.inset else {}   # absent unless the frames hold one: older specs unchanged
     return {"name": name, "world": decl.name, "world_fingerprint": decl.fingerprint(), "labels": list(targets),
             "outputs": list(outputs), "options": dict(options),
             "input": {"channels": channels, "height": int(height), "width": int(width),
                       "instants": list(instants), "cameras": list(decl.camera_names),
-                      "modes": list(decl.modes), "scaling": fam.scaling, "mean": mean, "std": std},
+                      "modes": list(decl.modes), "scaling": fam.scaling, "mean": mean, "std": std, **inset},
             "normalisation": decl.normalisation(outputs)}
+
+
+def frame_inset(spec: dict) -> str:
+    """What the frames a model learned held besides the scene (core/declaration.py Camera.inset): "" or
+    "mirror". A world must render the same for the model to read it."""
+    return str(spec["input"].get("inset", ""))
 
 
 def declaration_of(spec: dict) -> WorldDeclaration:
@@ -158,7 +165,8 @@ def describe(spec: dict) -> str:
     fam = family(spec["name"])
     text = fam.describe(spec) if fam.describe else fam.title
     extra = [n for n in spec["labels"] if n in ("fast", "lanes_left")]
-    return text + (f" [+{', '.join(extra)}]" if extra else "")
+    inset = frame_inset(spec)
+    return text + (f" [+{', '.join(extra)}]" if extra else "") + (f" with {inset}" if inset else "")
 
 
 def _block_mean(x: torch.Tensor, fh: int, fw: int) -> torch.Tensor:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from perception.models import describe, load_model
+from perception.models import describe, frame_inset, load_model
 
 
 class Predictor:
@@ -29,6 +29,7 @@ class Predictor:
         self.outputs: tuple[str, ...] = tuple(spec["outputs"])
         self.instants: tuple[int, ...] = tuple(spec["input"]["instants"])
         self.cameras: tuple[str, ...] = tuple(spec["input"]["cameras"])
+        self.inset: str = frame_inset(spec)    # what its frames held besides the scene: a world must render the same
         self.modes: tuple[str, ...] = tuple(spec["input"].get("modes", ()))
         self.channels = int(spec["input"]["channels"])
 

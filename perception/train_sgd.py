@@ -39,6 +39,7 @@ from perception.models import (
     check_spec,
     describe,
     family,
+    frame_inset,
     load_trunk,
     make_spec,
 )
@@ -129,6 +130,7 @@ def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, opt
     if len(ckpt["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"{out} reads {len(ckpt['spec']['input']['instants']) - 1} earlier frame(s); continue "
                               "it with the same --history, or use another --out")
+    check_inset(str(out), ckpt["spec"], decl)
     old = ckpt["train"]["config"]
     if old.get("optimizer") != optimizer:
         raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
@@ -141,11 +143,21 @@ def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, opt
                               "to continue it, or another --out")
 
 
+def check_inset(where: str, spec: dict, decl: WorldDeclaration) -> None:
+    """A model goes on learning only frames like the ones it learned: with the rear-view mirror or without it."""
+    had, has = frame_inset(spec), decl.cameras[0].inset
+    if had != has:
+        raise CheckpointError(f"{where} learned frames {f'with a {had}' if had else 'without an inset'}; this data's "
+                              f"frames are {f'with a {has}' if has else 'without one'}: use data like its own, or "
+                              "another --out")
+
+
 def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict:
     """The checkpoint a fine-tuning run starts from: the same family, world, targets and earlier frames; its input
     statistics and weights are kept (a new optimiser and schedule start)."""
     init = load_checkpoint(cfg.init, model=cfg.model, labels=labels, world=decl.name)
     check_spec(init["spec"], str(cfg.init))
+    check_inset(f"--init {cfg.init}", init["spec"], decl)
     if len(init["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"--init {cfg.init} reads {len(init['spec']['input']['instants']) - 1} earlier "
                               f"frame(s), not --history {cfg.history}")

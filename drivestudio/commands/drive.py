@@ -67,6 +67,7 @@ def run(args) -> int:
     if args.record:
         check_output(args.record, (".mp4",), "video")
     plugin.check_model(args.model)   # before the world starts: one line, exit 2
+    plugin.resolve_args(args)        # what the model decides about its world (the highway's mirror)
     bind_view(args)
     out = run_dir(args.out, "drive")
     if args.in_process:

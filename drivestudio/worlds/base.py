@@ -95,6 +95,10 @@ class Plugin:
         if model not in self.expert_names:
             check_checkpoint(model, self.name)
 
+    def resolve_args(self, args) -> None:
+        """Before any work: check this world's options of a verb against --model (one line and exit status 2,
+        UsageError) and settle those the model decides. By default there is nothing to do."""
+
     def driver(self, model: str, args, declaration: WorldDeclaration | None = None) -> Driver:
         """The driver for --model MODEL: one of expert_names or a checkpoint of this world. By default a
         checkpoint whose outputs are the world's action drives directly (drivestudio/drivers.py)."""

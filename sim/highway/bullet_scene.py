@@ -103,7 +103,7 @@ class BulletScene:
             # the EGL plugin draws meshes from files only
             self._tmp = self._held.tmp = Path(tempfile.mkdtemp(prefix="drivestudio-egl-"))
         self._flag = pb.ER_BULLET_HARDWARE_OPENGL if renderer == "egl" else pb.ER_TINY_RENDERER
-        self._projection = camera.projection_matrix()
+        self._projections = {camera: camera.projection_matrix()}
         self._n_shapes = 0
         self._frames = 0
 
@@ -190,14 +190,17 @@ class BulletScene:
                 self._bc.changeVisualShape(body, -1, rgbaColor=rgba[:3] + alpha)
         self._chunk_visible = visible.copy()
 
-    def render(self, x: float, y: float, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-        """Objects seen from a host car at (x, y) [m] with yaw [rad]: (h, w, 3) uint8 RGB and an (h, w) uint8
-        mask, 1 where an object was drawn."""
-        cam, look = self.camera, self.look
+    def render(self, x: float, y: float, yaw: float, camera: CameraConfig | None = None) \
+            -> tuple[np.ndarray, np.ndarray]:
+        """Objects seen by `camera` (default: the scene's) from a host car at (x, y) [m] with yaw [rad]: (h, w, 3)
+        uint8 RGB and an (h, w) uint8 mask, 1 where an object was drawn."""
+        cam, look = camera or self.camera, self.look
+        if cam not in self._projections:
+            self._projections[cam] = cam.projection_matrix()
         # the EGL plugin announces its driver on the first frame
         with _quiet() if not self._frames and self._plugin is not None else contextlib.nullcontext():
             _, _, rgba, depth, _ = self._bc.getCameraImage(
-                cam.width, cam.height, cam.view_matrix(x, y, yaw), self._projection, renderer=self._flag,
+                cam.width, cam.height, cam.view_matrix(x, y, yaw), self._projections[cam], renderer=self._flag,
                 shadow=0, flags=pb.ER_NO_SEGMENTATION_MASK, lightDirection=list(look.light_direction),
                 lightColor=[1.0, 1.0, 1.0], lightAmbientCoeff=look.ambient, lightDiffuseCoeff=look.diffuse,
                 lightSpecularCoeff=0.0)

@@ -5,7 +5,9 @@
 3. objects: cars, trees, poles, buildings, guard rails, drawn by PyBullet (TinyRenderer or EGL) and
    laid over wherever PyBullet drew something; every object stands on the ground, so it is in front of it.
 
-Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped.
+Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped. With a rear-view
+mirror (sim/mirror.py) the same three layers are drawn a second time, small, from the mirror's rear camera, and
+pasted into the top of the frame.
 """
 from __future__ import annotations
 
@@ -16,13 +18,15 @@ from sim.camera import CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
+from sim.mirror import RearMirror
 from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 
 class Renderer:
-    def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny"):
+    def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny",
+                 mirror: bool = False):
         from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
         self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)
@@ -31,10 +35,15 @@ class Renderer:
         self._radii = np.array([c.radius for c in chunks])
         self._painter = GroundPainter(chunks, self.look, camera, GROUND_MATERIALS)
         self._objects = BulletScene(chunks, self.look, camera, renderer)
-        self._backdrop = self._make_backdrop()
+        self._backdrop = self._make_backdrop(camera)
+        self.mirror = RearMirror(camera.height, camera.width) if mirror else None
+        if self.mirror is not None:
+            rear = self.mirror.camera
+            self._rear_painter = GroundPainter(chunks, self.look, rear, GROUND_MATERIALS)
+            self._rear_backdrop = self._make_backdrop(rear)
 
-    def _make_backdrop(self) -> np.ndarray:
-        cam, look = self.camera, self.look
+    def _make_backdrop(self, cam: CameraConfig) -> np.ndarray:
+        look = self.look
         rows = np.arange(cam.height)[:, None] + 0.5
         horizon = cam.horizon_row()
         t = np.clip((horizon - rows) / max(horizon, 1.0), 0.0, 1.0)  # 0 at the horizon, 1 at the top row
@@ -43,24 +52,37 @@ class Renderer:
         col = np.where(rows < horizon, sky, ground).astype(np.uint8)
         return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (cam.height, cam.width, 3)))
 
-    def in_view(self, centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float) -> np.ndarray:
-        """Which bounding circles (centres (n, 2), radii (n,) [m]) reach into the camera's view wedge."""
+    def in_view(self, centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float,
+                camera: CameraConfig | None = None) -> np.ndarray:
+        """Which bounding circles (centres (n, 2), radii (n,) [m]) reach into the view wedge of `camera` (default:
+        the front camera) looking along `yaw`."""
+        camera = camera or self.camera
         v = centres - (x, y)
         dist = np.hypot(v[:, 0], v[:, 1])
         bearing = np.abs((np.arctan2(v[:, 1], v[:, 0]) - yaw + np.pi) % (2 * np.pi) - np.pi)
         margin = np.arcsin(np.clip(radii / np.maximum(dist, 1e-6), 0.0, 1.0))
-        in_wedge = (dist <= radii) | (bearing <= self.camera.hfov / 2 + margin)
-        return in_wedge & (dist - radii < self.camera.cull_distance)
+        in_wedge = (dist <= radii) | (bearing <= camera.hfov / 2 + margin)
+        return in_wedge & (dist - radii < camera.cull_distance)
 
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
-        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad]."""
-        visible = self.in_view(self._centres, self._radii, x, y, yaw)
-        car_visible = self.in_view(np.stack([cars.x, cars.y], axis=1), np.full(len(cars), CAR_RADIUS), x, y, yaw)
+        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the mirror pasted in."""
+        frame = self._view(self.camera, self._painter, self._backdrop, x, y, yaw, cars)
+        if self.mirror is not None:
+            rear = self._view(self.mirror.camera, self._rear_painter, self._rear_backdrop, x, y, yaw + np.pi, cars)
+            self.mirror.composite(frame, rear)
+        return frame
+
+    def _view(self, camera: CameraConfig, painter: GroundPainter, backdrop: np.ndarray, x: float, y: float,
+              yaw: float, cars: CarStates) -> np.ndarray:
+        """One camera's image: backdrop, ground, then the objects in its view wedge."""
+        visible = self.in_view(self._centres, self._radii, x, y, yaw, camera)
+        car_visible = self.in_view(np.stack([cars.x, cars.y], axis=1), np.full(len(cars), CAR_RADIUS), x, y, yaw,
+                                   camera)
         self._objects.set_visible_chunks(visible)
         self._objects.set_cars(np.stack([cars.x, cars.y, cars.yaw], axis=1), cars.models, cars.paints, car_visible)
-        frame = self._backdrop.copy()
-        self._painter.paint(frame, visible, x, y, yaw)
-        rgb, drawn = self._objects.render(x, y, yaw)
+        frame = backdrop.copy()
+        painter.paint(frame, visible, x, y, yaw)
+        rgb, drawn = self._objects.render(x, y, yaw, camera)
         cv2.copyTo(rgb, drawn, frame)
         return frame
 

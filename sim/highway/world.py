@@ -35,6 +35,7 @@ class WorldConfig:
     render: bool = True
     renderer: str = "tiny"          # "tiny" (TinyRenderer) or "egl"
     camera: CameraConfig = field(default_factory=CameraConfig)
+    mirror: bool = False            # a rear-view mirror pasted into the top of the frame (sim/mirror.py)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
     start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
@@ -73,7 +74,7 @@ class World:
     def __init__(self, config: WorldConfig | None = None, scenario: Scenario | None = None):
         self.config = config = config or WorldConfig()
         cam = config.camera
-        self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width)
+        self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width, "mirror" if config.mirror else "")
         self.dt = config.dt
         self.scenario = scenario
         if scenario is not None:
@@ -186,6 +187,7 @@ class World:
         if self._renderer is None or self._renderer_seed != self.seed:
             if self._renderer is not None:
                 self._renderer.close()
-            self._renderer = Renderer(self.track, self.seed, self.config.camera, self.config.renderer)
+            self._renderer = Renderer(self.track, self.seed, self.config.camera, self.config.renderer,
+                                      self.config.mirror)
             self._renderer_seed = self.seed
         return self._renderer.render(ego[0], ego[1], ego[2], cars)

@@ -32,7 +32,7 @@ import torch
 
 from core.files import check_output_dir, make_dir
 from core.worlds.highway import HIGHWAY
-from drivestudio.checkpoints import load_predictor_for
+from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.errors import UsageError
 from drivestudio.generate import GenerateConfig, generate
 from drivestudio.loop import Percept
@@ -41,7 +41,7 @@ from drivestudio.worlds.base import Episode
 from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
 from drivestudio.worlds.highway.benchmark.report import write_board
 from drivestudio.worlds.highway.benchmark.suite import SUITES_DIR
-from drivestudio.worlds.highway.drivers import ChenDriver
+from drivestudio.worlds.highway.drivers import ChenDriver, reads_behind
 from drivestudio.worlds.highway.plugin import Plugin as HighwayPlugin
 from perception.checkpoint import load_checkpoint
 from perception.merge import Source, merge
@@ -135,12 +135,14 @@ def benchmark_tracks() -> set[tuple[str, int]]:
 
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     """generate's highway options for a round: the default training plan (seed cfg.seed * 100 + round, so that
-    every round drives new traffic on new procedural tracks), denser traffic, and the learner."""
+    every round drives new traffic on new procedural tracks), denser traffic, and the learner, whose frames carry
+    the rear-view mirror when it learned one."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
     lanes = [1, 2, 3]
     options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.cars),
-               "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0}
+               "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0,
+               **({"mirror": True} if checkpoint_inset(str(learner)) == "mirror" else {})}
     held_out = benchmark_tracks()
     tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in lanes)]
     return {**options, "tracks": tracks, "learner": str(learner.resolve()), "beta": cfg.beta_of(round_),
@@ -224,7 +226,11 @@ class Aggregation:
 
     def benchmark(self) -> dict:
         suite = load_suite(None if self.cfg.benchmark == "default" else self.cfg.benchmark)
-        models = check_models(["oracle"] + [str(self.model_of(r)) for r in range(self.cfg.rounds + 1)])
+        rounds = [str(self.model_of(r)) for r in range(self.cfg.rounds + 1)]
+        # a model of the extended labels drives with the lookout: its upper bound is the extended oracle
+        exact = ["oracle"] + (["oracle-extended"] if reads_behind(load_checkpoint(rounds[0])["spec"]["outputs"])
+                              else [])
+        models = check_models(exact + rounds)
         out = make_dir(self.out / "benchmark")
         board = run_benchmark(suite, models, RunOptions(device=self.cfg.device), out, self.cfg.workers)
         write_board(out, board)

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES, REAR
-from drivestudio.checkpoints import load_predictor_for
+from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
@@ -48,6 +48,10 @@ class Plugin(base.Plugin):
                         help=f"AI cars driven by SUMO (default {DEFAULT_CARS})")
             options.add(self.name, g, "--start-speed", type=non_negative(60.0),
                         help=f"host car's speed at the start [m/s] (default {START_SPEED:g})")
+        if verb in ("render", "drive", "serve", "generate"):
+            options.add(self.name, g, "--mirror", action="store_true",
+                        help="paste a rear-view mirror into the top of the frame (docs/rendering.md); drive turns it "
+                        "on by itself for a model that learned it")
         if verb == "drive":
             options.add(self.name, g, "--smoothing", type=finite(0.0, 0.95),
                         help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
@@ -81,8 +85,20 @@ class Plugin(base.Plugin):
                               fov_deg=getattr(args, "fov", None) or 60.0)
         return WorldConfig(track=args.track or "oval", lanes=args.lanes, seed=args.seed,
                            cars=DEFAULT_CARS if args.cars is None else args.cars, renderer=args.renderer,
-                           render=render, camera=camera,
+                           render=render, camera=camera, mirror=bool(getattr(args, "mirror", False)),
                            start_speed=START_SPEED if args.start_speed is None else args.start_speed, **extra)
+
+    def resolve_args(self, args) -> None:
+        """drive's --mirror follows the checkpoint that drives: a model reads frames like the ones it learned, so
+        one that learned the mirror gets it, and --mirror with one that learned none is refused."""
+        model = getattr(args, "model", None)
+        if not model or model in self.expert_names or is_policy(model):
+            return
+        inset = checkpoint_inset(model)
+        if args.mirror and inset != "mirror":
+            raise UsageError(f"--mirror: {model} learned frames without the rear-view mirror; drive it without "
+                             "--mirror")
+        args.mirror = inset == "mirror"
 
     def world(self, args, render: bool) -> World:
         from sim.highway.world import World  # lazy: trimesh
@@ -96,7 +112,8 @@ class Plugin(base.Plugin):
                 raise UsageError("--track and --warmup go without a scenario file (a scenario places its own cars)")
             cfg = self.config(args, render=False)
             scenario = load_scenario(args.scenario, lanes=args.lanes)
-            world = World(WorldConfig(renderer=args.renderer, camera=cfg.camera, cars=0), scenario=scenario)
+            world = World(WorldConfig(renderer=args.renderer, camera=cfg.camera, cars=0, mirror=cfg.mirror),
+                          scenario=scenario)
         else:
             world = self.world(args, render=False)
         with world:
@@ -120,6 +137,12 @@ class Plugin(base.Plugin):
         if model in ORACLES or model == "expert":
             return ChenDriver(None, lookout=ORACLES.get(model, False))
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
+        if declaration is not None and predictor.inset != declaration.cameras[0].inset:
+            # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
+            had = "with" if predictor.inset else "without"
+            raise UsageError(f"{model} learned frames {had} the rear-view mirror and this world renders "
+                             f"{'one' if declaration.cameras[0].inset else 'none'}: start the world "
+                             f"{'with' if had == 'with' else 'without'} --mirror")
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
                           gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs))
 
@@ -165,7 +188,8 @@ class Plugin(base.Plugin):
         return args.model not in self.expert_names or bool(getattr(args, "record", None))
 
     def describe_run(self, world, args) -> dict:
-        return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars}
+        return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars,
+                "mirror": world.config.mirror}
 
     def studio(self) -> StudioKit:
         from drivestudio.worlds.highway.studio import KIT  # lazy: the overlays and presets only for the studio
@@ -191,14 +215,16 @@ class Plugin(base.Plugin):
             raise UsageError("--tracks names no track")
         options = {"tracks": tracks, "procedural": 3 if args.procedural is None else args.procedural,
                    "lanes": list(lanes), "cars": list(cars), "width": args.width or FRAME[1],
-                   "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov}
+                   "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov,
+                   **({"mirror": True} if args.mirror else {})}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)
         return options
 
     def declaration_for(self, options: dict):
-        return HIGHWAY.with_camera("front", options["height"], options["width"])
+        return HIGHWAY.with_camera("front", options["height"], options["width"],
+                                   "mirror" if options.get("mirror") else "")
 
     @staticmethod
     def track_list(options: dict, seed_: int) -> list[str]:
@@ -229,7 +255,8 @@ class Plugin(base.Plugin):
         camera = CameraConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         p = ep.params
         world = World(WorldConfig(track=p["track"], lanes=p["lanes"], cars=p["cars"], seed=ep.seed,
-                                  renderer=renderer, camera=camera, render=False, start_speed=START_SPEED))
+                                  renderer=renderer, camera=camera, render=False, start_speed=START_SPEED,
+                                  mirror=bool(options.get("mirror"))))
         expert = ExpertDriver(p["lanes"], world.track.lane_width, ep.seed, world.dt)
 
         def columns(obs) -> dict:

@@ -45,6 +45,7 @@ class ModelSpec:
     gap_hold: float = 0.0
     lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
     policy: bool = False       # a policy on the exact affordances (path: its .zip or policy:MODULE:NAME)
+    mirror: bool = False       # the checkpoint learned frames with the rear-view mirror: its routes render one
 
     @property
     def key(self) -> str:
@@ -123,7 +124,7 @@ def check_model(text: str) -> ModelSpec:
         return ModelSpec(text, None, label=path, family=path, lookout=path == EXTENDED)
     from drivestudio.worlds.highway.drivers import reads_behind  # lazy: the controllers, only for a checkpoint
     from perception.checkpoint import load_checkpoint  # lazy: torch
-    from perception.models import check_spec, describe  # lazy: torch
+    from perception.models import check_spec, describe, frame_inset  # lazy: torch
     check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
     spec = ckpt["spec"]
@@ -133,7 +134,8 @@ def check_model(text: str) -> ModelSpec:
                                                                for f, a in filters.items()) \
         + (", lookout" if lookout else "")
     return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
-                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout)
+                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout,
+                     mirror=frame_inset(spec) == "mirror")
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:

@@ -1,0 +1,122 @@
+"""A model that learned frames with the rear-view mirror is driven by a world that renders one, and one that learned
+none is never shown it (docs/rendering.md#the-rear-view-mirror): drive turns the mirror on by itself, the
+benchmark renders it for that row only, `--mirror` with a model that learned none is refused in one line (exit
+2), and training goes on only with data like the model's own."""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from core.worlds.highway import HIGHWAY
+from drivestudio.errors import UsageError
+from drivestudio.worlds.highway.benchmark.models import check_model
+from drivestudio.worlds.highway.plugin import Plugin
+from perception.checkpoint import CheckpointError, save_checkpoint
+from perception.models import Regressor, frame_inset, make_spec
+from perception.train_sgd import check_inset
+
+DS = [sys.executable, "-m", "drivestudio"]
+MIRRORED = HIGHWAY.with_camera("front", 210, 280, "mirror")
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("mirror-models")
+    torch.manual_seed(0)
+    out = {}
+    for name, decl in (("plain", HIGHWAY), ("mirror", MIRRORED)):
+        model = Regressor(make_spec("gist", decl))
+        out[name] = root / f"{name}.pt"
+        save_checkpoint(out[name], {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    return out
+
+
+def drive_args(model, mirror=False):
+    return argparse.Namespace(track="oval", lanes=3, seed=0, cars=4, renderer="tiny", start_speed=None, width=None,
+                              height=None, fov=None, model=str(model), mirror=mirror)
+
+
+def test_the_spec_records_the_inset_of_the_frames_it_learned(models):
+    assert frame_inset(make_spec("gist", MIRRORED)) == "mirror"
+    assert frame_inset(make_spec("gist", HIGHWAY)) == "" and "inset" not in make_spec("gist", HIGHWAY)["input"]
+
+
+def resolved(model, mirror=False) -> bool:
+    args = drive_args(model, mirror)
+    Plugin().resolve_args(args)
+    return Plugin().config(args, render=True).mirror
+
+
+def test_drive_renders_the_mirror_for_a_model_that_learned_it_and_only_then(models):
+    assert resolved(models["mirror"]) is True
+    assert resolved(models["mirror"], mirror=True) is True
+    assert resolved(models["plain"]) is False
+    assert resolved("oracle", mirror=True) is True and resolved("oracle") is False   # a user watching: as asked
+    with pytest.raises(UsageError, match="learned frames without the rear-view mirror"):
+        resolved(models["plain"], mirror=True)
+
+
+def test_a_running_world_unlike_the_models_frames_is_refused(models):
+    """Over the bridge or in the studio the world runs before the driver is made: its declaration decides."""
+    plugin = Plugin()
+    args = drive_args(models["plain"])
+    assert plugin.driver(str(models["mirror"]), args, MIRRORED) is not None
+    assert plugin.driver(str(models["plain"]), args, HIGHWAY) is not None
+    with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world renders none"):
+        plugin.driver(str(models["mirror"]), args, HIGHWAY)
+    with pytest.raises(UsageError, match="learned frames without the rear-view mirror and this world renders one"):
+        plugin.driver(str(models["plain"]), args, MIRRORED)
+
+
+def test_the_benchmark_renders_the_mirror_for_that_row(models):
+    assert check_model(str(models["mirror"])).mirror is True
+    assert check_model(str(models["plain"])).mirror is False and check_model("oracle").mirror is False
+    assert "with mirror" in check_model(str(models["mirror"])).label
+
+
+def test_drive_with_a_mirror_model_runs_with_the_mirror(models, tmp_path):
+    run = subprocess.run(DS + ["drive", "--model", str(models["mirror"]), "--track", "oval", "--lanes", "2",
+                               "--cars", "2", "--seconds", "1", "--in-process", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=180)
+    assert run.returncode == 0, run.stderr
+    assert json.loads((tmp_path / "metrics.json").read_text())["mirror"] is True
+
+
+def test_mirror_with_a_model_that_learned_none_is_one_line_and_exit_2(models, tmp_path):
+    run = subprocess.run(DS + ["drive", "--model", str(models["plain"]), "--mirror", "--seconds", "1",
+                               "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    assert run.stderr.strip().count("\n") == 0 and "without the rear-view mirror" in run.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_training_goes_on_only_with_frames_like_the_models_own(models):
+    mirrored = make_spec("gist", MIRRORED)
+    check_inset("m.pt", mirrored, MIRRORED)
+    check_inset("p.pt", make_spec("gist", HIGHWAY), HIGHWAY)
+    with pytest.raises(CheckpointError, match="learned frames with a mirror"):
+        check_inset("m.pt", mirrored, HIGHWAY)
+    with pytest.raises(CheckpointError, match="learned frames without an inset"):
+        check_inset("p.pt", make_spec("gist", HIGHWAY), MIRRORED)
+
+
+def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_without(tmp_path):
+    from perception.merge import Source, merge
+    from perception.shards import Dataset, DatasetError
+
+    for name, extra in (("plain", []), ("mirror", ["--mirror"])):
+        run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
+                                   "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
+                             capture_output=True, text=True, timeout=180)
+        assert run.returncode == 0, run.stderr
+    assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
+    assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
+    with pytest.raises(DatasetError, match="another world or camera"):
+        merge(tmp_path / "merged", [Source(tmp_path / "plain"), Source(tmp_path / "mirror")], log=lambda *a: None)
+    assert not (tmp_path / "merged").exists()
