@@ -120,3 +120,34 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     with pytest.raises(DatasetError, match="another world or camera"):
         merge(tmp_path / "merged", [Source(tmp_path / "plain"), Source(tmp_path / "mirror")], log=lambda *a: None)
     assert not (tmp_path / "merged").exists()
+
+
+@pytest.fixture(scope="module")
+def extended_mirror_model(tmp_path_factory) -> Path:
+    from core.worlds.highway import LABEL_SETS
+    path = tmp_path_factory.mktemp("extended") / "ext-mirror.pt"
+    model = Regressor(make_spec("gist", MIRRORED, LABEL_SETS["extended"]))
+    save_checkpoint(path, {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
+    return path
+
+
+@pytest.mark.parametrize("name", ["plain", "extended"])
+def test_aggregation_drives_the_learner_as_the_benchmark_does(models, extended_mirror_model, name, tmp_path):
+    """Its frames are recorded with the mirror when it learned one, and a model of the rear labels drives with the
+    lookout, as in `drive` and `benchmark`."""
+    from drivestudio.worlds.base import Episode
+    from drivestudio.worlds.highway.aggregation import AggregationConfig, AggregationPlugin, drive_options
+
+    learner = extended_mirror_model if name == "extended" else models["plain"]
+    cfg = AggregationConfig(data="unused", model=str(learner), out=str(tmp_path))
+    options = drive_options(cfg, 1, learner)
+    assert bool(options.get("mirror")) is (name == "extended")
+    plugin = AggregationPlugin()
+    episode = Episode(0, 2, 7, {"track": "oval", "lanes": 2, "cars": 2})
+    world, driver, _ = plugin.episode(episode, options, "tiny")
+    try:
+        assert driver.learner.lookout is (name == "extended")
+        assert world.config.mirror is (name == "extended")
+        assert plugin.declaration_for(options).cameras[0].inset == ("mirror" if name == "extended" else "")
+    finally:
+        world.close()

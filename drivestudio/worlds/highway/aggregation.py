@@ -118,7 +118,9 @@ class AggregationPlugin(HighwayPlugin):
 
     def episode(self, ep: Episode, options: dict, renderer: str):
         world, expert, columns = super().episode(ep, options, renderer)
-        learner = ChenDriver(_predictor(options["learner"], options.get("device", "cpu")))
+        predictor = _predictor(options["learner"], options.get("device", "cpu"))
+        # the model drives as drive and the benchmark drive it: with the lookout when it estimates the rear labels
+        learner = ChenDriver(predictor, lookout=reads_behind(predictor.outputs))
         driver = MixedDriver(expert, learner, float(options["beta"]), ep.seed)
 
         def labelled(obs) -> dict:
