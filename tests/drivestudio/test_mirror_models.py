@@ -107,16 +107,19 @@ def test_training_goes_on_only_with_frames_like_the_models_own(models):
 
 
 def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_without(tmp_path):
+    """...and aggregation rounds drive the lane counts of the expert data they are merged with."""
     from perception.merge import Source, merge
     from perception.shards import Dataset, DatasetError
 
-    for name, extra in (("plain", []), ("mirror", ["--mirror"])):
+    for name, extra in (("plain", []), ("mirror", ["--mirror", "--lanes", "2,4"])):
         run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
                                    "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
                              capture_output=True, text=True, timeout=180)
         assert run.returncode == 0, run.stderr
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
+    from drivestudio.worlds.highway.aggregation import expert_lanes
+    assert expert_lanes(str(tmp_path / "mirror")) == [2, 4] and expert_lanes(str(tmp_path / "plain")) == [1, 2, 3]
     with pytest.raises(DatasetError, match="another world or camera"):
         merge(tmp_path / "merged", [Source(tmp_path / "plain"), Source(tmp_path / "mirror")], log=lambda *a: None)
     assert not (tmp_path / "merged").exists()
@@ -139,9 +142,11 @@ def test_aggregation_drives_the_learner_as_the_benchmark_does(models, extended_m
     from drivestudio.worlds.highway.aggregation import AggregationConfig, AggregationPlugin, drive_options
 
     learner = extended_mirror_model if name == "extended" else models["plain"]
-    cfg = AggregationConfig(data="unused", model=str(learner), out=str(tmp_path))
+    from tests.perception.frames import dataset
+    cfg = AggregationConfig(data=str(dataset()), model=str(learner), out=str(tmp_path))
     options = drive_options(cfg, 1, learner)
     assert bool(options.get("mirror")) is (name == "extended")
+    assert options["lanes"] == [1, 2, 3]       # the expert dataset's plan
     plugin = AggregationPlugin()
     episode = Episode(0, 2, 7, {"track": "oval", "lanes": 2, "cars": 2})
     world, driver, _ = plugin.episode(episode, options, "tiny")

@@ -45,7 +45,7 @@ from drivestudio.worlds.highway.drivers import ChenDriver, reads_behind
 from drivestudio.worlds.highway.plugin import Plugin as HighwayPlugin
 from perception.checkpoint import load_checkpoint
 from perception.merge import Source, merge
-from perception.shards import MANIFEST, Dataset
+from perception.shards import MANIFEST, Dataset, read_manifest
 from perception.train import train
 from perception.training import TrainConfig
 
@@ -135,13 +135,21 @@ def benchmark_tracks() -> set[tuple[str, int]]:
             for r in load_suite(path).routes}
 
 
+def expert_lanes(data: str) -> list[int]:
+    """The lane counts of the expert dataset's plan (generate's default 1, 2, 3 for a dataset that does not say):
+    the rounds drive roads like the ones the model learned."""
+    options = read_manifest(Path(data)).get("config", {}).get("options", {})
+    return [int(n) for n in options.get("lanes", [1, 2, 3])]
+
+
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
-    """generate's highway options for a round: the default training plan (seed cfg.seed * 100 + round, so that
-    every round drives new traffic on new procedural tracks), denser traffic, and the learner, whose frames carry
+    """generate's highway options for a round: the default training plan with the expert dataset's lane counts
+    (seed cfg.seed * 100 + round, so that every round drives new traffic on new procedural tracks), denser traffic,
+    and the learner, whose frames carry
     the rear-view mirror when it learned one."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
-    lanes = [1, 2, 3]
+    lanes = expert_lanes(cfg.data)
     options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.cars),
                "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0,
                **({"mirror": True} if checkpoint_inset(str(learner)) == "mirror" else {})}
