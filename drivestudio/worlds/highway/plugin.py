@@ -141,8 +141,7 @@ class Plugin(base.Plugin):
             # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
             had = "with" if predictor.inset else "without"
             raise UsageError(f"{model} learned frames {had} the rear-view mirror and this world renders "
-                             f"{'one' if declaration.cameras[0].inset else 'none'}: start the world "
-                             f"{'with' if had == 'with' else 'without'} --mirror")
+                             f"{'one' if declaration.cameras[0].inset else 'none'}: start the world {had} --mirror")
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
                           gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs))
 
