@@ -145,8 +145,7 @@ def expert_lanes(data: str) -> list[int]:
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     """generate's highway options for a round: the default training plan with the expert dataset's lane counts
     (seed cfg.seed * 100 + round, so that every round drives new traffic on new procedural tracks), denser traffic,
-    and the learner, whose frames carry
-    the rear-view mirror when it learned one."""
+    and the learner, whose frames carry the rear-view mirror when it learned one."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
     lanes = expert_lanes(cfg.data)
