@@ -12,6 +12,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from drivestudio import worlds
 from perception.shards import Dataset, DatasetError, ShardReader, read_manifest, split_of
 
 SMALL = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,hairpins", "--lanes", "2,3",
@@ -65,6 +66,25 @@ def test_generate_writes_the_frames_and_a_manifest(reference):
 
 def test_split_is_by_whole_episode():
     assert [split_of(k) for k in range(12)] == ["train"] * 8 + ["val", "test", "train", "train"]
+
+
+@pytest.mark.parametrize("lanes", [(1, 2, 3), (1, 2, 3, 4), (2, 4), (1, 2, 3, 4, 5)])
+def test_every_split_meets_every_lane_count(lanes):
+    highway = worlds.get("highway")
+    options = {"tracks": ("oval", "s-curve"), "procedural": 0, "lanes": lanes, "cars": (12, 12)}
+    episodes = highway.plan(options, 100 * 500, 500, 0)
+    for split in ("train", "val", "test"):
+        met = {ep.params["lanes"] for ep in episodes if split_of(ep.index) == split}
+        assert met == set(lanes), (split, met)
+    for n in lanes:   # and the tracks still meet every lane count
+        assert {ep.params["track"] for ep in episodes if ep.params["lanes"] == n} == {"oval", "s-curve"}
+
+
+def test_three_lane_counts_keep_the_plain_cycle():
+    """Datasets made with the default 1-3 lanes continue on the plan that made them."""
+    options = {"tracks": ("oval",), "procedural": 0, "lanes": (1, 2, 3), "cars": (12, 12)}
+    episodes = worlds.get("highway").plan(options, 30 * 500, 500, 0)
+    assert [ep.params["lanes"] for ep in episodes] == [1, 2, 3] * 10
 
 
 def test_same_options_same_dataset(reference, tmp_path):

@@ -4,6 +4,7 @@ data plan, bad input, and the whole study in its --quick form."""
 import json
 import subprocess
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -97,6 +98,18 @@ def test_bad_input_is_one_line_and_status_2(argv, says, tmp_path):
     assert not (tmp_path / "s").exists()
 
 
+def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
+    out = tmp_path / "s"
+    out.mkdir()
+    made = json.dumps({**asdict(StudyConfig(out=str(out))), "epochs": 12}, indent=1)
+    (out / "config.json").write_text(made)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--rounds", "3"], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "epochs=12 (asked 10)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
+    assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
+
+
 @pytest.mark.slow
 def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
     out = tmp_path / "study"
@@ -119,3 +132,9 @@ def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
     again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)   # all done: nothing redone
     assert again.returncode == 0 and "$ drivestudio train" not in again.stdout
     assert "$ drivestudio autonomy" not in again.stdout
+    more = subprocess.run(cmd + ["--rounds", str(rounds + 1)], cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert more.returncode == 0, more.stderr[-3000:]                 # one more round, and the newer nets measured
+    final = json.loads((out / "study.json").read_text())["final_networks"]
+    assert final["multinet"].endswith(f"multinet-round{rounds + 1}.pt")
+    assert "$ drivestudio train" in more.stdout and "--init" in more.stdout
+    assert f"/multinet-round{rounds + 1}/" in more.stdout               # autonomy measured anew, not the old results

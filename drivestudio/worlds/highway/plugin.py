@@ -2,6 +2,7 @@
 data-collection expert, closed-loop metrics, overlay videos and the generation plan."""
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -232,8 +233,8 @@ class Plugin(base.Plugin):
         return preset_names() + [f"procedural:{seed_ * 1000 + i}" for i in range(options["procedural"])]
 
     def plan(self, options: dict, frames: int, episode_frames: int, seed_: int) -> list[Episode]:
-        """Episode k drives lane count k mod L on track (k div L) mod T: every track meets every lane count, and
-        with three lane counts the split rule's every-tenth episode cycles through them too (10 = 1 mod 3)."""
+        """Episode k drives lane count lane_slot(k, L) on track (k div L) mod T: every track meets every lane count,
+        and the split rule's every-tenth episodes (validation, test) cycle through every lane count too."""
         tracks = self.track_list(options, seed_)
         lanes = options["lanes"]
         lo, hi = options["cars"]
@@ -245,7 +246,7 @@ class Plugin(base.Plugin):
             ep_seed = int(rng.integers(2**31 - 1))
             episodes.append(Episode(k, min(episode_frames, frames - k * episode_frames), ep_seed,
                                     {"track": tracks[(k // len(lanes)) % len(tracks)],
-                                     "lanes": int(lanes[k % len(lanes)]),
+                                     "lanes": int(lanes[lane_slot(k, len(lanes))]),
                                      "cars": cars}))
         return episodes
 
@@ -262,6 +263,14 @@ class Plugin(base.Plugin):
             return {"track": p["track"], "perturbation": expert.label,
                     "cars": obs.truth.cars.astype(np.float32).tolist()}
         return world, expert, columns
+
+
+def lane_slot(k: int, n: int) -> int:
+    """Which of n lane counts episode k drives: k mod n, shifted by one every ten episodes when n shares a factor
+    with 10 (2, 4, 5 ...), whose every-tenth episodes would otherwise meet only some lane counts (with four, the
+    validation split only two). With n coprime to 10 (1, 3, 7 ...) the plain cycle already meets them all, and the
+    datasets made with it keep their plan."""
+    return (k + k // 10) % n if math.gcd(10, n) > 1 else k % n
 
 
 def warm_up(world: World, seconds: float) -> Observation:

@@ -34,12 +34,16 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
-from drivestudio.errors import RunError
+from drivestudio.errors import RunError, UsageError
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
 
 ROUND_LOOPS = ("park", "sidewalk", "forest")         # training loops the correction rounds drive
 MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one before the first, the ten after the last
+# settings that shape what a study has made (its data, its trained networks, its rounds' recordings): a study is
+# continued only with the same; the others (more rounds, other loops, more runs) only add or re-measure
+SHAPING = ("moments", "episode_frames", "procedural", "epochs", "trials", "batch_size", "round_seconds",
+           "round_epochs", "rule", "seed")
 
 
 @dataclass(frozen=True)
@@ -144,6 +148,22 @@ class Study:
             slot["cpu_s"] = round(slot["cpu_s"] + cpu() - c, 1)
             self.times_path.write_text(json.dumps(self.timings, indent=1) + "\n")
 
+    def check_continuation(self) -> None:
+        """A study found in --out is continued only with the settings that made it (UsageError otherwise, before
+        anything is written): a checkpoint trained for 10 epochs must not pass for one of 12."""
+        path = self.out / "config.json"
+        if not path.exists():
+            return
+        try:
+            made = json.loads(path.read_text())
+        except (OSError, ValueError) as e:
+            raise UsageError(f"--out {self.out}: its config.json is unreadable ({e}); give another folder") from None
+        asked = asdict(self.cfg)
+        differ = [f"{k}={made.get(k)!r} (asked {asked[k]!r})" for k in SHAPING if made.get(k) != asked[k]]
+        if differ:
+            raise UsageError(f"--out {self.out} holds a study made with {', '.join(differ)}; continue it with the "
+                             "same settings or give another folder")
+
     def jobs(self, stage: str, jobs: list[Job]) -> None:
         if jobs:
             self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs)
@@ -238,7 +258,9 @@ class Study:
                 for title, name in (("MultiNet", "multinet"), ("MTL", f"mtl-{mode}")):
                     for loop in c.loops:
                         for r in range(runs):
-                            where = self.out / stage / rule / mode / name / f"{loop.replace(':', '-')}-{100 + r}"
+                            # under the model's own name: after more rounds, the newer networks are measured anew
+                            where = self.out / stage / rule / mode / Path(nets[name]).stem / \
+                                f"{loop.replace(':', '-')}-{100 + r}"
                             video = rule == c.rule and loop == c.loops[0] and r == 0
                             plan.append((rule, mode, title, where, self.drive_job(
                                 f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
@@ -253,6 +275,7 @@ class Study:
     # --- the whole ------------------------------------------------------------------------------------------------
     def run(self) -> Path:
         t0 = time.perf_counter()
+        self.check_continuation()
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "config.json").write_text(json.dumps(asdict(self.cfg), indent=1) + "\n")
         self.generate()
