@@ -41,9 +41,10 @@ from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_rep
 ROUND_LOOPS = ("park", "sidewalk", "forest")         # training loops the correction rounds drive
 MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one before the first, the ten after the last
 # settings that shape what a study has made (its data, its trained networks, its rounds' recordings): a study is
-# continued only with the same; the others (more rounds, other loops, more runs) only add or re-measure
+# continued only with the same (and the same length of autonomy runs, which are kept); the others (more
+# rounds, other loops, more runs) only add or measure anew
 SHAPING = ("moments", "episode_frames", "procedural", "epochs", "trials", "batch_size", "round_seconds",
-           "round_epochs", "rule", "seed")
+           "round_epochs", "rule", "seed", "autonomy_seconds")
 
 
 @dataclass(frozen=True)
