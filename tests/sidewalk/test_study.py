@@ -110,6 +110,17 @@ def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
 
 
+@pytest.mark.parametrize("text", ["[1, 2]", "{not json"])
+def test_a_study_folder_with_a_broken_config_is_refused(tmp_path, text):
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "config.json").write_text(text)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out)], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "config.json" in r.stderr, r.stderr
+    assert (out / "config.json").read_text() == text
+
+
 @pytest.mark.slow
 def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
     out = tmp_path / "study"

@@ -159,6 +159,8 @@ class Study:
             made = json.loads(path.read_text())
         except (OSError, ValueError) as e:
             raise UsageError(f"--out {self.out}: its config.json is unreadable ({e}); give another folder") from None
+        if not isinstance(made, dict):
+            raise UsageError(f"--out {self.out}: its config.json is not a study's settings; give another folder")
         asked = asdict(self.cfg)
         differ = [f"{k}={made.get(k)!r} (asked {asked[k]!r})" for k in SHAPING if made.get(k) != asked[k]]
         if differ:
