@@ -124,6 +124,7 @@ class MultiNetRun:
     epochs: int
     trials: int
     batch: int
+    mode_moments: int | None         # an epoch's cap per mode (short fine-tuning on a growing set); None: all
     lr: float
     optimizer: str
     seed: int
@@ -146,14 +147,18 @@ class MultiNetRun:
 
     @property
     def steps(self) -> int:
-        return max(1, sum(len(v) for v in self.train_ids.values()) // self.batch)
+        total = sum(len(v) for v in self.train_ids.values())
+        if self.mode_moments is not None:
+            total = min(total, self.mode_moments * len(self.train_ids))
+        return max(1, total // self.batch)
 
     def describe(self) -> str:
         n_train = sum(len(v) for v in self.train_ids.values())
         params = sum(p.numel() for p in Regressor(self.spec).parameters())
         return (f"training {self.title}: Z2Color, {params:,} parameters; {n_train} training and {len(self.held)} "
                 f"held-out moments; {self.trials} trial(s) x {self.epochs} epochs of {self.steps} batches of "
-                f"{self.batch}, {self.optimizer} lr {self.lr:g}, gradient norm clipped at {CLIP} on {self.device}"
+                f"{self.batch}{'' if self.mode_moments is None else f' (at most {self.mode_moments} per mode)'}, "
+                f"{self.optimizer} lr {self.lr:g}, gradient norm clipped at {CLIP} on {self.device}"
                 f"{' (bfloat16 autocast)' if self.amp else ''}")
 
 
@@ -189,7 +194,7 @@ def resolve(cfg, log=print) -> MultiNetRun:
     amp = bool(cfg.amp) and (device.type == "cpu" or torch.cuda.is_bf16_supported())
     return MultiNetRun(roots, Path(cfg.out), names, cfg.mtl,
                        int(math.ceil(cfg.epochs)) if cfg.epochs is not None else int(defaults.get("epochs", 24)),
-                       cfg.trials, cfg.batch_size or int(defaults.get("batch_size", 120)),
+                       cfg.trials, cfg.batch_size or int(defaults.get("batch_size", 120)), cfg.mode_moments,
                        cfg.lr if cfg.lr is not None else 1.0, cfg.optimizer or "adadelta", cfg.seed, device, amp,
                        cfg.init, spec, moments, train_ids, held, {f.name: getattr(cfg, f.name) for f in fields(cfg)})
 

@@ -40,6 +40,9 @@ def register(sub) -> None:
                    help=f"simulated seconds each network drives per mode and round (default {d.round_seconds:g})")
     p.add_argument("--round-epochs", type=count(1, 1000), help=f"fine-tuning epochs per round (default "
                                                                f"{d.round_epochs})")
+    p.add_argument("--round-moments", type=count(0, 10**9),
+                   help=f"moments of each mode an epoch of a round's fine-tuning draws from the data and every "
+                        f"round's recordings, 0 for all of them (default {d.round_moments})")
     p.add_argument("--loops", help=f"held-out loops of the autonomy runs (default {','.join(d.loops)})")
     p.add_argument("--runs", type=count(1, 1000), help=f"autonomy runs per loop (default {d.runs})")
     p.add_argument("--autonomy-seconds", type=positive(24 * 3600.0),

@@ -14,11 +14,11 @@ from perception.memory import check_batch
 # family of that trainer would be ignored, so it is refused instead. Family-specific ones are checked in run().
 TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss",
                    "ema", "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
-                   "regressor", "modes", "mtl", "trials", "history", "init", "channels_last", "cache", "unfreeze",
-                   "batch_norm")
+                   "regressor", "modes", "mtl", "trials", "mode_moments", "history", "init", "channels_last", "cache",
+                   "unfreeze", "batch_norm")
 APPLIES = {
-    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials"},
-    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "init", "amp"},
+    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials", "mode_moments"},
+    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "mode_moments", "init", "amp"},
     "closed-form": {"regressor", "val_frames"},
 }
 _DEFAULTS: dict[str, object] = {}
@@ -96,6 +96,9 @@ def register(sub) -> None:
                                                  "one mode's data")
     p.add_argument("--trials", type=count(1, 100), default=1,
                    help="z2color: repeat training with fresh seeds, for curves with confidence intervals (default 1)")
+    p.add_argument("--mode-moments", type=count(1, 10**9), metavar="N",
+                   help="z2color: an epoch draws at most N moments of each behavioural mode, afresh each epoch "
+                        "(default: one pass over the training split); short fine-tuning on a growing data set")
     p.add_argument("--history", type=count(0, 2), default=0,
                    help="mobilenet: also read the previous 1 or 2 frames (0.1 s apart) beside the current one "
                         "(default 0)")

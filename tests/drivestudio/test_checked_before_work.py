@@ -33,6 +33,7 @@ def _refused(capsys, argv: list[str], words: str) -> None:
     (["--model", "gist", "--lr", "0.1", "--epochs", "2"], "--epochs, --lr do not apply to --model gist"),
     (["--model", "gist", "--no-cache"], "--no-cache does not apply to --model gist"),
     (["--model", "alexnet", "--trials", "3"], "--trials does not apply to --model alexnet"),
+    (["--model", "alexnet", "--mode-moments", "500"], "--mode-moments does not apply to --model alexnet"),
     (["--model", "z2color", "--modes", ","], "--modes ',' names no mode"),
     (["--model", "z2color", "--modes", ""], "--modes '' names no mode"),
 ])

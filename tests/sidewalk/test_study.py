@@ -12,12 +12,15 @@ import pytest
 import torch
 
 from core import worlds
+from drivestudio.errors import RunError
 from drivestudio.worlds.sidewalk.autonomy import Drive, drive_round, retrain
-from drivestudio.worlds.sidewalk.study import StudyConfig
+from drivestudio.worlds.sidewalk.study import Job, Study, StudyConfig, run_jobs
 from perception.checkpoint import load_checkpoint, save_checkpoint
 from perception.models import Regressor, make_spec
 from perception.moment_cache import Moments
+from perception.multinet import resolve
 from perception.shards import Dataset
+from perception.training import TrainConfig
 
 REPO = Path(__file__).resolve().parents[2]
 SIDEWALK = worlds.get("sidewalk")
@@ -76,6 +79,67 @@ def test_retraining_merges_the_corrections(merged, tmp_path):
     assert any(not torch.equal(first[k], v) for k, v in ckpt["state_dict"].items())   # it learned from them
 
 
+def test_a_capped_epoch_draws_at_most_mode_moments_of_each_mode(merged):
+    """`train --mode-moments N` (a study's --round-moments): an epoch is N moments per mode trained, however large
+    the merged data has grown; MultiNet trains three modes, an MTL net one."""
+    data, corrections, _, _ = merged
+    roots = f"{data},{corrections}"
+    full = resolve(TrainConfig(data=roots, model="z2color", batch_size=30), log=lambda *a: None)
+    capped = resolve(TrainConfig(data=roots, model="z2color", batch_size=30, mode_moments=30), log=lambda *a: None)
+    mtl = resolve(TrainConfig(data=roots, model="z2color", batch_size=30, mode_moments=30, mtl="direct"),
+                  log=lambda *a: None)
+    assert full.steps == sum(len(v) for v in full.train_ids.values()) // 30 > 3
+    assert capped.steps == 3 and mtl.steps == 1                        # 30 per mode, batches of 30
+    roomy = resolve(TrainConfig(data=roots, model="z2color", batch_size=30, mode_moments=10**6), log=lambda *a: None)
+    assert roomy.steps == full.steps                                  # a cap above the data is one whole pass
+
+
+# a stand-in verb for the scheduler: records its start, fails (3) if a job it needs has not ended, then sleeps
+STAND_IN = """import pathlib, sys, time
+name, seconds, needs, d = sys.argv[1], float(sys.argv[2]), sys.argv[3], pathlib.Path(sys.argv[4])
+(d / (name + ".start")).write_text(repr(time.time()))
+if needs != "-" and not (d / (needs + ".end")).exists():
+    sys.exit(3)
+time.sleep(seconds)
+(d / (name + ".end")).write_text(repr(time.time()))
+"""
+
+
+def _stamp(d: Path, name: str) -> float:
+    return float((d / name).read_text())
+
+
+def test_a_free_slot_takes_the_first_job_whose_jobs_before_it_are_done(tmp_path):
+    jobs = [Job("a", ["a", 2.5, "-", tmp_path]), Job("b", ["b", 0.1, "a", tmp_path], after=("a",)),
+            Job("c", ["c", 0.1, "-", tmp_path]), Job("d", ["d", 0.1, "-", tmp_path], after=("done-before",))]
+    run_jobs(jobs, 2, tmp_path / "logs", command=(sys.executable, "-c", STAND_IN))
+    assert _stamp(tmp_path, "c.start") < _stamp(tmp_path, "a.end")     # c did not wait behind b
+    assert _stamp(tmp_path, "b.start") >= _stamp(tmp_path, "a.end")    # b waited for a
+    assert (tmp_path / "d.end").exists()                                # a job not in the run finished before it
+
+
+def test_a_failed_job_ends_the_run_and_what_waits_for_it_never_starts(tmp_path):
+    jobs = [Job("a", ["a", 0.1, "missing", tmp_path]), Job("b", ["b", 0.1, "-", tmp_path], after=("a",))]
+    with pytest.raises(RunError, match="a failed"):
+        run_jobs(jobs, 2, tmp_path / "logs", command=(sys.executable, "-c", STAND_IN))
+    assert not (tmp_path / "b.start").exists()
+
+
+def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
+    study = Study(StudyConfig(out=str(tmp_path), rounds=2), cli=lambda argv: 0)
+    final, jobs = study.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
+    after = {j.name: j.after for j in jobs}
+    assert after["round1-multinet-direct"] == () and after["round1-mtl-direct-direct"] == ()
+    assert after["round1-retrain-multinet"] == ("round1-multinet-direct", "round1-multinet-follow",
+                                                "round1-multinet-furtive")
+    assert after["round2-multinet-furtive"] == ("round1-retrain-multinet",)
+    assert after["round2-retrain-mtl-direct"] == ("round1-retrain-mtl-direct", "round2-mtl-direct-direct")
+    assert final["multinet"] == str(tmp_path / "models" / "multinet-round2.pt")
+    for _, mode, title, _, job in study.autonomy_plan("autonomy", final, ("safety",), 1, 2):
+        assert job.after == (f"round2-retrain-{'multinet' if title == 'MultiNet' else 'mtl-' + mode}",)
+    assert {job.after for *_, job in study.autonomy_plan("baseline", final, ("safety",), 1, 0)} == {()}
+
+
 def test_the_data_plan_holds_the_moments_asked_for():
     c = StudyConfig()
     episodes = c.frames // c.episode_frames
@@ -108,6 +172,18 @@ def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "epochs=12 (asked 10)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
+
+
+def test_a_study_made_before_round_moments_continues_as_it_was_made(tmp_path):
+    """A config.json without round_moments was made when every round drew all its moments (0): asking for a cap
+    is a different study, refused before any work."""
+    out = tmp_path / "s"
+    out.mkdir()
+    made = {k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != "round_moments"}
+    (out / "config.json").write_text(json.dumps(made))
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--round-moments", "5000"],
+                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "round_moments=0 (asked 5000)" in r.stderr, r.stderr
 
 
 @pytest.mark.parametrize("text", ["[1, 2]", "{not json"])

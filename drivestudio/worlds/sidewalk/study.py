@@ -44,7 +44,8 @@ MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one befor
 # continued only with the same (and the same length of autonomy runs, which are kept); the others (more
 # rounds, other loops, more runs) only add or measure anew
 SHAPING = ("moments", "episode_frames", "procedural", "epochs", "trials", "batch_size", "round_seconds",
-           "round_epochs", "rule", "seed", "autonomy_seconds")
+           "round_epochs", "round_moments", "rule", "seed", "autonomy_seconds")
+MADE_BEFORE = {"round_moments": 0}   # a setting's value in studies made before it existed
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,8 @@ class StudyConfig:
     rounds: int = 2                 # correction rounds before the final autonomy runs,
     round_seconds: float = 180.0    # simulated seconds per network and mode in each (together about the paper's
                                     # 19 % of correctional data)
-    round_epochs: int = 2           # fine-tuning after each round
+    round_epochs: int = 2           # fine-tuning after each round,
+    round_moments: int = 0          # each epoch drawing at most this many moments per mode (0: all, a growing set)
     loops: tuple = HELD_OUT_PATHS
     runs: int = 3                   # autonomy runs per loop (seeds 100, 101, ...)
     autonomy_seconds: float = 60.0
@@ -90,32 +92,44 @@ PAPER_SCALE: dict = dict(moments=200_000, epochs=24, trials=8, rounds=2, round_s
 class Job:
     name: str            # also its log: out/logs/NAME.log
     argv: list           # the verb and its options
+    after: tuple = ()    # names of the jobs that must finish first (one not in the run finished before it)
 
 
-def run_jobs(jobs: list[Job], parallel: int, logs: Path) -> None:
+def run_jobs(jobs: list[Job], parallel: int, logs: Path, command: tuple = (sys.executable, "-m", "drivestudio")) \
+        -> None:
     """Verbs as processes, `parallel` at a time, each with cores / parallel torch threads: one thread per process
     wastes no time in the threads' barriers when the cores are shared (measured on this machine under load: 180
-    training moments per CPU-second with one thread, 40-60 with two). A failure ends the study (exit status 1) once
-    the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps what it finished)."""
+    training moments per CPU-second with one thread, 40-60 with two). A free slot takes the first job in the list
+    whose `after` jobs have finished, so one network's drives fill the time another spends retraining. A failure
+    ends the study (exit status 1) once the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps
+    what it finished)."""
     threads = max(1, (os.cpu_count() or 1) // parallel)
     env = os.environ | {"OMP_NUM_THREADS": str(threads)}
     logs.mkdir(parents=True, exist_ok=True)
     waiting, failed = list(jobs), []
+    pending = {job.name for job in jobs}
     running: list[tuple[Job, subprocess.Popen]] = []
     try:
         while waiting or running:
-            while waiting and len(running) < parallel:
-                job = waiting.pop(0)
+            while len(running) < parallel:
+                job = next((j for j in waiting if not pending.intersection(j.after)), None)
+                if job is None:
+                    break
+                waiting.remove(job)
                 print("$ drivestudio " + " ".join(map(str, job.argv)) + f"   (log: {logs / job.name}.log)", flush=True)
                 with open(logs / f"{job.name}.log", "ab") as log:
-                    running.append((job, subprocess.Popen([sys.executable, "-m", "drivestudio", *map(str, job.argv)],
-                                                           stdout=log, stderr=subprocess.STDOUT, env=env)))
+                    running.append((job, subprocess.Popen([*command, *map(str, job.argv)], stdout=log,
+                                                          stderr=subprocess.STDOUT, env=env)))
+            if not running and waiting:
+                raise RunError(f"{waiting[0].name} waits for jobs that never run: {', '.join(waiting[0].after)}")
             time.sleep(1.0)
             for job, proc in [r for r in running if r[1].poll() is not None]:
                 running.remove((job, proc))
                 if proc.returncode != 0:
                     failed.append(job.name)
                     waiting.clear()
+                else:
+                    pending.discard(job.name)
     finally:
         for _, proc in running:
             proc.terminate()
@@ -162,7 +176,8 @@ class Study:
         if not isinstance(made, dict):
             raise UsageError(f"--out {self.out}: its config.json is not a study's settings; give another folder")
         asked = asdict(self.cfg)
-        differ = [f"{k}={made.get(k)!r} (asked {asked[k]!r})" for k in SHAPING if made.get(k) != asked[k]]
+        differ = [f"{k}={made.get(k, MADE_BEFORE.get(k))!r} (asked {asked[k]!r})" for k in SHAPING
+                  if made.get(k, MADE_BEFORE.get(k)) != asked[k]]
         if differ:
             raise UsageError(f"--out {self.out} holds a study made with {', '.join(differ)}; continue it with the "
                              "same settings or give another folder")
@@ -214,46 +229,52 @@ class Study:
     def round_dir(self, k: int, name: str, mode: str) -> Path:
         return self.out / "rounds" / f"round{k}" / f"{name}-{mode}"
 
-    def correction_rounds(self, names) -> dict[str, str]:
-        """The networks after the correction rounds: each round every network drives a training loop in each of its
-        modes under the expert's correction, then is fine-tuned on the data and every correction so far."""
+    @staticmethod
+    def retrain_name(k: int, name: str) -> str:
+        return f"round{k}-retrain-{name}"
+
+    def correction_rounds(self, names) -> tuple[dict[str, str], list[Job]]:
+        """The networks after the correction rounds and the jobs that make them: each round every network drives a
+        training loop in each of its modes under the expert's correction, then is fine-tuned on the data and every
+        correction of its own so far. A network's round waits only for its own previous one."""
         c = self.cfg
         current = {name: str(self.models / f"{name}.pt") for name in names}
+        jobs: list[Job] = []
         for k in range(1, c.rounds + 1):
-            drives = []
             for name in names:
-                for i, mode in enumerate(self.net_modes(name)):
-                    loop = ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)]
-                    drives.append(self.drive_job(f"round{k}-{name}-{mode}", current[name], mode, loop, c.seed + k,
-                                                 c.round_seconds, c.rule, self.round_dir(k, name, mode)))
-            self.jobs(f"round {k}: drive", [j for j in drives if j is not None])
-            retrains = []
-            for name in names:
+                before = (self.retrain_name(k - 1, name),) if k > 1 else ()
+                drives = [self.drive_job(f"round{k}-{name}-{mode}", current[name], mode,
+                                         ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)], c.seed + k, c.round_seconds,
+                                         c.rule, self.round_dir(k, name, mode), after=before)
+                          for i, mode in enumerate(self.net_modes(name))]
+                drives = [j for j in drives if j is not None]
+                jobs += drives
                 nxt = self.models / f"{name}-round{k}.pt"
                 roots = [self.data] + [self.round_dir(j, name, m) / "corrections-0" for j in range(1, k + 1)
                                        for m in self.net_modes(name)]
                 kind = ["--mtl", name.removeprefix("mtl-")] if name.startswith("mtl-") else []
                 if not self.trained(nxt):
-                    retrains.append(Job(f"round{k}-retrain-{name}", [
+                    jobs.append(Job(self.retrain_name(k, name), [
                         "train", "--data", ",".join(map(str, roots)), "--model", "z2color", "--out", nxt, *kind,
                         "--epochs", c.round_epochs, "--trials", 1, "--batch-size", c.batch_size, "--seed", c.seed + k,
-                        "--device", c.device, "--init", current[name]]))
+                        *(["--mode-moments", c.round_moments] if c.round_moments else []),
+                        "--device", c.device, "--init", current[name]], before + tuple(j.name for j in drives)))
                 current[name] = str(nxt)
-            self.jobs(f"round {k}: retrain", retrains)
-        return current
+        return current, jobs
 
     # --- 5. autonomy ---------------------------------------------------------------------------------------------
     def drive_job(self, name: str, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str,
-                  where: Path, video: bool = False) -> Job | None:
+                  where: Path, video: bool = False, after: tuple = ()) -> Job | None:
         """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
         if (where / "autonomy.json").exists():
             return None
         return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--seed", seed, "--seconds",
                           seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
-                          *([] if video else ["--no-video"])])
+                          *([] if video else ["--no-video"])], after)
 
-    def autonomy(self, stage: str, nets: dict[str, str], rules, runs: int) -> dict:
-        """{rule: {mode: {"MultiNet"|"MTL": [run results]}}} over every loop and run."""
+    def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int) -> list[tuple]:
+        """(rule, mode, network title, result folder, job or None) of every autonomy run of a stage; a run after
+        the rounds waits for its own network's `last_round` only."""
         c = self.cfg
         plan = []
         for rule in rules:
@@ -267,8 +288,13 @@ class Study:
                             video = rule == c.rule and loop == c.loops[0] and r == 0
                             plan.append((rule, mode, title, where, self.drive_job(
                                 f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
-                                c.autonomy_seconds, rule, where, video)))
-        self.jobs(f"autonomy ({stage})", [job for *_, job in plan if job is not None])
+                                c.autonomy_seconds, rule, where, video,
+                                after=(self.retrain_name(last_round, name),) if last_round else ())))
+        return plan
+
+    @staticmethod
+    def autonomy_results(plan: list[tuple]) -> dict:
+        """{rule: {mode: {"MultiNet"|"MTL": [run results]}}} over every loop and run of a plan that has run."""
         out: dict = {}
         for rule, mode, title, where, _ in plan:
             result = json.loads((where / "autonomy.json").read_text())["rounds"][0]
@@ -285,11 +311,14 @@ class Study:
         self.cache()
         self.train()
         first = {name: str(self.models / f"{name}.pt") for name in self.nets()}
-        baseline = self.autonomy("baseline", first, (self.cfg.rule,), self.cfg.baseline_runs) \
-            if self.cfg.baseline_runs else {}
-        final = self.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
-        autonomy = self.autonomy("autonomy", final, self.cfg.rules, self.cfg.runs)
-        return write_report(self, baseline, autonomy, final, time.perf_counter() - t0)
+        final, rounds = self.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
+        baseline = self.autonomy_plan("baseline", first, (self.cfg.rule,), self.cfg.baseline_runs, 0)
+        autonomy = self.autonomy_plan("autonomy", final, self.cfg.rules, self.cfg.runs, self.cfg.rounds)
+        # one pool: the rounds first (the longest chain), the baseline runs filling its gaps, each final run as soon
+        # as its network's last round is done
+        self.jobs("rounds and autonomy", rounds + [job for *_, job in baseline + autonomy if job is not None])
+        return write_report(self, self.autonomy_results(baseline), self.autonomy_results(autonomy), final,
+                            time.perf_counter() - t0)
 
 
 def config_from_args(args) -> StudyConfig:
