@@ -87,8 +87,8 @@ def dataset(folder: Path) -> Path:
 def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -> dict:
     """Moments/s of MultiNet's training on real cached moments (Adadelta, gradient clipping, balanced batches),
     the trainer as it was (float32 weights and images in the default layout, the batch assembled and scaled
-    between steps) and as it is (perception/multinet.py's train_epoch: channels-last, bfloat16 autocast, the next
-    batch assembled in a second thread), alternately, `rounds` times each; the medians."""
+    between steps) and as it is (perception/multinet.py's train_epoch: channels-last, bfloat16 autocast where the CPU
+    computes it natively, the next batch assembled in a second thread), alternately, `rounds` times each; the medians."""
     import torch
 
     from perception.multinet import CLIP, balanced_batches, new_network, resolve, train_epoch, train_loss
@@ -157,7 +157,8 @@ def main(argv=None) -> int:
               + f"; batch 32: {inf['torch_ms_per_moment_batch32']:.2f} ms a moment")
         tr = training(dataset(Path(tmp)))
         print(f"training on real cached moments (Adadelta, batch {tr['batch']}, balanced modes, clipping): "
-              f"{tr['moments_per_s']:.0f} moments/s (channels-last, bfloat16 autocast, batches prefetched), "
+              f"{tr['moments_per_s']:.0f} moments/s (channels-last, "
+              f"{'bfloat16 autocast' if tr['amp'] else 'float32: bfloat16 is not native here'}, batches prefetched), "
               f"{tr['before_moments_per_s']:.0f} as before (float32, default layout); alternate rounds "
               f"{tr['rounds']}; per second of CPU time {tr['per_cpu_s']:.0f} and {tr['before_per_cpu_s']:.0f} "
               f"({tr['threads']} threads)")

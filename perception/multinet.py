@@ -18,9 +18,10 @@ Multi-Task Learning for Autonomous Driving, 2017), with the paper's measures.
   corrections stay in (the paper's DAgger variant).
 
 Speed on a CPU (docs/benchmarks.md): the weights and the images are channels-last (oneDNN's preferred layout), the
-forward and backward passes run under bfloat16 autocast (`amp`, the default; float32 master weights, the losses
-and the optimiser in float32; `--no-amp` trains in float32 throughout), and a second thread assembles and scales
-the next batch while the present one trains.
+forward and backward passes run under bfloat16 autocast where the processor computes bfloat16 natively (`amp`, the
+default: AVX512-BF16 or AMX, or a CUDA device that supports it; float32 master weights, the losses and the optimiser
+in float32; elsewhere, and with `--no-amp`, float32 throughout: emulated bfloat16 trains several times slower),
+and a second thread assembles and scales the next batch while the present one trains.
 
 A run is resumable at epoch granularity: its state is saved beside the model (`<out>.state`) after every epoch and
 on Ctrl-C or SIGTERM; the same command continues it.
@@ -48,7 +49,7 @@ from perception.curves import write_curves
 from perception.models import Regressor, family, make_spec
 from perception.moment_cache import Moments
 from perception.optimizers import make_optimizer as optimizer
-from perception.training import open_data, resolve_device
+from perception.training import bf16_native, open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,
@@ -191,7 +192,10 @@ def resolve(cfg, log=print) -> MultiNetRun:
     device = resolve_device(cfg.device)
     moments = Moments(roots, (spec["input"]["height"], spec["input"]["width"]), labels, log)
     train_ids, held = moments.split([decl.modes.index(m) for m in names], cfg.seed)
-    amp = bool(cfg.amp) and (device.type == "cpu" or torch.cuda.is_bf16_supported())
+    amp = bool(cfg.amp) and bf16_native(device)
+    if cfg.amp and not amp:
+        log(f"bfloat16 is not native on this {device.type} (no AVX512-BF16 or AMX): training in float32, which is "
+            "faster here")
     return MultiNetRun(roots, Path(cfg.out), names, cfg.mtl,
                        int(math.ceil(cfg.epochs)) if cfg.epochs is not None else int(defaults.get("epochs", 24)),
                        cfg.trials, cfg.batch_size or int(defaults.get("batch_size", 120)), cfg.mode_moments,

@@ -74,7 +74,7 @@ def register(sub) -> None:
     add_device_option(p, "auto")
     p.add_argument("--no-amp", dest="amp", action="store_false",
                    help="train in float32 throughout: no mixed precision on CUDA, no bfloat16 autocast for Z2Color "
-                        "on the CPU")
+                        "(used by default only where the processor computes bfloat16 natively)")
     p.add_argument("--workers", type=count(0, 64), default=1, help="processes decoding frames (1)")
     p.add_argument("--val-every", type=count(1, 10**8), default=500,
                    help="iterations between validations and checkpoints")
