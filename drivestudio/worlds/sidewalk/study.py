@@ -242,12 +242,12 @@ class Study:
         jobs: list[Job] = []
         for k in range(1, c.rounds + 1):
             for name in names:
-                before = (self.retrain_name(k - 1, name),) if k > 1 else ()
-                drives = [self.drive_job(f"round{k}-{name}-{mode}", current[name], mode,
-                                         ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)], c.seed + k, c.round_seconds,
-                                         c.rule, self.round_dir(k, name, mode), after=before)
-                          for i, mode in enumerate(self.net_modes(name))]
-                drives = [j for j in drives if j is not None]
+                before: tuple[str, ...] = (self.retrain_name(k - 1, name),) if k > 1 else ()
+                planned = [self.drive_job(f"round{k}-{name}-{mode}", current[name], mode,
+                                          ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)], c.seed + k, c.round_seconds,
+                                          c.rule, self.round_dir(k, name, mode), after=before)
+                           for i, mode in enumerate(self.net_modes(name))]
+                drives = [j for j in planned if j is not None]   # a drive whose result exists is done
                 jobs += drives
                 nxt = self.models / f"{name}-round{k}.pt"
                 roots = [self.data] + [self.round_dir(j, name, m) / "corrections-0" for j in range(1, k + 1)
