@@ -270,9 +270,10 @@ def test_model_options_after_an_at_sign():
     assert parse_model("runs/a.pt@smoothing=0.5") == ("runs/a.pt", {"smoothing": 0.5})
     assert parse_model("runs/a.pt@smoothing=0.3,gap_hold=0.8") == ("runs/a.pt", {"smoothing": 0.3, "gap_hold": 0.8})
     assert parse_model("runs/a.pt@smoothing=0") == ("runs/a.pt", {})
+    assert parse_model("runs/a.pt@pass_memory=10") == ("runs/a.pt", {"pass_memory": 10.0})   # seconds, not a factor
     for bad in ("runs/a.pt@smoothing=2", "runs/a.pt@smoothing=nan", "runs/a.pt@speed=1", "oracle@smoothing=0.5",
-                "runs/a.pt@gap_hold=1", "oracle@gap_hold=0.5",
-                " "):
+                "runs/a.pt@gap_hold=1", "oracle@gap_hold=0.5", "runs/a.pt@pass_memory=61",
+                "runs/a.pt@pass_memory=-1", "oracle@pass_memory=10", " "):
         with pytest.raises(UsageError):
             parse_model(bad)
 

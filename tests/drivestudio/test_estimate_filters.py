@@ -56,3 +56,20 @@ def test_no_filter_passes_the_estimates_through():
     rows = [_row(40.0), _row(10.0), _row(50.0)]
     e = _estimates(ChenDriver(Scripted(rows)), 3)
     assert [x[MM] for x in e] == [40.0, 10.0, 50.0]
+
+
+def test_the_pass_memory_carries_only_the_neighbour_gaps_of_a_car_being_passed():
+    """docs/controller.md: dist_RR closing at 2 m/s and then lost is carried on; dist_LL and dist_MM, whose cars
+    were not being passed, are not."""
+    rr, ll = ESTIMATE.index("dist_RR"), ESTIMATE.index("dist_LL")
+
+    def row(k):
+        r = _row(50.0 if k < 20 else 8.0 + 0.2 * k)          # dist_MM: far, then near and opening: not carried
+        r[INDICATORS.index("dist_RR")] = 14.0 - 0.2 * k if k < 20 else 60.0
+        r[INDICATORS.index("dist_LL")] = 12.0 if k < 20 else 60.0     # steady: not being passed
+        return r
+    e = _estimates(ChenDriver(Scripted([row(k) for k in range(40)]), pass_memory=10.0), 40)
+    assert e[20][rr] == pytest.approx(14.0 - 0.2 * 20, abs=0.05)    # lost, carried on at 2 m/s
+    assert e[20][ll] == 60.0 and e[25][MM] == pytest.approx(8.0 + 0.2 * 25)
+    without = _estimates(ChenDriver(Scripted([row(k) for k in range(40)])), 40)
+    assert without[20][rr] == 60.0

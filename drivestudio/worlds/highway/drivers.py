@@ -8,8 +8,10 @@ import time
 import numpy as np
 
 from controller.highway import ChenController
+from controller.highway.chen import KEEP
 from controller.highway.expert import PerturbedExpert
 from controller.highway.lookout import NOTHING_BEHIND, LookoutController
+from controller.highway.pass_memory import PassMemory
 from core.worlds.highway import HIGHWAY, INDICATORS, REAR
 from drivestudio.loop import Percept
 from perception.history import History
@@ -19,6 +21,7 @@ ESTIMATE_INDEX = {n: i for i, n in enumerate(ESTIMATE)}
 _GAPS = [i for i, n in enumerate(ESTIMATE) if n.startswith("dist_")]
 _TRUTH_OF_ESTIMATE = [HIGHWAY.index(n) for n in ESTIMATE]   # every label is a field of the truth record
 _REAR = [ESTIMATE_INDEX[n] for n in REAR]
+_NEIGHBOUR_GAPS = [ESTIMATE_INDEX["dist_LL"], ESTIMATE_INDEX["dist_RR"]]   # what the controller's rule 1 reads
 
 # the drivers on exact labels, by --model name: whether each looks beside and behind (controller/highway/lookout.py)
 ORACLES = {"oracle": False, "oracle-extended": True}
@@ -51,10 +54,14 @@ class ChenDriver:
     every network is compared with) and the Chen controller. The controller is made on the first frame, when the
     lane count is known."""
 
-    def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0, lookout: bool = False):
+    def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0, lookout: bool = False,
+                 pass_memory: float = 0.0):
         self.predictor = predictor
         self.lookout = lookout
         self.smoothing, self.gap_hold = smoothing, gap_hold
+        # a car being passed in a neighbour lane, carried on unseen (controller/highway/pass_memory.py)
+        self.pass_memory = [PassMemory(max_s=pass_memory) for _ in _NEIGHBOUR_GAPS] \
+            if pass_memory > 0 and predictor is not None else []
         self.timings = {"perception": 0.0, "control": 0.0}
         self.controller: ChenController | None = None
         self._i_speed, self._i_lanes = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
@@ -87,6 +94,12 @@ class ChenDriver:
             if self._held is not None:
                 est[_GAPS] = np.fmin(est[_GAPS], self.gap_hold * self._held + (1 - self.gap_hold) * est[_GAPS])
             self._held = est[_GAPS].copy()
+        if self.pass_memory:
+            changing = self.controller is not None and self.controller.state != KEEP   # the lanes change meaning
+            for memory, i in zip(self.pass_memory, _NEIGHBOUR_GAPS):
+                if changing:
+                    memory.reset()
+                est[i] = memory.filter(float(est[i]))
         return est
 
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:

@@ -60,6 +60,10 @@ class Plugin(base.Plugin):
             options.add(self.name, g, "--gap-hold", type=finite(0.0, 0.95),
                         help="hold a model's gap estimates (dist_*): a shorter gap at once, a longer one smoothed "
                         "with this factor, 0-0.95 (default 0: none; docs/controller.md)")
+            options.add(self.name, g, "--pass-memory", type=finite(0.0, 60.0), metavar="S",
+                        help="carry a car being passed in a neighbour lane on at its closing rate once the camera "
+                        "loses it, until level with the host or for at most S seconds (default 0: none; "
+                        "docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
@@ -144,7 +148,8 @@ class Plugin(base.Plugin):
             raise UsageError(f"{model} learned frames {had} the rear-view mirror and this world renders "
                              f"{'one' if declaration.cameras[0].inset else 'none'}: start the world {had} --mirror")
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
-                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs))
+                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs),
+                          pass_memory=getattr(args, "pass_memory", None) or 0.0)
 
     def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
@@ -197,7 +202,8 @@ class Plugin(base.Plugin):
 
     def driver_args(self, args) -> list[str]:
         out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
-        return out + (["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else [])
+        out += ["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else []
+        return out + (["--pass-memory", str(args.pass_memory)] if getattr(args, "pass_memory", None) else [])
 
     def recorder(self, world, path, label: str):
         return OverlayRecorder(path, world, label)

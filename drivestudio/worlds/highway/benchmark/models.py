@@ -9,6 +9,7 @@ of its estimates, or a trained policy on the exact affordances (drivestudio/worl
     --model runs/alexnet.pt@smoothing=0.5      e = 0.5 e_previous + 0.5 e_now before the Chen controller
     --model runs/alexnet.pt@gap_hold=0.8       gaps: g = min(g_now, 0.8 g_held + 0.2 g_now)
     --model runs/alexnet.pt@smoothing=0.3,gap_hold=0.8
+    --model runs/alexnet.pt@pass_memory=10     a car being passed is carried on unseen for up to 10 s
     --model runs/ppo-highway.zip               a saved Stable-Baselines3 policy (drivestudio/worlds/highway/rl_train.py)
     --model policy:mypackage.drivers:careful   any callable from the affordance observation to an action
 
@@ -30,7 +31,9 @@ ORACLE = "oracle"
 EXTENDED = "oracle-extended"
 EXACT = (ORACLE, EXTENDED)   # the drivers on exact labels; the plain oracle's row is the upper bound
 MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
-FILTERS = ("smoothing", "gap_hold")
+MAX_PASS_MEMORY = 60.0   # [s] as drive --pass-memory
+FILTERS = ("smoothing", "gap_hold", "pass_memory")
+LIMIT = {"smoothing": MAX_SMOOTHING, "gap_hold": MAX_SMOOTHING, "pass_memory": MAX_PASS_MEMORY}
 OPTION = re.compile(r"([a-z_]+)=(.*)")
 
 
@@ -46,6 +49,7 @@ class ModelSpec:
     lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
     policy: bool = False       # a policy on the exact affordances (path: its .zip or policy:MODULE:NAME)
     mirror: bool = False       # the checkpoint learned frames with the rear-view mirror: its routes render one
+    pass_memory: float = 0.0   # [s] the longest a car being passed is carried on unseen (0: not at all)
 
     @property
     def key(self) -> str:
@@ -53,7 +57,8 @@ class ModelSpec:
         if self.policy and self.path is not None:
             return self.path if self.path.startswith(CALLABLE) else f"policy:{Path(self.path).resolve()}"
         return self.family if self.path is None else \
-            f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}"
+            f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}" + \
+            (f",{self.pass_memory:g}" if self.pass_memory else "")
 
     def filters(self) -> dict[str, float]:
         """The controller-side filters in use, by name."""
@@ -84,14 +89,14 @@ def _factor(name: str, value: str, text: str) -> float:
         a = float(value)
     except ValueError:
         a = math.nan
-    if not math.isfinite(a) or not 0.0 <= a <= MAX_SMOOTHING:
-        raise UsageError(f"--model {text}: {name} must be a number from 0 to {MAX_SMOOTHING}, got {value!r}")
+    if not math.isfinite(a) or not 0.0 <= a <= LIMIT[name]:
+        raise UsageError(f"--model {text}: {name} must be a number from 0 to {LIMIT[name]:g}, got {value!r}")
     return a
 
 
 def parse_model(text: str) -> tuple[str, dict[str, float]]:
     """(checkpoint, 'oracle' or 'oracle-extended', {filter: factor}) of a --model value: a name, PATH or
-    PATH@smoothing=A,gap_hold=B."""
+    PATH@smoothing=A,gap_hold=B,pass_memory=S."""
     if not text.strip():
         raise UsageError("--model: empty; give 'oracle', 'oracle-extended' or a checkpoint file")
     path, filters = text, {}
@@ -102,7 +107,7 @@ def parse_model(text: str) -> tuple[str, dict[str, float]]:
             m = OPTION.fullmatch(part.strip())
             if m is None or m[1] not in FILTERS:
                 raise UsageError(f"--model {text}: after '@' the options are smoothing=A and gap_hold=B (0 to "
-                                 f"{MAX_SMOOTHING}), got {part!r}")
+                                 f"{MAX_SMOOTHING}) and pass_memory=S (0 to {MAX_PASS_MEMORY:g} s), got {part!r}")
             value = _factor(m[1], m[2], text)
             if value:
                 filters[m[1]] = value
@@ -135,7 +140,7 @@ def check_model(text: str) -> ModelSpec:
         + (", lookout" if lookout else "")
     return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
                      smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout,
-                     mirror=frame_inset(spec) == "mirror")
+                     mirror=frame_inset(spec) == "mirror", pass_memory=filters.get("pass_memory", 0.0))
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:

@@ -1,0 +1,62 @@
+"""Pass memory: a car being passed in a neighbour lane is remembered after the front camera loses it.
+
+A car the host passes in the next lane leaves the 280x210 camera's view (75 degrees across) while it is still a few
+metres ahead, so a network reads its gap (`dist_LL` / `dist_RR`) as "no car" from then on, whereas the true
+indicator follows the car until it is level with the host. The Chen controller then counts the lane clear too
+early, and its lane-preference rule moves the host into the car alongside. The filter carries the gap on through
+the unseen stretch at the rate at which it was closing while seen (a straight-line fit of the last second of near
+readings), until it reaches 0 (the car level with the host, where the true gap also ends) or `max_s` passed; from
+there the controller's own clear-lane timer runs as it does on the true indicators.
+"""
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+FRAME_S = 0.1            # the controller's frame (10 Hz)
+
+
+class PassMemory:
+    """One neighbour lane's gap: `filter(g)` once a frame returns the gap the controller should read."""
+
+    def __init__(self, near: float = 20.0, window: int = 10, min_seen: int = 3, min_closing: float = 0.2,
+                 max_s: float = 10.0, clear_behind: float = 10.0):
+        self.near = near                  # [m] a reading below this is a car (the controller's occupied gap)
+        self.min_seen = min_seen          # near readings in a row before a car counts as seen
+        self.min_closing = min_closing    # [m/s] slower closing: the car is not being passed
+        self.max_s = max_s                # [s] longest a car is carried on unseen
+        self.clear_behind = clear_behind  # [m] how far behind the host a passed car must be before its lane is free
+        self.seen: deque[tuple[int, float]] = deque(maxlen=window)   # (frame, gap) of the last near readings
+        self.carried: tuple[int, float, float] | None = None          # (frame, gap, closing rate) when lost
+        self.frame = 0
+
+    def reset(self) -> None:
+        self.seen.clear()
+        self.carried = None
+
+    def closing_rate(self) -> float:
+        """[m/s] how fast the gap shrank over the near readings (least-squares slope, positive when closing)."""
+        frames, gaps = np.array(self.seen).T
+        return float(-np.polyfit((frames - frames[-1]) * FRAME_S, gaps, 1)[0])
+
+    def filter(self, gap: float) -> float:
+        self.frame += 1
+        if gap < self.near:
+            if self.seen and self.seen[-1][0] != self.frame - 1:
+                self.seen.clear()             # not the same stretch of readings
+            self.seen.append((self.frame, gap))
+            return gap                        # a carried car stays carried: a flickering reading does not end it
+        if self.carried is None and len(self.seen) >= self.min_seen and self.seen[-1][0] == self.frame - 1:
+            rate = self.closing_rate()
+            if rate > self.min_closing:
+                self.carried = (self.seen[-1][0], self.seen[-1][1], rate)
+        self.seen.clear()
+        if self.carried is not None:
+            lost, g0, rate = self.carried
+            unseen_s = (self.frame - lost) * FRAME_S
+            predicted = g0 - rate * unseen_s
+            if predicted > -self.clear_behind and self.frame - lost <= round(self.max_s / FRAME_S):
+                return max(predicted, 0.0)    # alongside or just behind: the lane is still taken
+            self.carried = None
+        return gap

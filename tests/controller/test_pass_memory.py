@@ -1,0 +1,49 @@
+"""The pass memory (controller/highway/pass_memory.py): a neighbour car closing at a steady rate and then lost by the
+camera is carried on at that rate until level with the host; nothing else is changed."""
+import pytest
+
+from controller.highway.pass_memory import PassMemory
+
+FAR = 60.0
+
+
+def run(memory: PassMemory, gaps) -> list[float]:
+    return [memory.filter(g) for g in gaps]
+
+
+def test_a_car_being_passed_is_carried_on_at_its_closing_rate_until_clear_behind():
+    seen = [16.0 - 0.2 * k for k in range(30)]              # 2 m/s closing, seen down to 10.2 m
+    out = run(PassMemory(clear_behind=10.0), seen + [FAR] * 120)
+    assert out[:30] == seen                                  # seen: read as it is
+    ahead = out[30:30 + 51]
+    assert ahead[0] == pytest.approx(10.0, abs=0.05)         # one frame on: 10.2 - 0.2
+    assert all(a > b for a, b in zip(ahead, ahead[1:]))      # closing all the way to level (5.1 s on)
+    assert ahead[-1] == pytest.approx(0.0, abs=0.25)
+    assert out[30 + 52:30 + 100] == [0.0] * 48               # alongside and behind: the lane is taken
+    assert out[30 + 102:] == [FAR] * 18                      # 10 m behind (10.1 s on): free again
+
+
+def test_a_car_moving_away_or_keeping_its_distance_is_not_carried():
+    for rate in (-1.0, 0.0, 0.1):                            # opening, steady, too slow to be passed
+        out = run(PassMemory(), [12.0 - rate * 0.1 * k for k in range(20)] + [FAR] * 5)
+        assert out[20:] == [FAR] * 5
+
+
+def test_a_single_near_reading_is_noise_not_a_car():
+    assert run(PassMemory(), [FAR, 8.0, 7.0, FAR, FAR]) == [FAR, 8.0, 7.0, FAR, FAR]
+
+
+def test_the_carried_car_ends_after_max_s_and_survives_a_flickering_reading():
+    out = run(PassMemory(max_s=1.0), [19.0 - 0.05 * k for k in range(20)] + [FAR] * 30)   # 0.5 m/s: 36 s to level
+    assert all(g < 20.0 for g in out[20:30]) and out[31:] == [FAR] * 19
+    memory = PassMemory()
+    run(memory, [15.0 - 0.2 * k for k in range(10)] + [FAR] * 3)
+    assert memory.filter(9.0) == 9.0                         # seen again: the reading itself
+    assert memory.filter(FAR) == pytest.approx(13.2 - 0.2 * 5, abs=0.05)   # lost again: still carried
+
+
+def test_reset_forgets_the_car():
+    memory = PassMemory()
+    run(memory, [15.0 - 0.2 * k for k in range(10)])
+    memory.reset()
+    assert memory.filter(FAR) == FAR
