@@ -62,8 +62,8 @@ class Plugin(base.Plugin):
                         "with this factor, 0-0.95 (default 0: none; docs/controller.md)")
             options.add(self.name, g, "--pass-memory", type=finite(0.0, 60.0), metavar="S",
                         help="carry a car being passed in a neighbour lane on at its closing rate once the camera "
-                        "loses it, until level with the host or for at most S seconds (default 0: none; "
-                        "docs/controller.md)")
+                        "loses it, until it is 10 m behind the host or for at most S seconds, 0-60 (default 0: "
+                        "none; docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
