@@ -5,8 +5,10 @@ metres ahead, so a network reads its gap (`dist_LL` / `dist_RR`) as "no car" fro
 indicator follows the car until it is level with the host. The Chen controller then counts the lane clear too
 early, and its lane-preference rule moves the host into the car alongside. The filter carries the gap on through
 the unseen stretch at the rate at which it was closing while seen (a straight-line fit of the last second of near
-readings), until it reaches 0 (the car level with the host, where the true gap also ends) or `max_s` passed; from
-there the controller's own clear-lane timer runs as it does on the true indicators.
+readings), and reads 0 once the car is level, until it is `clear_behind` behind the host or `max_s` passed; only
+then does the controller's clear-lane timer start. Carrying the car only until level (where the true gap ends)
+was tried first: the two-lane timer of 30 frames after an overtake then still let the host move back beside a car
+passed at 1-2 m/s, as it does on the true indicators (docs/aggregation.md).
 """
 from __future__ import annotations
 
