@@ -88,7 +88,8 @@ def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -
     """Moments/s of MultiNet's training on real cached moments (Adadelta, gradient clipping, balanced batches),
     the trainer as it was (float32 weights and images in the default layout, the batch assembled and scaled
     between steps) and as it is (perception/multinet.py's train_epoch: channels-last, bfloat16 autocast where the CPU
-    computes it natively, the next batch assembled in a second thread), alternately, `rounds` times each; the medians."""
+    computes it natively, the next batch assembled in a second thread), alternately, `rounds` times each; the
+    medians."""
     import torch
 
     from perception.multinet import CLIP, balanced_batches, new_network, resolve, train_epoch, train_loss
