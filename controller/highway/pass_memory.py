@@ -16,14 +16,16 @@ from collections import deque
 
 import numpy as np
 
+from controller.highway.chen import ChenParams
+
 FRAME_S = 0.1            # the controller's frame (10 Hz)
 
 
 class PassMemory:
     """One neighbour lane's gap: `filter(g)` once a frame returns the gap the controller should read."""
 
-    def __init__(self, near: float = 20.0, window: int = 10, min_seen: int = 3, min_closing: float = 0.2,
-                 max_s: float = 10.0, clear_behind: float = 10.0):
+    def __init__(self, near: float = ChenParams.occupied_gap, window: int = 10, min_seen: int = 3,
+                 min_closing: float = 0.2, max_s: float = 10.0, clear_behind: float = 10.0):
         self.near = near                  # [m] a reading below this is a car (the controller's occupied gap)
         self.min_seen = min_seen          # near readings in a row before a car counts as seen
         self.min_closing = min_closing    # [m/s] slower closing: the car is not being passed

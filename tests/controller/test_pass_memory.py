@@ -1,5 +1,5 @@
 """The pass memory (controller/highway/pass_memory.py): a neighbour car closing at a steady rate and then lost by the
-camera is carried on at that rate until level with the host; nothing else is changed."""
+camera is carried on at that rate until it is clear behind the host; nothing else is changed."""
 import pytest
 
 from controller.highway.pass_memory import PassMemory

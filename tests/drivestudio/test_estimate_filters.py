@@ -1,5 +1,6 @@
 """The Chen driver's optional filters of a model's estimates (docs/controller.md): exponential smoothing of every
-indicator, and the gap hold (a shorter gap is taken at once, a longer one approached with the factor)."""
+indicator, the gap hold (a shorter gap is taken at once, a longer one approached with the factor) and the pass
+memory (a neighbour car being passed carried on once lost)."""
 from types import SimpleNamespace
 
 import numpy as np
