@@ -153,7 +153,10 @@ class WorldDeclaration:
     the bridge; `mode_field` of the truth record holds the index). targets: the labels a model learns by default.
     label_sets: named lists of labels a model may learn instead (`train --labels NAME`). observable: the truth
     fields a driving agent may read (the Gymnasium environments' affordance observation): what the car could sense
-    of its surroundings and itself, not the map position nor the outcomes its reward scores.
+    of its surroundings and itself, not the map position nor the outcomes its reward scores. decisive: (label,
+    bound) pairs; a step on which any of these labels is below its bound is one on which the world's driver makes
+    a rare, costly decision (the highway: a car near ahead in a neighbouring lane), which `train --emphasis W`
+    counts W times an epoch.
     """
 
     name: str
@@ -170,6 +173,7 @@ class WorldDeclaration:
     targets: tuple[str, ...] = ()
     label_sets: tuple[tuple[str, tuple[str, ...]], ...] = ()   # named target lists: (("paper", (...)), ...)
     observable: tuple[str, ...] = ()              # truth fields an agent may observe (the affordance observation)
+    decisive: tuple[tuple[str, float], ...] = ()  # (label, bound): steps with a label below it decide (see above)
     version: int = 1                              # bump when the meaning of a field changes
     _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -217,6 +221,10 @@ class WorldDeclaration:
         if unknown or len(set(self.observable)) != len(self.observable):
             raise DeclarationError(f"world {self.name!r}: observable fields {unknown or list(self.observable)} are "
                                    "not distinct fields of the truth record")
+        unknown = [n for n, bound in self.decisive if n not in {lab.name for lab in self.labels}
+                   or not (isinstance(bound, (int, float)) and math.isfinite(bound))]
+        if unknown:
+            raise DeclarationError(f"world {self.name!r}: decisive steps name unknown labels or bounds {unknown}")
         if self.modes and (self.mode_field is None or self.mode_field not in index):
             raise DeclarationError(f"world {self.name!r}: behavioural modes need a mode_field of the truth record")
         if not self.moment.instants or self.moment.horizon < 0 or max(self.moment.instants) > 0:
@@ -400,7 +408,8 @@ class WorldDeclaration:
                                                           "horizon": self.moment.horizon},
                 "targets": list(self.targets),
                 **({"label_sets": {n: list(v) for n, v in self.label_sets}} if self.label_sets else {}),
-                **({"observable": list(self.observable)} if self.observable else {})}
+                **({"observable": list(self.observable)} if self.observable else {}),
+                **({"decisive": [[n, b] for n, b in self.decisive]} if self.decisive else {})}
 
     @classmethod
     def from_json(cls, obj: Mapping) -> WorldDeclaration:
@@ -422,7 +431,8 @@ class WorldDeclaration:
                                      int(obj.get("moment", {}).get("horizon", 0))),
                        targets=tuple(obj.get("targets", ())),
                        label_sets=tuple((str(n), tuple(v)) for n, v in dict(obj.get("label_sets", {})).items()),
-                       observable=tuple(obj.get("observable", ())))
+                       observable=tuple(obj.get("observable", ())),
+                       decisive=tuple((str(n), float(b)) for n, b in obj.get("decisive", ())))
         except (KeyError, TypeError, ValueError) as e:
             if isinstance(e, DeclarationError):
                 raise
@@ -432,7 +442,8 @@ class WorldDeclaration:
         """A short digest of everything that decides what the data means (titles and prose excluded)."""
         obj = self.to_json()
         obj.pop("title")
-        obj.pop("observable", None)   # what an agent may read does not change what recorded data means
+        obj.pop("observable", None)   # what an agent may read does not change what recorded data means,
+        obj.pop("decisive", None)     # nor which steps a trainer emphasises
         for group in ("cameras", "labels", "truth", "action", "columns"):
             for item in obj[group]:
                 item.pop("meaning", None)

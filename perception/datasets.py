@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from core import worlds
 from core.declaration import Moment, WorldDeclaration, base_name, expand
 from perception.frame_cache import FrameCache
 from perception.shards import Dataset, DatasetError, ShardReader, decode_image, image_column
@@ -190,11 +191,14 @@ class FrameStream(torch.utils.data.IterableDataset):
     reports that split errors by regime.
     rank, world_size: in a distributed run (torchrun), each rank reads a disjoint part of the episodes: the episode
     order of an epoch is the same on every rank (seed and epoch), rank r takes every world_size-th episode from
-    the r-th, and its DataLoader workers divide those among themselves."""
+    the r-th, and its DataLoader workers divide those among themselves.
+    emphasis: an epoch yields each of the world's decisive steps (its declaration's `decisive`) this many times,
+    every other step once: the rare states where a misread label is costly weigh more in training."""
 
     def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
                  shuffle: bool = True, seed: int = 0, buffer: int = 2048, moment: Moment | None = None,
-                 context: tuple[str, ...] = (), rank: int = 0, world_size: int = 1, cache: FrameCache | None = None):
+                 context: tuple[str, ...] = (), rank: int = 0, world_size: int = 1, cache: FrameCache | None = None,
+                 emphasis: int = 1):
         self.data = Dataset(Path(root))
         self.spec = SampleSpec(self.data.declaration, targets, moment, normalised)
         self.shuffle, self.seed, self.buffer = shuffle, seed, buffer
@@ -207,6 +211,7 @@ class FrameStream(torch.utils.data.IterableDataset):
         if missing:
             raise DatasetError(f"the {self.data.world} dataset {self.data.root} has no column {', '.join(missing)}")
         self.shards = self.data.select(split)
+        self.times = self._emphasis(emphasis)   # shard index -> how often each step is yielded (none: once)
         if not self.shards or not len(self):
             raise DatasetError(f"dataset {self.data.root} has no samples in split '{split}'")
         self.epoch = 0
@@ -215,8 +220,28 @@ class FrameStream(torch.utils.data.IterableDataset):
     def outputs(self) -> tuple[str, ...]:
         return self.spec.outputs
 
+    def _emphasis(self, weight: int) -> dict[int, np.ndarray]:
+        if weight == 1:
+            return {}
+        rule = worlds.get(self.data.world).decisive
+        if not rule:
+            raise DatasetError(f"the {self.data.world} world declares no decisive steps to emphasise")
+        names = tuple(dict.fromkeys(n for n, _ in rule))
+        times = {}
+        for k, shard in enumerate(self.shards):
+            table = self.data.reader(shard).labels(names)
+            values = {n: table.column(n).to_numpy(zero_copy_only=False).astype(np.float64) for n in names}
+            decisive = np.logical_or.reduce([values[n] < bound for n, bound in rule])
+            times[k] = np.where(decisive, weight, 1)
+        return times
+
+    def samples(self, k: int) -> int:
+        """Samples shard k yields in an epoch."""
+        starts = self.spec.starts(self.shards[k].frames)
+        return int(self.times[k][starts.start:starts.stop].sum()) if k in self.times else len(starts)
+
     def __len__(self) -> int:
-        return sum(len(self.spec.starts(s.frames)) for s in self.shards)
+        return sum(self.samples(k) for k in range(len(self.shards)))
 
     def set_epoch(self, epoch: int) -> None:
         """A new shuffle order per epoch (call before iterating, as with DistributedSampler)."""
@@ -242,7 +267,7 @@ class FrameStream(torch.utils.data.IterableDataset):
         each worker batches its own episodes' samples and drops its last partial batch."""
         order = self._order(np.random.default_rng([self.seed, self.epoch]))
         parts = [order[w::workers] for w in range(workers)] if workers else [order]
-        return sum(sum(len(self.spec.starts(self.shards[k].frames)) for k in part) // batch_size for part in parts)
+        return sum(sum(self.samples(k) for k in part) // batch_size for part in parts)
 
     def _episode(self, k: int):
         """The samples of shard k as (encoded images, mode, raw targets, context), in step order."""
@@ -255,6 +280,10 @@ class FrameStream(torch.utils.data.IterableDataset):
         context = np.stack([table.column(n).to_numpy(zero_copy_only=False).astype(np.float64)
                             for n in self.context], axis=1) if self.context else None
         starts = spec.starts(len(values))
+        times = self.times.get(k)
+
+        def repeats(step: int) -> range:
+            return range(1 if times is None else int(times[step]))
 
         def sample(step: int, images: list):
             return (images, None if modes is None else int(modes[step]), spec.target_values(values, step),
@@ -263,7 +292,8 @@ class FrameStream(torch.utils.data.IterableDataset):
         if self.cache is not None:
             cams = [self.cache.frames(self.shards[k], c.name) for c in spec.decl.cameras]
             for step in starts:
-                yield sample(step, [cam[step + dt] for dt in spec.moment.instants for cam in cams])
+                for _ in repeats(step):
+                    yield sample(step, [cam[step + dt] for dt in spec.moment.instants for cam in cams])
             return
         instants = spec.moment.instants
         keep = -spec.moment.earliest + 1     # steps of images a sample may reach back to
@@ -276,7 +306,8 @@ class FrameStream(torch.utils.data.IterableDataset):
                 if len(window) > keep:
                     window.pop(0)
                 if step in starts:
-                    yield sample(step, [img for dt in instants for img in window[len(window) - 1 + dt]])
+                    for _ in repeats(step):
+                        yield sample(step, [img for dt in instants for img in window[len(window) - 1 + dt]])
                 step += 1
 
     def __iter__(self):

@@ -231,7 +231,7 @@ class SGDRun:
         self.stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
                                   buffer=min(cfg.shuffle_buffer, data.frames("train")), rank=dist.rank,
                                   world_size=dist.world_size, moment=self.moment,
-                                  cache=frame_cache(data, dist, log) if cfg.cache else None)
+                                  cache=frame_cache(data, dist, log) if cfg.cache else None, emphasis=cfg.emphasis)
         self.plan = plan = plan_run(cfg, data, decl, labels, self.stream, dist, log)
         self.model = build_model(cfg, plan, device, log)
         self.channels_last = cfg.channels_last and device.type == "cpu"
@@ -333,7 +333,9 @@ class SGDRun:
     def announce(self) -> None:
         cfg, plan, dist = self.cfg, self.plan, self.dist
         self.log(f"training {describe(plan.spec)} ({sum(p.numel() for p in self.params):,} trainable parameters) "
-                 f"on {len(self.stream)} frames of {cfg.data} on {self.device}: {plan.iterations} iterations of "
+                 f"on {len(self.stream)} frames of {cfg.data}"
+                 + (f" (its decisive frames {cfg.emphasis} times each)" if cfg.emphasis != 1 else "")
+                 + f" on {self.device}: {plan.iterations} iterations of "
                  f"{plan.batch_size}, {plan.loss} loss, {plan.optimizer} lr {plan.lr:g} x{cfg.lr_gamma} every "
                  f"{cfg.lr_step}"
                  + (f", {self.amp_dtype}" if self.amp_dtype else "")

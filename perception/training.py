@@ -65,6 +65,7 @@ class TrainConfig:
     history: int = 0                  # earlier frames read beside the current one (a temporal family)
     cache: bool = True                # decode the training frames once into the dataset's frame cache
     channels_last: bool = True        # CPU: channels-last weights and inputs (oneDNN's faster convolutions)
+    emphasis: int = 1                 # an epoch shows the world's decisive steps this many times (datasets.py)
     seed: int = 0
 
     def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:

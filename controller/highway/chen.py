@@ -17,7 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.worlds.highway import EDGE_MARKING, IN_LANE_SPAN, INACTIVE, INDICATORS, NEIGHBOUR_LANE, STEER_LOCK_RAD, Action
+from core.worlds.highway import (
+    EDGE_MARKING,
+    IN_LANE_SPAN,
+    INACTIVE,
+    INDICATORS,
+    NEIGHBOUR_LANE,
+    NEIGHBOUR_OCCUPIED,
+    STEER_LOCK_RAD,
+    Action,
+)
 
 # Lane-change states: keeping a lane, or phase 1 / phase 2 of a change to the left or to the right.
 KEEP = "keep"
@@ -36,7 +45,7 @@ class ChenParams:
     # rule 1: lane occupancy
     timer_set: int = 60                       # [frames] clear frames before a neighbour lane counts as clear
     timer_set_two_lane_after_change: int = 30  # [frames] the same, on two lanes after an overtaking change
-    occupied_gap: float = 20.0                # [m] a neighbour lane is occupied by a car ahead closer than this
+    occupied_gap: float = NEIGHBOUR_OCCUPIED  # [m] a neighbour lane is occupied by a car ahead closer than this
     pre_dist_start: float = 60.0              # [m] pre_dist_L/R before the first frame
     # rule 2: overtake or follow
     follow_gap: float = 15.0                  # [m] dist_MM below this: overtake or follow

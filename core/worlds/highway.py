@@ -29,6 +29,9 @@ GAPS: tuple[str, ...] = ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")
 
 GAP_MAX = 60.0       # [m] gap of an active, existing lane with no car ahead within it
 GAP_INACTIVE = 75.0  # [m] gap of an inactive system or of a lane that does not exist
+# [m] a neighbour lane counts as occupied by a car ahead closer than this: the Chen controller's rule 1, and the
+# frames a trainer may emphasise (those on which its lane changes are decided)
+NEIGHBOUR_OCCUPIED = 20.0
 
 INACTIVE: dict[str, float] = {
     "toMarking_LL": -9.5, "toMarking_ML": -5.5, "toMarking_MR": 5.5, "toMarking_RR": 9.5,
@@ -193,6 +196,9 @@ HIGHWAY = WorldDeclaration(
     label_sets=tuple(LABEL_SETS.items()),
     # an agent reads the 14 indicators and its own speedometer, as the Chen controller does (docs/gymnasium.md)
     observable=INDICATORS + ("speed",),
+    # the frames on which the Chen controller decides a lane change: a car near ahead in a neighbouring lane, in
+    # either system (rule 1's occupancy); rare in an expert's data, and a misread one costs a collision
+    decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_RR", "dist_L", "dist_R")),
 )
 
 # The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came

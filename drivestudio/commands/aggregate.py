@@ -34,6 +34,9 @@ def register(sub) -> None:
                    help="the expert's share shrinks by this factor per round (default 0.5)")
     p.add_argument("--iterations", type=count(1, 10**7), default=2000,
                    help="fine-tuning iterations per round (default 2000)")
+    p.add_argument("--emphasis", type=count(1, 100), default=1, metavar="W",
+                   help="the rounds' fine-tuning shows the decisive frames (a car closer than 20 m ahead in a "
+                        "neighbouring lane) W times an epoch (default 1: as recorded; train --emphasis)")
     p.add_argument("--batch-size", type=count(1, 4096), default=None, help="default: the model family's")
     p.add_argument("--lr", type=finite(1e-9, 10.0), default=None, help="default: the model family's")
     p.add_argument("--cars", default="12-40", help="AI cars per episode, A-B (default 12-40)")
@@ -80,7 +83,8 @@ def run(args) -> int:
 
     cfg = AggregationConfig(data=args.data, model=args.model, out=args.out, rounds=args.rounds, frames=args.frames,
                             beta=args.beta, decay=args.decay, iterations=args.iterations,
-                            batch_size=args.batch_size, lr=args.lr, episode_frames=args.episode_frames,
+                            batch_size=args.batch_size, lr=args.lr, emphasis=args.emphasis,
+                            episode_frames=args.episode_frames,
                             cars=_cars(args.cars), seed=args.seed, workers=args.workers, device=args.device,
                             benchmark=suite)
     try:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from core import worlds
 from core.files import check_output
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
@@ -15,7 +16,7 @@ from perception.memory import check_batch
 TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss",
                    "ema", "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
                    "regressor", "modes", "mtl", "trials", "mode_moments", "history", "init", "channels_last", "cache",
-                   "unfreeze", "batch_norm")
+                   "unfreeze", "batch_norm", "emphasis")
 APPLIES = {
     "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials", "mode_moments"},
     "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "mode_moments", "init", "amp"},
@@ -102,6 +103,10 @@ def register(sub) -> None:
     p.add_argument("--history", type=count(0, 2), default=0,
                    help="mobilenet: also read the previous 1 or 2 frames (0.1 s apart) beside the current one "
                         "(default 0)")
+    p.add_argument("--emphasis", type=count(1, 100), default=1, metavar="W",
+                   help="an epoch shows the world's decisive steps W times, every other step once (default 1); "
+                        "highway: the frames with a car closer than 20 m ahead in a neighbouring lane, on which the "
+                        "Chen controller's lane changes are decided (docs/aggregation.md)")
     p.add_argument("--init", metavar="CKPT", help="start from this checkpoint's weights (same family, world and "
                                                   "targets): fine-tuning, aggregation rounds, the correction rounds "
                                                   "of `study` and `autonomy --rounds`")
@@ -142,6 +147,15 @@ def first_root(data: str) -> Path:
     return Path(next((r for r in str(data).split(",") if r), data))
 
 
+def check_emphasis(data: Path) -> None:
+    """UsageError unless the dataset's world declares decisive steps (`--emphasis` has nothing to weigh else)."""
+    from perception.shards import Dataset  # lazy: pyarrow
+
+    world = Dataset(data).world
+    if not worlds.get(world).decisive:
+        raise UsageError(f"--emphasis: the {world} world declares no decisive steps to emphasise")
+
+
 def _flag(dest: str) -> str:
     return {"amp": "--no-amp", "channels_last": "--no-channels-last", "cache": "--no-cache"}.get(
         dest, "--" + dest.replace("_", "-"))
@@ -177,6 +191,8 @@ def run(args) -> int:
     if args.weights:
         if not Path(args.weights).is_file():
             raise UsageError(f"--weights: no such file: {args.weights}")
+    if args.emphasis != 1:
+        check_emphasis(first_root(args.data))
 
     if args.batch_size is not None:   # a batch whose inputs cannot fit is refused before anything is allocated
         check_batch_for(args)

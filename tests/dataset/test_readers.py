@@ -87,3 +87,39 @@ def test_missing_labels_and_split_are_errors(data):
         FrameDataset(data.parent)
     with pytest.raises(DatasetError, match="no column colour"):
         FrameStream(data, context=("colour",))
+
+
+DECISIVE = ("dist_LL", "dist_RR", "dist_L", "dist_R")
+
+
+def _decisive(record: dict) -> bool:
+    """docs/aggregation.md's rule, written out: a car closer than 20 m ahead in a neighbouring lane, either system."""
+    return any(record[name] < 20.0 for name in DECISIVE)
+
+
+def test_emphasis_repeats_each_decisive_frame_and_nothing_else(data):
+    ordered = FrameDataset(data, split="train", normalised=False)
+    decisive = [_decisive(ordered.record(i)[1]) for i in range(len(ordered))]
+    assert 0 < sum(decisive) < len(decisive)   # the fixture's traffic gives both kinds
+    where = ("x", "y", "s")   # a frame's place names it (targets repeat while a car stands)
+    stream = FrameStream(data, split="train", normalised=False, shuffle=False, emphasis=3, context=where)
+    assert len(stream) == len(ordered) + 2 * sum(decisive)
+    places = [tuple(c.numpy()) for *_, c in stream]
+    assert len(places) == len(stream)
+    counts: dict = {}
+    for p in places:
+        counts[p] = counts.get(p, 0) + 1
+    for i in range(len(ordered)):
+        record = ordered.record(i)[1]
+        assert counts[tuple(record[n] for n in where)] == (3 if decisive[i] else 1), i
+    assert stream.batches(16) == len(stream) // 16
+
+
+def test_emphasis_needs_a_world_that_declares_decisive_steps(data, monkeypatch):
+    from dataclasses import replace
+
+    from core import worlds
+    monkeypatch.setitem(worlds._REGISTERED, "highway", replace(HIGHWAY, decisive=()))
+    with pytest.raises(DatasetError, match="declares no decisive steps"):
+        FrameStream(data, split="train", emphasis=2)
+    assert len(FrameStream(data, split="train")) == 160   # weight 1 reads no rule

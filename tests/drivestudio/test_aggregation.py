@@ -116,10 +116,25 @@ def test_running_again_continues_and_other_options_are_refused(run, model):
     assert r.returncode == 2 and "other options (frames differ)" in r.stderr and len(r.stderr.splitlines()) == 1
 
 
+def test_a_run_made_before_emphasis_continues_and_another_emphasis_is_refused(tmp_path):
+    from drivestudio.errors import UsageError
+    from drivestudio.worlds.highway.aggregation import STATE, Aggregation
+
+    cfg = AggregationConfig(data="d", model="m.pt", out=str(tmp_path / "run"))
+    Aggregation(cfg)._save()
+    state = json.loads((tmp_path / "run" / STATE).read_text())
+    del state["config"]["emphasis"]      # as written before the option existed
+    (tmp_path / "run" / STATE).write_text(json.dumps(state))
+    assert Aggregation(cfg).state["config"]["emphasis"] == 1
+    with pytest.raises(UsageError, match="emphasis differ"):
+        Aggregation(AggregationConfig(data="d", model="m.pt", out=str(tmp_path / "run"), emphasis=3))
+
+
 @pytest.mark.parametrize("args, message", [
     (["--rounds", "0"], "--rounds"),
     (["--beta", "1.5"], "--beta"),
     (["--cars", "40-12"], "--cars"),
+    (["--emphasis", "0"], "--emphasis"),
     (["--suite", "/nonexistent/suite.json"], "no such file"),
 ])
 def test_bad_input_is_refused_in_one_line_before_any_work(model, tmp_path, args, message):

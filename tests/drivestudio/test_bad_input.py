@@ -108,6 +108,8 @@ CASES = [
     ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--loss", "l3"),
     ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--ema", "1.5"),
     ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--loss", "l1"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--emphasis", "0"),
+    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--emphasis", "3"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
     # files and their content
     ("probe", "/dev/zero"),

@@ -7,7 +7,7 @@ import torch
 from core.worlds.highway import label_set
 from perception.checkpoint import CheckpointError, load_checkpoint
 from perception.curves import curve_paths
-from perception.datasets import FrameDataset
+from perception.datasets import FrameDataset, FrameStream
 from perception.models import family
 from perception.train import train
 from perception.training import TrainConfig, absolute_loss, euclidean_loss
@@ -70,6 +70,17 @@ def test_l1_training_records_its_loss_and_continues_only_with_it():
     tuned = workdir() / "mobilenet-l1-tuned.pt"
     train(tiny_config("mobilenet", tuned, iterations=2, init=str(path)), log=lambda *x: None)
     assert load_checkpoint(tuned)["train"]["config"]["loss"] == "l1"
+
+
+def test_emphasis_trains_on_the_decisive_frames_repeated_and_records_it():
+    path = workdir() / "mobilenet-emphasis.pt"
+    lines: list[str] = []
+    train(tiny_config("mobilenet", path, iterations=2, emphasis=4), log=lines.append)
+    plain = FrameStream(dataset(), "train")
+    repeated = FrameStream(dataset(), "train", emphasis=4)
+    assert len(repeated) > len(plain)     # the tiny set's traffic holds decisive frames
+    assert any(f"on {len(repeated)} frames" in line and "decisive frames 4 times each" in line for line in lines)
+    assert load_checkpoint(path)["train"]["config"]["emphasis"] == 4
 
 
 def test_alexnet_training_lowers_the_loss_on_real_frames():

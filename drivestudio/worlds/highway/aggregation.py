@@ -50,6 +50,7 @@ from perception.train import train
 from perception.training import TrainConfig
 
 STATE = "aggregation.json"
+MADE_BEFORE = {"emphasis": 1}   # a setting's value in runs made before it existed
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,7 @@ class AggregationConfig:
     iterations: int = 2000          # fine-tuning iterations per round
     batch_size: int | None = None   # None: the family's
     lr: float | None = None         # None: the family's
+    emphasis: int = 1               # the fine-tuning shows the world's decisive frames this many times an epoch
     episode_frames: int = 200
     cars: tuple[int, int] = (12, 40)
     seed: int = 0
@@ -173,7 +175,8 @@ class Aggregation:
             return {"config": config, "rounds": [], "complete": False}
         state = json.loads(path.read_text())
         keep = {k: v for k, v in config.items() if k not in ("rounds", "workers", "benchmark")}
-        old = {k: v for k, v in state.get("config", {}).items() if k not in ("rounds", "workers", "benchmark")}
+        old = {k: v for k, v in (MADE_BEFORE | state.get("config", {})).items()
+               if k not in ("rounds", "workers", "benchmark")}
         if old != keep:
             diff = sorted(k for k in set(old) | set(keep) if old.get(k) != keep.get(k))
             raise UsageError(f"{self.out} holds an aggregation run made with other options ({', '.join(diff)} "
@@ -227,6 +230,7 @@ class Aggregation:
         train(TrainConfig(data=str(merged), model=spec["name"], out=str(self.model_of(r)),
                           init=str(self.model_of(r - 1)), targets=",".join(spec["labels"]), iterations=cfg.iterations,
                           batch_size=cfg.batch_size, lr=cfg.lr, history=len(spec["input"]["instants"]) - 1,
+                          emphasis=cfg.emphasis,
                           device=cfg.device, seed=cfg.seed + r, workers=0), log=self.log)
         history = load_checkpoint(self.model_of(r), world="highway")["train"]["history"]
         last: dict = next((h for h in reversed(history) if h.get("val_loss") is not None), {})
