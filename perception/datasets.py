@@ -221,6 +221,8 @@ class FrameStream(torch.utils.data.IterableDataset):
         return self.spec.outputs
 
     def _emphasis(self, weight: int) -> dict[int, np.ndarray]:
+        """Per shard, how often an epoch yields each step: `weight` for the world's decisive steps (read from the
+        labels as recorded, once, before training), 1 for the others; {} when nothing is emphasised."""
         if weight == 1:
             return {}
         rule = worlds.get(self.data.world).decisive
