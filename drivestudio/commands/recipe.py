@@ -22,6 +22,7 @@ class Size:
     round_frames: int = 4000
     round_iterations: int = 1500
     history: int = 1             # earlier frames the model reads
+    emphasis: int = 4            # an epoch shows each decisive frame this often (docs/aggregation.md)
 
 
 FULL = Size()
@@ -43,6 +44,9 @@ def register(sub) -> None:
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
                    help=f"iterations of the first training (default {FULL.iterations})")
     p.add_argument("--rounds", type=count(1, 50), default=None, help=f"aggregation rounds (default {FULL.rounds})")
+    p.add_argument("--emphasis", type=count(1, 100), default=None,
+                   help=f"times every epoch shows a decisive frame (a car closer than 20 m ahead in a neighbouring "
+                        f"lane), in the first training and the rounds (default {FULL.emphasis})")
     p.add_argument("--suite", default="default", help="the benchmark suite (default: the held-out default suite)")
     p.add_argument("--workers", type=count(1, 256), default=2, help="worker processes (default 2)")
     p.set_defaults(func=run)
@@ -51,7 +55,8 @@ def register(sub) -> None:
 def run(args) -> int:
     size = QUICK if args.quick else FULL
     size = replace(size, **{k: v for k, v in (("frames", args.frames), ("iterations", args.iterations),
-                                               ("rounds", args.rounds)) if v is not None})
+                                               ("rounds", args.rounds), ("emphasis", args.emphasis))
+                                   if v is not None})
     out = make_dir(check_output_dir(args.out))
     if args.suite not in ("default", "none") and not Path(args.suite).is_file():
         raise UsageError(f"--suite: no such file: {args.suite}")
@@ -73,10 +78,12 @@ def run(args) -> int:
          "--workers", args.workers, "--quiet")
     step(f"a MobileNet reading the previous frame too: {size.iterations} iterations", "train", "--data", data,
          "--model", "mobilenet", "--history", size.history, "--out", model, "--iterations", size.iterations,
-         "--val-every", max(10, size.iterations // 6), "--workers", 0, "--device", "cpu")
+         "--val-every", max(10, size.iterations // 6), "--workers", 0, "--device", "cpu",
+         "--emphasis", size.emphasis)
     step(f"{size.rounds} aggregation round(s) of {size.round_frames} frames, then the benchmark", "aggregate",
          "--data", data, "--model", model, "--out", out / "aggregation", "--rounds", size.rounds, "--frames",
-         size.round_frames, "--iterations", size.round_iterations, "--suite", args.suite, "--workers", args.workers)
+         size.round_frames, "--iterations", size.round_iterations, "--emphasis", size.emphasis, "--suite", args.suite,
+         "--workers", args.workers)
     minutes = (time.perf_counter() - t_start) / 60
     write_text(out / "commands.txt", "\n".join(log) + "\n")
     print(f"\nrecipe done in {minutes:.1f} min (this run); the leaderboard: {out / 'aggregation' / 'benchmark'}/"

@@ -111,6 +111,7 @@ CASES = [
     ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--emphasis", "0"),
     ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--emphasis", "3"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
+    ("recipe", "--emphasis", "0", "--out", "{root}/recipe"),
     # files and their content
     ("probe", "/dev/zero"),
     ("probe", "{root}/deep.json"),

@@ -183,11 +183,13 @@ def test_a_route_without_lanes_takes_the_tracks_and_without_start_lane_the_seeds
 
 
 # --- the suites nobody picked ----------------------------------------------------------------------------------
-def test_the_random_suite_is_what_its_generator_seed_draws():
-    """Nobody swapped a route: drawing again from the seed written in the file gives the file's routes."""
-    suite = load_suite(SUITES_DIR / "random.json")
+@pytest.mark.parametrize("name, seed", [("random", 19), ("design", 21)])
+def test_a_drawn_suite_is_what_its_generator_seed_draws(name, seed):
+    """Nobody swapped a route: drawing again from the seed written in the file gives the file's routes (the
+    evaluation suite random.json and design.json, the suite that choices are made on)."""
+    suite = load_suite(SUITES_DIR / f"{name}.json")
     gen = suite.generator
-    assert gen == {"seed": 19, "routes": 12, "lanes": [1, 4], "cars": [12, 60], "seconds": 240.0}
+    assert gen == {"seed": seed, "routes": 12, "lanes": [1, 4], "cars": [12, 60], "seconds": 240.0}
     drawn = draw_routes(gen["seed"], gen["routes"], tuple(gen["lanes"]), tuple(gen["cars"]), gen["seconds"])
     assert [r.as_dict() | {"length_m": 0.0} for r in suite.routes] == [
         {**d, "length_m": 0.0} for d in drawn]

@@ -6,6 +6,8 @@ import sys
 
 import pytest
 
+from drivestudio.commands.recipe import FULL
+
 
 @pytest.mark.slow   # about 80 s: every step of the recipe at its smallest (run with pytest -m slow)
 def test_the_recipe_goes_from_nothing_to_the_leaderboard(tmp_path):
@@ -22,6 +24,8 @@ def test_the_recipe_goes_from_nothing_to_the_leaderboard(tmp_path):
     assert all(m["overall"]["route_completion"] > 0 for m in board["models"])
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
+    # the first training and the rounds both weigh the decisive frames by the recipe's emphasis
+    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:]) and FULL.emphasis > 1
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
     assert "recipe done in" in r.stdout
