@@ -94,23 +94,49 @@ def summarise_trials(history: list[dict], keys) -> list[dict]:
     return out
 
 
-def balanced_batches(train: dict, batch: int, rng: np.random.Generator, batches: int) -> Iterator[np.ndarray]:
-    """`batches` batches of `batch` moments, each mode an equal share (each mode's pool shuffled and cycled)."""
+def balanced_batches(train: dict, batch: int, rng: np.random.Generator, batches: int, steering: dict | None = None,
+                     share: float = 0.0) -> Iterator[np.ndarray]:
+    """`batches` batches of `batch` moments, each mode an equal share (each mode's pool shuffled and cycled); with
+    `steering` ({mode: its steering moments}) and `share`, that share of each mode's part (rounded) is drawn from
+    its steering moments, the rest from all of them."""
     modes = sorted(train)
     per = max(1, batch // len(modes))
-    pools = {m: rng.permutation(train[m]) for m in modes}
-    pos = {m: 0 for m in modes}
+    steering = steering if share > 0 else None
+    pools = {(m, "all"): train[m] for m in modes}
+    for m in modes:   # (inserted after every mode's whole pool: with no share the draws are as they always were)
+        if steering is not None and len(steering.get(m, ())):
+            pools[(m, "steer")] = steering[m]
+    takes = {}
+    for m in modes:
+        steer = int(round(per * share)) if (m, "steer") in pools else 0
+        takes[(m, "all")], takes[(m, "steer")] = per - steer, steer
+    order = {key: rng.permutation(ids) for key, ids in pools.items()}
+    pos = {key: 0 for key in pools}
     for _ in range(batches):
         ids = []
         for m in modes:
-            if pos[m] + per > len(pools[m]):
-                pools[m], pos[m] = rng.permutation(train[m]), 0
-            take = pools[m][pos[m]:pos[m] + per]
-            if len(take) < per:   # a pool smaller than its share: draw with replacement
-                take = rng.choice(train[m], per, replace=True)
-            ids.append(take)
-            pos[m] += per
+            for key in ((m, "all"), (m, "steer")):
+                if key not in pools or not takes[key]:
+                    continue
+                n = takes[key]
+                if pos[key] + n > len(order[key]):
+                    order[key], pos[key] = rng.permutation(pools[key]), 0
+                take = order[key][pos[key]:pos[key] + n]
+                if len(take) < n:   # a pool smaller than its share: draw with replacement
+                    take = rng.choice(pools[key], n, replace=True)
+                ids.append(take)
+                pos[key] += n
         yield np.concatenate(ids)
+
+
+STEERING = 0.1   # a steering moment: its actuated (last) steering target at least this far from straight ahead (0.5)
+
+
+def steering_moments(moments: Moments, train: dict, outputs) -> dict:
+    """{mode: the training moments whose actuated steering target (the last steer+k) is a steering one}."""
+    k = max(i for i, name in enumerate(outputs) if name.startswith("steer+"))
+    turning = np.abs(moments.targets[:, k] - 0.5) >= STEERING
+    return {m: ids[turning[ids]] for m, ids in train.items()}
 
 
 # --- the run's settings and progress -----------------------------------------------------------------------------
@@ -137,6 +163,8 @@ class MultiNetRun:
     train_ids: dict
     held: np.ndarray
     config: dict
+    steer_share: float = 0.0         # share of each mode's draws from its steering moments (balanced_batches)
+    steering: dict = field(default_factory=dict)
 
     @property
     def title(self) -> str:
@@ -160,7 +188,9 @@ class MultiNetRun:
                 f"held-out moments; {self.trials} trial(s) x {self.epochs} epochs of {self.steps} batches of "
                 f"{self.batch}{'' if self.mode_moments is None else f' (at most {self.mode_moments} per mode)'}, "
                 f"{self.optimizer} lr {self.lr:g}, gradient norm clipped at {CLIP} on {self.device}"
-                f"{' (bfloat16 autocast)' if self.amp else ''}")
+                f"{' (bfloat16 autocast)' if self.amp else ''}"
+                + (f"; {self.steer_share:.0%} of each mode's draws from its {sum(map(len, self.steering.values()))} "
+                   f"steering moments" if self.steer_share else ""))
 
 
 @dataclass
@@ -200,7 +230,8 @@ def resolve(cfg, log=print) -> MultiNetRun:
                        int(math.ceil(cfg.epochs)) if cfg.epochs is not None else int(defaults.get("epochs", 24)),
                        cfg.trials, cfg.batch_size or int(defaults.get("batch_size", 120)), cfg.mode_moments,
                        cfg.lr if cfg.lr is not None else 1.0, cfg.optimizer or "adadelta", cfg.seed, device, amp,
-                       cfg.init, spec, moments, train_ids, held, {f.name: getattr(cfg, f.name) for f in fields(cfg)})
+                       cfg.init, spec, moments, train_ids, held, {f.name: getattr(cfg, f.name) for f in fields(cfg)},
+                       cfg.steer_share, steering_moments(moments, train_ids, spec["outputs"]))
 
 
 # --- the steps of the loop ---------------------------------------------------------------------------------------
@@ -272,7 +303,8 @@ def train_epoch(run: MultiNetRun, model: Regressor, opt: torch.optim.Optimizer, 
     rng = np.random.default_rng([run.seed, trial, epoch])
     autocast = torch.autocast(run.device.type, dtype=torch.bfloat16) if run.amp else nullcontext()
     losses, t0 = [], time.perf_counter()
-    for x, m, target in prefetch(balanced_batches(run.train_ids, run.batch, rng, run.steps),
+    for x, m, target in prefetch(balanced_batches(run.train_ids, run.batch, rng, run.steps, run.steering,
+                                                  run.steer_share),
                                  lambda ids: inputs(run, model, ids)):
         check_signals()
         with autocast:

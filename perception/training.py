@@ -61,6 +61,7 @@ class TrainConfig:
     mtl: str | None = None            # Z2Color: the MTL baseline on this one mode (no modal input)
     trials: int = 1                   # Z2Color: repeats with fresh seeds
     mode_moments: int | None = None   # Z2Color: at most this many moments of each mode per epoch (None: all)
+    steer_share: float = 0.0          # Z2Color: share of each mode's draws from its steering moments (multinet.py)
     init: str | None = None           # start from this checkpoint's weights (fine-tuning, aggregation rounds)
     history: int = 0                  # earlier frames read beside the current one (a temporal family)
     cache: bool = True                # decode the training frames once into the dataset's frame cache

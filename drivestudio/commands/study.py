@@ -8,7 +8,7 @@ from drivestudio.checkpoints import check_device
 from drivestudio.cli import main
 from drivestudio.commands.common import add_device_option
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, positive, seed
+from drivestudio.numbers import count, finite, positive, seed
 from drivestudio.worlds.sidewalk.study import ROUND_LOOPS, Study, StudyConfig, config_from_args
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.paths import load_path
@@ -31,9 +31,15 @@ def register(sub) -> None:
     p.add_argument("--episode-frames", type=count(20, 10**5), help=f"steps per episode (default {d.episode_frames})")
     p.add_argument("--procedural", type=count(0, 1000),
                    help=f"procedural loops beside the presets (default {d.procedural})")
+    p.add_argument("--perturbed", type=finite(0.0, 1.0),
+                   help=f"share of the data's episodes whose expert is knocked aside now and then, its recoveries "
+                        f"labelled (default {d.perturbed:g}; docs/sidewalk.md)")
     p.add_argument("--epochs", type=count(1, 1000), help=f"epochs per trial (default {d.epochs})")
     p.add_argument("--trials", type=count(1, 100), help=f"trials per network (default {d.trials})")
     p.add_argument("--batch-size", type=count(3, 65536), help=f"moments per batch (default {d.batch_size})")
+    p.add_argument("--steer-share", type=finite(0.0, 1.0), metavar="F",
+                   help=f"share of each mode's draws from its steering moments in every training (default "
+                        f"{d.steer_share:g}; train --steer-share)")
     p.add_argument("--rounds", type=count(1, 20), help=f"correction rounds before the final autonomy runs (default "
                                                        f"{d.rounds})")
     p.add_argument("--round-seconds", type=positive(24 * 3600.0),

@@ -16,10 +16,11 @@ from perception.memory import check_batch
 TRAINER_OPTIONS = ("iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss",
                    "ema", "weight_decay", "amp", "workers", "val_every", "val_frames", "checkpoint_every", "weights",
                    "regressor", "modes", "mtl", "trials", "mode_moments", "history", "init", "channels_last", "cache",
-                   "unfreeze", "batch_norm", "emphasis")
+                   "unfreeze", "batch_norm", "emphasis", "steer_share")
 APPLIES = {
-    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials", "mode_moments"},
-    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "mode_moments", "init", "amp"},
+    "sgd": set(TRAINER_OPTIONS) - {"regressor", "modes", "mtl", "trials", "mode_moments", "steer_share"},
+    "multinet": {"epochs", "batch_size", "lr", "optimizer", "modes", "mtl", "trials", "mode_moments", "init", "amp",
+                 "steer_share"},
     "closed-form": {"regressor", "val_frames"},
 }
 _DEFAULTS: dict[str, object] = {}
@@ -100,6 +101,10 @@ def register(sub) -> None:
     p.add_argument("--mode-moments", type=count(1, 10**9), metavar="N",
                    help="z2color: an epoch draws at most N moments of each behavioural mode, afresh each epoch "
                         "(default: one pass over the training split); short fine-tuning on a growing data set")
+    p.add_argument("--steer-share", type=finite(0.0, 1.0), default=0.0, metavar="F",
+                   help="z2color: a share F of each mode's draws comes from its steering moments (the actuated "
+                        "steering at least 0.1 from straight ahead), the rest from all of them (default 0; the "
+                        "MultiNet authors' code draws half and half; docs/sidewalk.md)")
     p.add_argument("--history", type=count(0, 2), default=0,
                    help="mobilenet: also read the previous 1 or 2 frames (0.1 s apart) beside the current one "
                         "(default 0)")

@@ -83,6 +83,7 @@ class SidewalkWorld:
         self.command = NEUTRAL
         self.operation, self.correcting = "expert", False
         self._next_operation = "expert"
+        self._label: tuple[float, float] | None = None
         self.lead: LeadCar | None = None
         self.mode = ""
         self.t = 0.0
@@ -103,6 +104,13 @@ class SidewalkWorld:
             self._leads += 1
         else:
             self.lead = None
+
+    def set_label(self, command) -> None:
+        """The expert's command for the next step where another is applied (the perturbed expert's data,
+        controller/sidewalk/perturbed.py): the record after the step carries it as its steer and motor, the label a
+        data moment learns, while the car moves under the command applied (the dataset's action column)."""
+        steer, motor = self.declaration.clip_action(np.asarray(command, dtype=np.float64)).tolist()
+        self._label = (steer, motor)
 
     def set_operation(self, name: str) -> None:
         """The operation mode of the next command (the supervisor's decision): expert, autonomous or
@@ -147,7 +155,7 @@ class SidewalkWorld:
         if self.lead is not None:
             self.lead.step(self.dt)
         self.timings["physics"] += time.perf_counter() - t0
-        self.command = (steer, motor)
+        self.command, self._label = self._label or (steer, motor), None
         self.operation = self._next_operation
         self.correcting = self.operation == "correctional"
         self.t += self.dt

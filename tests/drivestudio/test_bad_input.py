@@ -110,6 +110,9 @@ CASES = [
     ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--loss", "l1"),
     ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--emphasis", "0"),
     ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--emphasis", "3"),
+    ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--steer-share", "0.5"),
+    ("train", "--data", D, "--model", "z2color", "--out", "{root}/z.pt", "--steer-share", "1.5"),
+    ("study", "--steer-share", "-0.1", "--out", "{root}/study"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
     ("recipe", "--emphasis", "0", "--out", "{root}/recipe"),
     # files and their content

@@ -7,7 +7,15 @@ import torch
 
 from core import worlds
 from perception.models import Regressor, make_spec
-from perception.multinet import balanced_batches, summarise_trials, t95, train_loss, validation_loss
+from perception.multinet import (
+    STEERING,
+    balanced_batches,
+    steering_moments,
+    summarise_trials,
+    t95,
+    train_loss,
+    validation_loss,
+)
 from perception.z2color import Z2Color
 
 SIDEWALK = worlds.get("sidewalk")
@@ -93,6 +101,31 @@ def test_batches_hold_the_modes_equally():
         assert counts == [40, 40, 40]
         seen.update(ids.tolist())
     assert set(range(100, 130)) <= seen          # the small mode's moments all come round
+
+
+def test_a_steer_share_draws_that_share_of_each_mode_from_its_steering_moments():
+    train = {0: np.arange(0, 100), 1: np.arange(100, 130), 2: np.arange(130, 400)}
+    steering = {0: np.arange(0, 10), 1: np.arange(100, 102), 2: np.arange(390, 400)}
+    for ids in balanced_batches(train, 120, np.random.default_rng(0), 20, steering, 0.5):
+        for m, (lo, hi) in enumerate(((0, 100), (100, 130), (130, 400))):
+            mine = ids[(ids >= lo) & (ids < hi)]
+            assert len(mine) == 40                                   # the modes stay equal
+            assert np.isin(mine, steering[m]).sum() >= 20            # half of them (at least) steering moments
+    plain = list(balanced_batches(train, 120, np.random.default_rng(1), 5))
+    shared = list(balanced_batches(train, 120, np.random.default_rng(1), 5, steering, 0.0))
+    assert all(np.array_equal(a, b) for a, b in zip(plain, shared))   # share 0: the draws as they always were
+
+
+def test_a_steering_moment_is_one_whose_actuated_steering_is_off_straight_ahead():
+    class Fake:
+        targets = np.full((4, 20), 0.5, dtype=np.float32)
+    Fake.targets[0, 9] = 0.5 + STEERING           # steer+10 at the bound: steering
+    Fake.targets[1, 9] = 0.5 - STEERING - 0.01    # the other way
+    Fake.targets[2, 0] = 0.9                      # steer+1 far off, the actuated steer+10 straight: not steering
+    Fake.targets[3, 19] = 0.9                     # motor+10: not steering
+    outputs = [f"steer+{k}" for k in range(1, 11)] + [f"motor+{k}" for k in range(1, 11)]
+    got = steering_moments(Fake(), {0: np.arange(4)}, outputs)
+    assert got[0].tolist() == [0, 1]
 
 
 def test_confidence_intervals_over_trials():

@@ -80,6 +80,8 @@ def write(tmp_path, name, text):
     (["render", "--obstacles", "FILE:blocking.json"], "blocks the path"),
     (["render", "--obstacles", "nan"], "--obstacles must be a density"),
     (["generate", "--modes", "direct,sneaky", "--out", "OUT"], "unknown behavioural mode 'sneaky'"),
+    (["generate", "--perturbed", "1.5", "--out", "OUT"], "--perturbed: must be in [0, 1], got 1.5"),
+    (["generate", "--perturbed", "nan", "--out", "OUT"], "--perturbed: must be a finite number"),
     (["render", "--world", "highway", "--path", "park"], "--path belongs to the sidewalk world"),
 ])
 def test_bad_input_is_one_line_and_status_2(tmp_path, argv, message):

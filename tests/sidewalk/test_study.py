@@ -140,6 +140,24 @@ def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
     assert {job.after for *_, job in study.autonomy_plan("baseline", final, ("safety",), 1, 0)} == {()}
 
 
+def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
+    """--perturbed goes to generate, --steer-share to the first trainings and every round's fine-tuning."""
+    calls: list = []
+    study = Study(StudyConfig(out=str(tmp_path), rounds=1, perturbed=0.5, steer_share=0.5),
+                  cli=lambda argv: calls.append(argv) or 0)
+    study.generate()
+    assert calls[0][0] == "generate" and calls[0][calls[0].index("--perturbed") + 1] == "0.5"
+    first = []
+    study.jobs = lambda stage, jobs: first.extend(jobs)   # the trainings' plan, not run
+    study.train()
+    _, rounds = study.correction_rounds(("multinet",))
+    trainings = first + [j for j in rounds if j.argv[0] == "train"]
+    assert len(trainings) == 5
+    for job in trainings:
+        assert job.argv[job.argv.index("--steer-share") + 1] == 0.5
+    assert "--steer-share" not in Study(StudyConfig(out=str(tmp_path)), cli=lambda a: 0).draws()
+
+
 def test_the_data_plan_holds_the_moments_asked_for():
     c = StudyConfig()
     episodes = c.frames // c.episode_frames
@@ -154,6 +172,7 @@ def test_the_data_plan_holds_the_moments_asked_for():
     (["--loops", "park"], "park is driven by the study's data or rounds"),
     (["--loops", "procedural:3"], "procedural:3 is driven by the study's data"),
     (["--loops", "nowhere.json"], "--loops"),
+    (["--perturbed", "1.5"], "--perturbed"),
 ])
 def test_bad_input_is_one_line_and_status_2(argv, says, tmp_path):
     r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(tmp_path / "s"), *argv], cwd=REPO,
@@ -184,6 +203,16 @@ def test_a_study_made_before_round_moments_continues_as_it_was_made(tmp_path):
     r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--round-moments", "5000"],
                        cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "round_moments=0 (asked 5000)" in r.stderr, r.stderr
+
+
+def test_a_study_made_before_perturbed_data_continues_as_it_was_made(tmp_path):
+    out = tmp_path / "s"
+    out.mkdir()
+    made = {k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != "perturbed"}
+    (out / "config.json").write_text(json.dumps(made))
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--perturbed", "0.5"],
+                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "perturbed=0.0 (asked 0.5)" in r.stderr, r.stderr
 
 
 @pytest.mark.parametrize("text", ["[1, 2]", "{not json"])

@@ -10,6 +10,7 @@ import numpy as np
 
 from controller.sidewalk import CorrectionRule, SidewalkExpert
 from controller.sidewalk import PoorDriver as Poor
+from controller.sidewalk.perturbed import PerturbedExpert
 from core.worlds.sidewalk import SIDEWALK
 from drivestudio.loop import Percept
 
@@ -46,6 +47,25 @@ class PoorDriver:
         action = np.array(self.driver.act(percept.record))
         self.timings["control"] += time.perf_counter() - t0
         return action, _NO_ESTIMATE
+
+
+class PerturbedDriver:
+    """The expert with the steering the car receives knocked aside now and then (controller/sidewalk/perturbed.py),
+    for dataset episodes: every step is labelled with the expert's own command (world.set_label), while the car
+    moves under the perturbed one (the dataset's action column)."""
+
+    name = "perturbed expert"
+
+    def __init__(self, world, seed: int):
+        self.world, self.driver = world, PerturbedExpert(seed)
+        self.timings = {"control": 0.0}
+
+    def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
+        t0 = time.perf_counter()
+        applied, expert = self.driver.act(percept.record)
+        self.world.set_label(expert)
+        self.timings["control"] += time.perf_counter() - t0
+        return np.array(applied), _NO_ESTIMATE
 
 
 class Supervisor:

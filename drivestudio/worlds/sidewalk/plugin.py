@@ -17,7 +17,13 @@ from drivestudio.loop import in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode, WorldOptions
-from drivestudio.worlds.sidewalk.drivers import CorrectionalDriver, ExpertDriver, PoorDriver, Supervisor
+from drivestudio.worlds.sidewalk.drivers import (
+    CorrectionalDriver,
+    ExpertDriver,
+    PerturbedDriver,
+    PoorDriver,
+    Supervisor,
+)
 from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
 from drivestudio.worlds.sidewalk.video import Recorder
@@ -71,6 +77,9 @@ class Plugin(base.Plugin):
             options.add(self.name, g, "--obstacles", help="obstacles per 100 m (default 4) or 'none'")
             options.add(self.name, g, "--correctional", type=finite(0.0, 1.0),
                         help="share of episodes driven by the poor driver under the correction rule (default 0)")
+            options.add(self.name, g, "--perturbed", type=finite(0.0, 1.0),
+                        help="share of the other episodes whose expert's steering is knocked aside now and then, "
+                        "its recoveries labelled (default 0; docs/sidewalk.md)")
 
     # --- worlds ----------------------------------------------------------------------------------------------------
     def _stereo(self, args):
@@ -164,6 +173,7 @@ class Plugin(base.Plugin):
         stereo = self._stereo(args)
         options = {"modes": modes, "paths": paths, "procedural": 3 if args.procedural is None else args.procedural,
                    "obstacles": density, "correctional": args.correctional or 0.0,
+                   **({"perturbed": args.perturbed} if args.perturbed else {}),
                    "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg}
         with one_line():
             for ref in self.path_list(options, 0):   # a bad path fails here, in one line, before any work
@@ -195,6 +205,8 @@ class Plugin(base.Plugin):
             rng = np.random.default_rng([seed_, k, 0x5DE])
             ep_seed = int(rng.integers(2**31 - 1))
             operation = "correctional" if rng.uniform() < options["correctional"] else "expert"
+            if operation == "expert" and options.get("perturbed") and rng.uniform() < options["perturbed"]:
+                operation = "perturbed"   # drawn after the others: a plan without it is the plan it always was
             out.append(Episode(k, base + (k < extra), ep_seed,
                                {"path": paths[(k // len(modes)) % len(paths)], "mode": modes[k % len(modes)],
                                 "operation": operation}))
@@ -207,7 +219,9 @@ class Plugin(base.Plugin):
         stereo = StereoConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         world = SidewalkWorld(SidewalkConfig(path=p["path"], seed=ep.seed, mode=p["mode"],
                                              obstacles=options["obstacles"], stereo=stereo, render=False))
-        driver = CorrectionalDriver(world, ep.seed) if p.get("operation") == "correctional" else ExpertDriver()
+        drivers = {"correctional": CorrectionalDriver, "perturbed": PerturbedDriver}
+        make = drivers.get(p.get("operation", "expert"))
+        driver = make(world, ep.seed) if make else ExpertDriver()
 
         def columns(obs) -> dict:
             return {"path": p["path"]}

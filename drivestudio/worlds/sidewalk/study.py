@@ -43,9 +43,10 @@ MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one befor
 # settings that shape what a study has made (its data, its trained networks, its rounds' recordings): a study is
 # continued only with the same (and the same length of autonomy runs, which are kept); the others (more
 # rounds, other loops, more runs) only add or measure anew
-SHAPING = ("moments", "episode_frames", "procedural", "epochs", "trials", "batch_size", "round_seconds",
-           "round_epochs", "round_moments", "rule", "seed", "autonomy_seconds")
-MADE_BEFORE = {"round_moments": 0}   # a setting's value in studies made before it existed
+SHAPING = ("moments", "episode_frames", "procedural", "perturbed", "epochs", "trials", "batch_size", "steer_share",
+           "round_seconds", "round_epochs", "round_moments", "rule", "seed", "autonomy_seconds")
+# a setting's value in studies made before it existed
+MADE_BEFORE = {"round_moments": 0, "perturbed": 0.0, "steer_share": 0.0}
 
 
 @dataclass(frozen=True)
@@ -54,9 +55,11 @@ class StudyConfig:
     moments: int = 30_000           # at least this many data moments
     episode_frames: int = 250
     procedural: int = 12            # procedural loops beside the three presets
+    perturbed: float = 0.0          # share of episodes whose expert is knocked aside now and then (docs/sidewalk.md)
     epochs: int = 10
     trials: int = 3
     batch_size: int = 120
+    steer_share: float = 0.0        # share of each mode's draws from its steering moments (train --steer-share)
     rounds: int = 6                 # correction rounds before the final autonomy runs,
     round_seconds: float = 150.0    # simulated seconds per network and mode in each,
     round_epochs: int = 2           # fine-tuning after each round,
@@ -193,7 +196,8 @@ class Study:
             return
         c = self.cfg
         self.timed("generate", self.verb, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
-                   "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet")
+                   "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet",
+                   *(["--perturbed", c.perturbed] if c.perturbed else []))
 
     def verb(self, *argv) -> None:
         """A verb, in this process; its failure ends the study with its exit status."""
@@ -211,6 +215,10 @@ class Study:
     def nets(self) -> dict[str, list[str]]:
         return {"multinet": []} | {f"mtl-{m}": ["--mtl", m] for m in MODES}
 
+    def draws(self) -> list:
+        """The trainings' options beyond the plain balanced draw."""
+        return ["--steer-share", self.cfg.steer_share] if self.cfg.steer_share else []
+
     def trained(self, ckpt: Path) -> bool:
         return ckpt.exists() and not Path(str(ckpt) + ".state").exists()
 
@@ -219,7 +227,7 @@ class Study:
         self.jobs("train", [Job(f"train-{name}", ["train", "--data", self.data, "--model", "z2color", "--out",
                                                   self.models / f"{name}.pt", *extra, "--epochs", c.epochs, "--trials",
                                                   c.trials, "--batch-size", c.batch_size, "--seed", c.seed,
-                                                  "--device", c.device])
+                                                  *self.draws(), "--device", c.device])
                             for name, extra in self.nets().items() if not self.trained(self.models / f"{name}.pt")])
 
     # --- 4. correction rounds ----------------------------------------------------------------------------------------
@@ -257,7 +265,7 @@ class Study:
                     jobs.append(Job(self.retrain_name(k, name), [
                         "train", "--data", ",".join(map(str, roots)), "--model", "z2color", "--out", nxt, *kind,
                         "--epochs", c.round_epochs, "--trials", 1, "--batch-size", c.batch_size, "--seed", c.seed + k,
-                        *(["--mode-moments", c.round_moments] if c.round_moments else []),
+                        *(["--mode-moments", c.round_moments] if c.round_moments else []), *self.draws(),
                         "--device", c.device, "--init", current[name]], before + tuple(j.name for j in drives)))
                 current[name] = str(nxt)
         return current, jobs
