@@ -193,26 +193,22 @@ def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
 
 
-def test_a_study_made_before_round_moments_continues_as_it_was_made(tmp_path):
-    """A config.json without round_moments was made when every round drew all its moments (0): asking for a cap
-    is a different study, refused before any work."""
+@pytest.mark.parametrize("setting, option, made_as", [
+    ("round_moments", ["--round-moments", "5000"], "round_moments=0 (asked 5000)"),   # every round drew all
+    ("perturbed", ["--perturbed", "0.5"], "perturbed=0.0 (asked 0.5)"),               # expert data only
+    ("steer_share", ["--steer-share", "0.5"], "steer_share=0.0 (asked 0.5)"),         # modes balanced only
+])
+def test_a_study_made_before_a_setting_existed_continues_as_it_was_made(tmp_path, setting, option, made_as):
+    """A config.json without a setting was made with the value the setting has for it (MADE_BEFORE): asking for
+    another is a different study, refused before any work."""
     out = tmp_path / "s"
     out.mkdir()
-    made = {k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != "round_moments"}
-    (out / "config.json").write_text(json.dumps(made))
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--round-moments", "5000"],
+    made = json.dumps({k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != setting})
+    (out / "config.json").write_text(made)
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), *option],
                        cwd=REPO, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and "round_moments=0 (asked 5000)" in r.stderr, r.stderr
-
-
-def test_a_study_made_before_perturbed_data_continues_as_it_was_made(tmp_path):
-    out = tmp_path / "s"
-    out.mkdir()
-    made = {k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != "perturbed"}
-    (out / "config.json").write_text(json.dumps(made))
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--perturbed", "0.5"],
-                       cwd=REPO, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and "perturbed=0.0 (asked 0.5)" in r.stderr, r.stderr
+    assert r.returncode == 2 and made_as in r.stderr, r.stderr
+    assert (out / "config.json").read_text() == made                  # untouched
 
 
 @pytest.mark.parametrize("text", ["[1, 2]", "{not json"])
