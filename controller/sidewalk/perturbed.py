@@ -27,7 +27,7 @@ class PerturbParams:
     every: tuple = (1.5, 4.0)        # [s] between the end of one impulse and the start of the next, uniform
     length: tuple = (0.5, 1.5)       # [s] an impulse's duration, uniform
     peak: tuple = (0.2, 0.5)         # steering units (0.5 is straight ahead): the impulse's height, uniform, either
-                                     # sign; the car swerves 0.2-0.6 m off its course before the expert takes it back
+                                     # sign; measured: the car up to 1.7 m off its course, 0.3 rad spread of heading
 
 
 def triangle(t: float, length: float) -> float:
