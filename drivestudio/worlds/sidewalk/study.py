@@ -53,9 +53,9 @@ MADE_BEFORE = {"round_moments": 0, "perturbed": 0.0, "steer_share": 0.0}
 class StudyConfig:
     out: str = "out/study"
     moments: int = 30_000           # at least this many data moments
-    episode_frames: int = 250
-    procedural: int = 12            # procedural loops beside the three presets
-    perturbed: float = 0.0          # share of episodes whose expert is knocked aside now and then (docs/sidewalk.md)
+    episode_frames: int = 125       # short episodes over many loops: more paths for the same steps
+    procedural: int = 120           # procedural loops beside the three presets
+    perturbed: float = 0.5          # share of episodes whose expert is knocked aside now and then (docs/sidewalk.md)
     epochs: int = 10
     trials: int = 3
     batch_size: int = 120
