@@ -54,7 +54,8 @@ class StudyConfig:
     out: str = "out/study"
     moments: int = 30_000           # at least this many data moments
     episode_frames: int = 125       # short episodes over many loops: more paths for the same steps
-    procedural: int = 120           # procedural loops beside the three presets
+    procedural: int = 120           # procedural loops offered beside the three presets (the plan's 264 episodes
+                                    # of three modes per loop reach the first 85 of them)
     perturbed: float = 0.5          # share of episodes whose expert is knocked aside now and then (docs/sidewalk.md)
     epochs: int = 10
     trials: int = 3
