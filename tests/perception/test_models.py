@@ -99,3 +99,19 @@ def test_gabor_filters_peak_at_their_scale_frequency():
     fx = torch.fft.fftfreq(64)
     assert abs(float(fx[fine[0].argmax()]) - 0.3) < 0.02
     assert abs(float(fx[coarse[0].argmax()]) - 0.3 / 1.85 ** 3) < 0.02
+
+
+def test_a_family_is_imported_alone_and_the_others_still_on_demand():
+    """Building Z2Color must not import torchvision (a second of every sidewalk command's start-up); asking for
+    AlexNet afterwards still finds it, and the list of families is complete."""
+    import subprocess
+    import sys
+    code = ("import sys\n"
+            "from core.worlds.sidewalk import SIDEWALK\n"
+            "from perception.models import build, families, family\n"
+            "build('z2color', SIDEWALK)\n"
+            "assert 'torchvision' not in sys.modules, 'torchvision imported for Z2Color'\n"
+            "assert family('alexnet').name == 'alexnet' and 'torchvision' in sys.modules\n"
+            "assert {'alexnet', 'vgg16', 'gist', 'z2color', 'mobilenet'} <= set(families())\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
