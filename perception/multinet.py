@@ -290,10 +290,13 @@ def prefetch(items: Iterable, fn, depth: int = 2) -> Iterator:
 def inputs(run: MultiNetRun, model: Regressor, ids: np.ndarray):
     """A batch as the network reads it: scaled images (channels-last; bfloat16 under autocast), modes, normalised
     targets, all on the run's device."""
-    x, m, y = run.moments.batch(ids)
-    x = model.scale_input(x.to(run.device, non_blocking=True))
-    if run.amp:
-        x = x.to(torch.bfloat16)
+    dtype = torch.bfloat16 if run.amp else torch.float32
+    pixels = run.moments.images(ids)
+    x = model.scale_pixels(pixels, dtype) if run.device.type == "cpu" else None
+    if x is None:
+        x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(run.device, non_blocking=True))
+        x = x.to(dtype)
+    m, y = run.moments.labels(ids)
     target = torch.from_numpy(run.moments.decl.normalise(y.numpy(), model.outputs))
     return x, m.to(run.device), target.to(run.device)
 

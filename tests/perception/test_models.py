@@ -115,3 +115,26 @@ def test_a_family_is_imported_alone_and_the_others_still_on_demand():
             "assert {'alexnet', 'vgg16', 'gist', 'z2color', 'mobilenet'} <= set(families())\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16], ids=str)
+def test_scale_pixels_is_scale_input_bit_for_bit(dtype):
+    """The trainer's table lookup gives exactly what scale_input then a cast gives, for every pixel value, in
+    channels-last memory; it declines pixels that need resampling and a scaling that differs per channel."""
+    import numpy as np
+
+    from core.worlds.sidewalk import SIDEWALK
+    net = build("z2color", SIDEWALK)
+    h, w = net.size
+    rng = np.random.default_rng(0)
+    pixels = rng.integers(0, 256, (3, h, w, 12), dtype=np.uint8)
+    pixels.reshape(-1)[:256] = np.arange(256)                            # every value at least once
+    got = net.scale_pixels(pixels, dtype)
+    want = net.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2)).to(dtype)
+    assert got.dtype == dtype and got.shape == want.shape
+    assert torch.equal(got.view(torch.int16) if dtype == torch.bfloat16 else got,
+                       want.view(torch.int16) if dtype == torch.bfloat16 else want)
+    assert got.is_contiguous(memory_format=torch.channels_last)
+    assert net.scale_pixels(rng.integers(0, 256, (1, 2 * h, 2 * w, 12), dtype=np.uint8), dtype) is None
+    assert build("alexnet", HIGHWAY, LABEL_SETS[0]).scale_pixels(
+        rng.integers(0, 256, (1, 210, 280, 3), dtype=np.uint8), dtype) is None
