@@ -331,8 +331,12 @@ def evaluate_loss(model: Regressor, moments: Moments, ids: np.ndarray, device, b
     model.eval()
     losses, modes = [], []
     for i in range(0, len(ids), batch):
-        x, m, y = moments.batch(ids[i:i + batch])
-        pred = model(x.to(device), m.to(device)).float().cpu()
+        pixels = moments.images(ids[i:i + batch])
+        m, y = moments.labels(ids[i:i + batch])
+        x = model.scale_pixels(pixels) if device.type == "cpu" else None   # the same input, in one pass
+        if x is None:
+            x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(device))
+        pred = model.net(x, m.to(device)).float().cpu()
         losses.append(validation_loss(pred, torch.from_numpy(moments.decl.normalise(y.numpy(), model.outputs))))
         modes.append(m)
     model.train(was_training)
