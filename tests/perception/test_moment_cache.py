@@ -81,3 +81,18 @@ def test_a_damaged_cache_file_is_built_again(data):
     assert np.load(victim, mmap_mode="r").shape == (40, 2, 94, 168, 3)
     images, _, _ = FrameDataset(data, None, normalised=False)[29]
     np.testing.assert_array_equal(moments.batch([29])[0][0].numpy(), small(images))
+
+
+def test_validation_under_autocast_runs_in_bfloat16_within_a_percent_of_float32(data):
+    """Validation's forward pass runs under the training's bfloat16 autocast when asked (amp): the loss moves by
+    bfloat16's rounding only, and it does move (the autocast is in effect)."""
+    from perception.multinet import evaluate_loss
+    torch.manual_seed(0)
+    model = Regressor(make_spec("z2color", worlds.get("sidewalk"))).to(memory_format=torch.channels_last)
+    moments = Moments([data], SIZE, log=lambda *a: None)
+    ids = np.arange(len(moments))
+    exact = evaluate_loss(model, moments, ids, torch.device("cpu"))
+    fast = evaluate_loss(model, moments, ids, torch.device("cpu"), amp=True)
+    assert set(fast) == set(exact) and "val_loss_furtive" in fast
+    assert fast["val_loss"] != exact["val_loss"]
+    assert abs(fast["val_loss"] - exact["val_loss"]) <= 0.01 * exact["val_loss"]
