@@ -7,7 +7,8 @@ bridge >= 30 Hz, training >= 250 moments/s).
    model) at batch 1, in PyTorch (inference mode) and through its ONNX export in ONNX Runtime; also batch 32.
 2. Training: moments per second of MultiNet's training (Adadelta, batch 120, gradient clipping, balanced modes) on
    real moments of a small generated data set, cached at 94 x 168 as the trainer caches them: the trainer as it
-   is and as it was (float32, default layout), alternately.
+   is and as it was (float32, default layout), alternately; then two one-thread trainings side by side, each its
+   own process (the study's setting), and the time to assemble one batch through the pixel table and as before.
 3. Closed loop: `drivestudio drive --world sidewalk --model CKPT` with the network as a driver process over shared
    memory, lock-step at the world's 30 Hz simulated rate, run as fast as it can; the loop rate from metrics.json.
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -134,6 +136,45 @@ def training(data: Path, batches: int = 12, batch: int = 120, rounds: int = 3) -
             "rounds": [[round(a[0], 1), round(b[0], 1)] for a, b in pairs], "batch": batch, "amp": run.amp}
 
 
+def one_trainer(data: Path, batches: int = 24, batch: int = 120) -> dict:
+    """This process's training rate (moments/s of train_epoch after a warm-up epoch) and the time the trainer's
+    second thread takes to assemble one batch (inputs(): cached pixels through the network's table) against the
+    way it was assembled before the table (moments.batch, scale_input, the cast): medians of `batches`."""
+    import torch
+
+    from perception.multinet import inputs, new_network, resolve, train_epoch
+    from perception.training import config_from
+    cfg = config_from(data=str(data), model="z2color", out=str(data.parent / "bench.pt"), epochs=1, batch_size=batch,
+                      device="cpu")
+    run = resolve(cfg, log=lambda *a: None)
+    run.train_ids = {m: np.resize(ids, batches * batch // 3) for m, ids in run.train_ids.items()}
+    model, opt = new_network(run, 0)
+    train_epoch(run, model, opt, 0, 1)                                        # warm-up: oneDNN picks its kernels
+    rate = train_epoch(run, model, opt, 0, 2)["moments_per_s"]
+    ids = np.concatenate(list(run.train_ids.values()))[:batch]
+    dtype = torch.bfloat16 if run.amp else torch.float32
+
+    def before():
+        x, _, _ = run.moments.batch(ids)
+        return model.scale_input(x).to(dtype)
+    return {"moments_per_s": rate, "assembly_ms": _median_ms(lambda: inputs(run, model, ids), batches),
+            "assembly_before_ms": _median_ms(before, batches)}
+
+
+def side_by_side(data: Path) -> dict:
+    """Two one-thread trainings at once, each its own process (the study's setting: `--jobs 2` on two cores): the
+    mean of their rates, and the batch assembly times of the first."""
+    env = os.environ | {"OMP_NUM_THREADS": "1"}
+    procs = [subprocess.Popen([sys.executable, __file__, "--one-trainer", str(data)], env=env, stdout=subprocess.PIPE,
+                              text=True) for _ in range(2)]
+    got = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
+    if any(p.returncode for p in procs):
+        raise RuntimeError("a side-by-side trainer failed")
+    return {"moments_per_s_each": round(float(np.mean([g["moments_per_s"] for g in got])), 1),
+            "assembly_ms": round(got[0]["assembly_ms"], 1),
+            "assembly_before_ms": round(got[0]["assembly_before_ms"], 1)}
+
+
 def closed_loop(ckpt: Path, seconds: float, folder: Path) -> dict:
     out = folder / "drive"
     subprocess.run([sys.executable, "-m", "drivestudio", "drive", "--world", "sidewalk", "--model", str(ckpt),
@@ -148,7 +189,11 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=200, help="timed single-moment inferences (default 200)")
     ap.add_argument("--seconds", type=float, default=20.0, help="simulated seconds of the closed loop (default 20)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    ap.add_argument("--one-trainer", type=Path, help=argparse.SUPPRESS)   # side_by_side's worker: a data folder
     args = ap.parse_args(argv)
+    if args.one_trainer:
+        print(json.dumps(one_trainer(args.one_trainer)))
+        return 0
     with tempfile.TemporaryDirectory(prefix="bench-multinet-") as tmp:
         ckpt = checkpoint(Path(tmp))
         inf = inference(ckpt, args.repeats)
@@ -156,13 +201,18 @@ def main(argv=None) -> int:
               f"PyTorch {inf['torch_ms_batch1']:.2f} ms, ONNX Runtime "
               + (f"{inf['onnx_ms_batch1']:.2f} ms" if inf["onnx_ms_batch1"] is not None else "not installed")
               + f"; batch 32: {inf['torch_ms_per_moment_batch32']:.2f} ms a moment")
-        tr = training(dataset(Path(tmp)))
+        data = dataset(Path(tmp))
+        tr = training(data)
         print(f"training on real cached moments (Adadelta, batch {tr['batch']}, balanced modes, clipping): "
               f"{tr['moments_per_s']:.0f} moments/s (channels-last, "
               f"{'bfloat16 autocast' if tr['amp'] else 'float32: bfloat16 is not native here'}, batches prefetched), "
               f"{tr['before_moments_per_s']:.0f} as before (float32, default layout); alternate rounds "
               f"{tr['rounds']}; per second of CPU time {tr['per_cpu_s']:.0f} and {tr['before_per_cpu_s']:.0f} "
               f"({tr['threads']} threads)")
+        tr["side_by_side"] = sbs = side_by_side(data)
+        print(f"two one-thread trainings side by side (the study's setting): {sbs['moments_per_s_each']:.0f} "
+              f"moments/s each; a batch assembled in {sbs['assembly_ms']:.0f} ms (through the pixel table; "
+              f"{sbs['assembly_before_ms']:.0f} ms as before it)")
         loop = closed_loop(ckpt, args.seconds, Path(tmp))
         stages = ", ".join(f"{k} {v:.2f}" for k, v in loop["stage_ms_per_step"].items() if v)
         print(f"closed loop, MultiNet driving over shared memory (lock-step): {loop['loop_rate_hz']:.0f} Hz "

@@ -170,6 +170,10 @@ def rows_multinet(j: dict) -> list[tuple]:
              "channels-last, bfloat16 autocast, prefetch)",
              f"**{_f(tr['moments_per_s'])} moments/s** ({_f(tr.get('before_moments_per_s', 0))} as before: float32, "
              "default layout; alternate rounds)", ">= 250 moments/s"),
+            *([("MultiNet training, two one-thread trainings side by side (the study's setting)",
+                f"**{_f(sbs['moments_per_s_each'])} moments/s each**; a batch assembled in {sbs['assembly_ms']:.0f} ms "
+                f"through the pixel table ({sbs['assembly_before_ms']:.0f} ms before it)", "reported")]
+              if (sbs := tr.get("side_by_side")) else []),
             ("MultiNet closed loop over shared memory, sidewalk, lock-step", f"**{_f(loop['loop_rate_hz'])} Hz**",
              ">= 30 Hz")]
 
