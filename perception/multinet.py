@@ -288,15 +288,21 @@ def prefetch(items: Iterable, fn, depth: int = 2) -> Iterator:
                 thread.join(0.05)
 
 
+def scaled_images(model: Regressor, moments: Moments, ids: np.ndarray, device: torch.device,
+                  dtype: torch.dtype) -> torch.Tensor:
+    """The moments' images as the network reads them, in `dtype` on `device`: through the pixel table on the CPU
+    (one pass), else scale_input then the cast (the same values)."""
+    pixels = moments.images(ids)
+    x = model.scale_pixels(pixels, dtype) if device.type == "cpu" else None
+    if x is None:
+        x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(device, non_blocking=True)).to(dtype)
+    return x
+
+
 def inputs(run: MultiNetRun, model: Regressor, ids: np.ndarray):
     """A batch as the network reads it: scaled images (channels-last; bfloat16 under autocast), modes, normalised
     targets, all on the run's device."""
-    dtype = torch.bfloat16 if run.amp else torch.float32
-    pixels = run.moments.images(ids)
-    x = model.scale_pixels(pixels, dtype) if run.device.type == "cpu" else None
-    if x is None:
-        x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(run.device, non_blocking=True))
-        x = x.to(dtype)
+    x = scaled_images(model, run.moments, ids, run.device, torch.bfloat16 if run.amp else torch.float32)
     m, y = run.moments.labels(ids)
     target = torch.from_numpy(run.moments.decl.normalise(y.numpy(), model.outputs))
     return x, m.to(run.device), target.to(run.device)
@@ -337,11 +343,8 @@ def evaluate_loss(model: Regressor, moments: Moments, ids: np.ndarray, device, b
     dtype = torch.bfloat16 if amp else torch.float32
     autocast = torch.autocast(device.type, dtype=torch.bfloat16) if amp else nullcontext()
     for i in range(0, len(ids), batch):
-        pixels = moments.images(ids[i:i + batch])
+        x = scaled_images(model, moments, ids[i:i + batch], device, dtype)
         m, y = moments.labels(ids[i:i + batch])
-        x = model.scale_pixels(pixels, dtype) if device.type == "cpu" else None   # the same input, in one pass
-        if x is None:
-            x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(device)).to(dtype)
         with autocast:
             pred = model.net(x, m.to(device)).float().cpu()
         losses.append(validation_loss(pred, torch.from_numpy(moments.decl.normalise(y.numpy(), model.outputs))))
