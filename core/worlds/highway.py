@@ -196,9 +196,11 @@ HIGHWAY = WorldDeclaration(
     label_sets=tuple(LABEL_SETS.items()),
     # an agent reads the 14 indicators and its own speedometer, as the Chen controller does (docs/gymnasium.md)
     observable=INDICATORS + ("speed",),
-    # the frames on which the Chen controller decides a lane change: a car near ahead in a neighbouring lane, in
-    # either system (rule 1's occupancy); rare in an expert's data, and a misread one costs a collision
-    decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_RR", "dist_L", "dist_R")),
+    # the frames on which a misread gap costs a collision: a car near ahead in a neighbouring lane, in either
+    # system (rule 1's occupancy: the Chen controller decides a lane change on it), or in the host's own lane (the
+    # follow law brakes on it); rare in an expert's data. The host lane's car was added after the design suite
+    # showed it (docs/aggregation.md)
+    decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")),
 )
 
 # The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came

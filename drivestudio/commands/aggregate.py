@@ -35,8 +35,8 @@ def register(sub) -> None:
     p.add_argument("--iterations", type=count(1, 10**7), default=2000,
                    help="fine-tuning iterations per round (default 2000)")
     p.add_argument("--emphasis", type=count(1, 100), default=1, metavar="W",
-                   help="the rounds' fine-tuning shows the decisive frames (a car closer than 20 m ahead in a "
-                        "neighbouring lane) W times an epoch (default 1: as recorded; train --emphasis)")
+                   help="the rounds' fine-tuning shows the decisive frames (a car closer than 20 m ahead in the "
+                        "host's or a neighbouring lane) W times an epoch (default 1: as recorded; train --emphasis)")
     p.add_argument("--batch-size", type=count(1, 4096), default=None, help="default: the model family's")
     p.add_argument("--lr", type=finite(1e-9, 10.0), default=None, help="default: the model family's")
     p.add_argument("--cars", default="12-40", help="AI cars per episode, A-B (default 12-40)")

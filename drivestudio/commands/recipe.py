@@ -45,8 +45,8 @@ def register(sub) -> None:
                    help=f"iterations of the first training (default {FULL.iterations})")
     p.add_argument("--rounds", type=count(1, 50), default=None, help=f"aggregation rounds (default {FULL.rounds})")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
-                   help=f"times every epoch shows a decisive frame (a car closer than 20 m ahead in a neighbouring "
-                        f"lane), in the first training and the rounds (default {FULL.emphasis})")
+                   help=f"times every epoch shows a decisive frame (a car closer than 20 m ahead in the host's or a "
+                        f"neighbouring lane), in the first training and the rounds (default {FULL.emphasis})")
     p.add_argument("--suite", default="default", help="the benchmark suite (default: the held-out default suite)")
     p.add_argument("--workers", type=count(1, 256), default=2, help="worker processes (default 2)")
     p.set_defaults(func=run)

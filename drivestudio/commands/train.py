@@ -110,8 +110,9 @@ def register(sub) -> None:
                         "(default 0)")
     p.add_argument("--emphasis", type=count(1, 100), default=1, metavar="W",
                    help="an epoch shows the world's decisive steps W times, every other step once (default 1); "
-                        "highway: the frames with a car closer than 20 m ahead in a neighbouring lane, on which the "
-                        "Chen controller's lane changes are decided (docs/aggregation.md)")
+                        "highway: the frames with a car closer than 20 m ahead in the host's lane (the follow law "
+                        "brakes on it) or a neighbouring one (the Chen controller's lane changes are decided on it; "
+                        "docs/aggregation.md)")
     p.add_argument("--init", metavar="CKPT", help="start from this checkpoint's weights (same family, world and "
                                                   "targets): fine-tuning, aggregation rounds, the correction rounds "
                                                   "of `study` and `autonomy --rounds`")

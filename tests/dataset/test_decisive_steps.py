@@ -10,8 +10,9 @@ from core.declaration import DeclarationError, WorldDeclaration
 from core.worlds.highway import HIGHWAY
 
 
-def test_the_highways_decisive_steps_are_a_near_car_in_a_neighbouring_lane():
-    assert dict(HIGHWAY.decisive) == {"dist_LL": 20.0, "dist_RR": 20.0, "dist_L": 20.0, "dist_R": 20.0}
+def test_the_highways_decisive_steps_are_a_near_car_ahead_in_the_host_or_a_neighbouring_lane():
+    assert dict(HIGHWAY.decisive) == {"dist_LL": 20.0, "dist_MM": 20.0, "dist_RR": 20.0, "dist_L": 20.0,
+                                      "dist_R": 20.0}
     assert {bound for _, bound in HIGHWAY.decisive} == {ChenParams().occupied_gap}   # one number, one owner
 
 
