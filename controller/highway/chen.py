@@ -35,6 +35,39 @@ RIGHT_1, RIGHT_2 = "right-1", "right-2"
 STATES = (KEEP, LEFT_1, LEFT_2, RIGHT_1, RIGHT_2)
 
 
+class LaneOccupancy:
+    """Rule 1's two timers: frames since a car was last seen ahead within `occupied_gap` in the left / right lane.
+
+    A car counts only when two successive frames see it, so one noisy estimate does not block a lane. Its own
+    object so that the benchmark can run rule 1 on the true gaps beside a driver's controller
+    (drivestudio/worlds/highway/benchmark/clips.py)."""
+
+    def __init__(self, occupied_gap: float, pre_dist: float):
+        self.occupied_gap = occupied_gap
+        self.left = self.right = 0                 # [frames] clear frames in a row
+        self.restarts = 0                          # restart() calls: a change started (or the lookout aborted one)
+        self._pre_L = self._pre_R = pre_dist
+
+    def update(self, dist_LL: float, dist_RR: float) -> None:
+        if self._pre_L < self.occupied_gap and dist_LL < self.occupied_gap:
+            self.left = 0
+        else:
+            self.left += 1
+        if self._pre_R < self.occupied_gap and dist_RR < self.occupied_gap:
+            self.right = 0
+        else:
+            self.right += 1
+        self._pre_L, self._pre_R = dist_LL, dist_RR
+
+    def restart(self) -> None:
+        """Both lanes must prove clear afresh (rule 2, after a change starts)."""
+        self.left = self.right = 0
+        self.restarts += 1
+
+    def timer(self, side: str) -> int:
+        return self.left if side == "left" else self.right
+
+
 @dataclass(frozen=True)
 class ChenParams:
     """Every constant of docs/controller.md, named. Frames are 0.1 s (10 Hz)."""
@@ -101,12 +134,9 @@ class ChenController:
         p = self.params
         self._state = KEEP
         self._coe_steer = p.coe_keep
-        self._left_timer = 0
-        self._right_timer = 0
+        self.occupancy = LaneOccupancy(p.occupied_gap, p.pre_dist_start)
         self._timer_set = p.timer_set
         self._steers: deque[float] = deque([0.0] * p.steer_history, maxlen=p.steer_history)
-        self._pre_dist_L = p.pre_dist_start
-        self._pre_dist_R = p.pre_dist_start
         # no in-lane estimate seen yet: the inactive values (a tie, so the lane right of the marking is taken)
         self._pre_ML = INACTIVE["toMarking_ML"]
         self._pre_MR = INACTIVE["toMarking_MR"]
@@ -131,11 +161,16 @@ class ChenController:
     @property
     def left_clear(self) -> bool:
         """Rule 1: no car within occupied_gap in the left lane for more than timer_set frames."""
-        return self._left_timer > self._timer_set
+        return self.occupancy.left > self._timer_set
 
     @property
     def right_clear(self) -> bool:
-        return self._right_timer > self._timer_set
+        return self.occupancy.right > self._timer_set
+
+    @property
+    def timer_set(self) -> int:
+        """[frames] the clear frames rule 1 asks for now (fewer on two lanes after an overtake)."""
+        return self._timer_set
 
     @property
     def steer_trend(self) -> float:
@@ -154,7 +189,7 @@ class ChenController:
     def act(self, indicators, speed: float) -> Action:
         """One 10 Hz frame: the 14 indicators in canonical order (13 accepted, then fast = 0), speed [m/s]."""
         v = self._read(indicators)
-        self._update_occupancy(v)
+        self.occupancy.update(v["dist_LL"], v["dist_RR"])
         trend = self.steer_trend  # of the previous frames: this frame's command is not known yet
         slow_down = self.params.no_slow_down
         if self._state == KEEP:
@@ -177,19 +212,6 @@ class ChenController:
         if values.size != len(INDICATORS):
             raise ValueError(f"expected {len(INDICATORS)} (or {len(INDICATORS) - 1}) indicators, got {values.size}")
         return dict(zip(INDICATORS, values.tolist()))
-
-    # --- rule 1: lane occupancy -----------------------------------------------------------------------------
-    def _update_occupancy(self, v: dict[str, float]) -> None:
-        # two successive frames must see the car, so one noisy estimate does not block a lane
-        if self._pre_dist_L < self.params.occupied_gap and v["dist_LL"] < self.params.occupied_gap:
-            self._left_timer = 0
-        else:
-            self._left_timer += 1
-        if self._pre_dist_R < self.params.occupied_gap and v["dist_RR"] < self.params.occupied_gap:
-            self._right_timer = 0
-        else:
-            self._right_timer += 1
-        self._pre_dist_L, self._pre_dist_R = v["dist_LL"], v["dist_RR"]
 
     # --- rules 2 and 3: when to change lane -----------------------------------------------------------------
     def _left_exists(self, v: dict[str, float]) -> bool:
@@ -258,8 +280,7 @@ class ChenController:
         self._lane_changes += 1
         self._change_reason = reason or ("overtake" if overtaking else "preference")
         # both lanes must prove clear afresh before the next change (rule 2 resets both timers)
-        self._left_timer = 0
-        self._right_timer = 0
+        self.occupancy.restart()
         if self.two_lane:
             # after an overtake the two-lane driver returns to the right lane sooner; back in it, the usual wait
             self._timer_set = self.params.timer_set_two_lane_after_change if overtaking else self.params.timer_set

@@ -157,7 +157,7 @@ class LookoutController(ChenController):
             self._state = KEEP
         else:
             self._state = RIGHT_2 if self._state in LEFT_CHANGE else LEFT_2   # L4 sets its gain
-        self._left_timer = self._right_timer = 0        # both lanes prove clear afresh, as after a change
+        self.occupancy.restart()                        # both lanes prove clear afresh, as after a change
 
     # --- L3: pull out behind the leader -------------------------------------------------------------------------
     def _change_speed_limit(self, v: dict[str, float], side: str = "") -> float:

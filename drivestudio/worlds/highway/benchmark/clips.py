@@ -17,6 +17,12 @@ For a collision the panel also names the controller rule that led to it (`rule`)
 change the host car was in (rule 2's overtake or rule 3's lane preference) with what the target lane held beside
 and behind the host at that moment and the safe gap the lookout would have asked for, or the follow law of rule 2
 when the host ran into the car ahead in its lane.
+
+A lane change's collision also gets a `cause`, from rule 1 run on the true gaps beside the driver's controller
+(the shadow's `truth_occupancy`, restarted whenever the driver's is): "blind spot" when the true gaps had kept the
+target lane clear for as long as rule 1 asks too, so the controller on exact indicators would have started the same
+change on the same path (a car beside or behind, which DeepDriving's indicators do not describe); "misread" when
+the true gaps had a car ahead in that lane within rule 1's time, so only the estimate made the lane look free.
 """
 from __future__ import annotations
 
@@ -29,6 +35,7 @@ import cv2
 import numpy as np
 
 from controller.highway import ChenController
+from controller.highway.chen import KEEP, LaneOccupancy
 from controller.highway.lookout import LookoutController, safe_gap
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, REAR, REAR_RANGE
 from drivestudio.outputs import VideoWriter
@@ -41,7 +48,7 @@ from perception.highway.overlay import ERROR_SCALE
 if TYPE_CHECKING:
     from sim.highway.world import Observation
 
-PANEL_HEIGHT = 184
+PANEL_HEIGHT = 206
 LANES_LEFT_SCALE = 1.0     # [lanes] the error of lanes_left that fills an error bar
 GAP_RELEVANT = 30.0        # [m] gaps are compared below this: the controller reacts to cars within 20 m (rule 1)
                            # and 15 m (rule 2; its follow speed is 97 % of v_max at 30 m), so 60 read as 40 is no fault
@@ -76,6 +83,7 @@ class ShadowController:
 
     def __init__(self, lookout: bool = False):
         self.ctrl: ChenController | None = None
+        self.truth_occupancy: LaneOccupancy | None = None   # rule 1 on the true gaps, restarted as the driver's
         self.lookout = lookout
         self.agreed = True
 
@@ -85,6 +93,11 @@ class ShadowController:
         c = self.ctrl
         if c is None or c.lanes != lanes:
             c = self.ctrl = make_controller(lanes, self.lookout)
+            self.truth_occupancy = LaneOccupancy(c.params.occupied_gap, c.params.pre_dist_start)
+        assert self.truth_occupancy is not None
+        truth = rec.obs.truth.indicators
+        self.truth_occupancy.update(float(truth[INDEX["dist_LL"]]), float(truth[INDEX["dist_RR"]]))
+        state, timer_set, restarts = c.state, c.timer_set, c.occupancy.restarts
         estimate = np.asarray(rec.estimate, dtype=np.float64)
         action = act_on(c, estimate, float(record[_I_SPEED])).as_array()
         same = bool(np.allclose(action, np.asarray(rec.action, dtype=np.float64), rtol=0, atol=1e-9))
@@ -94,6 +107,11 @@ class ShadowController:
         out = {"state": c.state, "left_clear": c.left_clear, "right_clear": c.right_clear,
                "steer_trend": round(c.steer_trend, 4), "follow_mps": None if follow is None else round(follow, 2),
                "reason": c.change_reason, "agrees": same}
+        if state == KEEP and c.state != KEEP:   # a change started: was its lane clear by rule 1 on the truth?
+            side = c.state.split("-")[0]
+            out["truth_clear_frames"] = [self.truth_occupancy.timer(side), timer_set]
+        if c.occupancy.restarts != restarts:
+            self.truth_occupancy.restart()
         if isinstance(c, LookoutController):
             out.update(refused=c.refused, aborts=c.aborts)
         return out
@@ -178,6 +196,12 @@ def rear_text(rear, speed: float) -> str:
 def rule_at_fault(entries: list[Entry], dt: float) -> str:
     """The controller rule that led to a collision: the rule that started the lane change the host was in (with
     what the target lane held beside and behind at that moment), or the follow law when it kept its lane."""
+    return fault(entries, dt)[0]
+
+
+def fault(entries: list[Entry], dt: float) -> tuple[str, str]:
+    """rule_at_fault's text and the cause: "blind spot" or "misread" for a lane change (the module's docstring),
+    "keeping" when no change led to the collision, "" when the change started before the buffer."""
     states = [e.control["state"] if e.control else "keep" for e in entries]
     t_event = float(entries[-1].obs.t)
     for i in range(len(entries) - 1, 0, -1):
@@ -196,11 +220,19 @@ def rule_at_fault(entries: list[Entry], dt: float) -> str:
                 (f"a car {gap:.1f} m behind closing at {closing:+.1f} m/s (safe gap "
                  f"{safe_gap(closing, float(e.obs.truth.speed)):.1f} m)")
             ahead = e.obs.truth.indicators[INDEX["dist_LL" if side == "left" else "dist_RR"]]
-            return (f"{rule} started a change to the {side} {t_event - float(e.obs.t):.1f} s before; beside and "
+            text = (f"{rule} started a change to the {side} {t_event - float(e.obs.t):.1f} s before; beside and "
                     f"behind in that lane: {held}; ahead in it: {ahead:.1f} m")
+            clear, needed = (e.control or {}).get("truth_clear_frames", (None, None))
+            cause = "" if clear is None else "blind spot" if clear > needed else "misread"
+            return text, cause
     if states[-1] != "keep":
-        return f"a lane change ({states[-1]}) that started more than {len(entries) * dt:.0f} s before"
-    return "lane keeping (rule 4) and the follow law (rule 2): no lane change in the seconds before"
+        return f"a lane change ({states[-1]}) that started more than {len(entries) * dt:.0f} s before", ""
+    return "lane keeping (rule 4) and the follow law (rule 2): no lane change in the seconds before", "keeping"
+
+
+CAUSE_TEXT = {"blind spot": "on the true gaps rule 1 counted that lane clear too: the controller's blind spot",
+              "misread": "on the true gaps that lane was taken: only the estimate made it look free",
+              "keeping": "", "": ""}
 
 
 class ClipRecorder:
@@ -264,7 +296,7 @@ class ClipRecorder:
                 [round(float(v), 4) for v in event_entry.action]}
         if p.event == "collision":
             info["contact"] = describe_contact(p.before, self.world.track)
-            info["rule"] = rule_at_fault(p.before, self.world.dt)
+            info["rule"], info["cause"] = fault(p.before, self.world.dt)
         else:
             d = float(event_entry.obs.truth.ego[4])
             info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
@@ -336,6 +368,8 @@ class ClipRecorder:
             lines.append((f"rule: {head}" + (";" if tail else ""), (255, 210, 90)))
             if tail:
                 lines.append((f"      {tail}", (255, 210, 90)))
+            if CAUSE_TEXT.get(info.get("cause", "")):
+                lines.append((f"cause: {CAUSE_TEXT[info['cause']]}", (255, 210, 90)))
         for i, (text, colour) in enumerate(lines):
             cv2.putText(img, text[:150], (10, 20 + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, 1, cv2.LINE_AA)
         return img

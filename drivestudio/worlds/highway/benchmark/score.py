@@ -98,7 +98,18 @@ def overall(rows: list[dict]) -> dict:
             "marking_share": round(sum(r["marking_time_s"] for r in rows) / driven, 5) if driven else 0.0,
             "marking_time_s": round(sum(r["marking_time_s"] for r in rows), 1),
             "distance_km": round(km, 2), "driven_s": round(driven, 1),
-            "clips": sum(len(r["clips"]) for r in rows)}
+            "clips": sum(len(r["clips"]) for r in rows), "collision_causes": collision_causes(rows)}
+
+
+CAUSES = ("blind spot", "misread", "keeping")
+
+
+def collision_causes(rows: list[dict]) -> dict[str, int]:
+    """The collisions with a clip, by cause (clips.py): a lane change the controller would have started on the true
+    gaps too ("blind spot"), one that only a misread gap allowed ("misread"), none ("keeping"), or not known (the
+    change started before the clip's seconds)."""
+    causes = [c.get("cause") or "unknown" for r in rows for c in r["clips"] if c["event"] == "collision"]
+    return {k: causes.count(k) for k in CAUSES + ("unknown",)}
 
 
 def leaderboard(suite, models, results: list[dict]) -> dict:
@@ -148,14 +159,18 @@ def markdown(board: dict, clip_root: str = "clips") -> str:
     if not clips:
         out.append("No collision or off-road event: no clips." if not skipped else "")
     else:
-        out += ["| model | route | event | t [s] | largest error in the 5 s before | contact | clip |",
-                "|---|---|---|---|---|---|---|"]
+        out += ["| model | route | event | t [s] | largest error in the 5 s before | contact | cause | clip |",
+                "|---|---|---|---|---|---|---|---|"]
         for e, r, c in clips:
             blame = c["largest_error"]
             why = "none (exact indicators)" if blame is None else \
                 f"{blame['indicator']} ({blame['normalised']:.2f} of scale)"
             out.append(f"| {e['model']} | {r['route']} | {c['event']} | {c['t']:.1f} | {why} | {c['contact']} | "
-                       f"[{c['file'].rsplit('/', 1)[-1]}]({c['file']}) |")
+                       f"{c.get('cause') or '-'} | [{c['file'].rsplit('/', 1)[-1]}]({c['file']}) |")
+        causes = [f"{e['model']}: " + ", ".join(f"{n} {k}" for k, n in e["overall"]["collision_causes"].items() if n)
+                  for e in board["models"] if any(e["overall"].get("collision_causes", {}).values())]
+        if causes:
+            out += ["", "Collisions by cause (those with a clip; docs/benchmark.md): " + "; ".join(causes) + "."]
     if skipped:
         out += ["", f"{skipped} further events had no clip (at most --clips per route)."]
     return "\n".join(out).rstrip() + "\n"
