@@ -76,7 +76,7 @@ _FAMILIES: dict[str, Family] = {}
 # the built-in families by name, each registered by importing its module; a checkpoint's family is imported alone
 # (AlexNet, VGG-16 and MobileNet import torchvision, about a second of every command's start-up that loads Z2Color)
 _BUILTIN = {"alexnet": "perception.alexnet", "vgg16": "perception.vgg", "gist": "perception.gist",
-            "z2color": "perception.z2color", "mobilenet": "perception.mobilenet"}
+            "z2color": "perception.z2color", "mobilenet": "perception.mobilenet", "ensemble": "perception.ensemble"}
 _loaded = False
 
 

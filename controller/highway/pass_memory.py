@@ -9,6 +9,12 @@ readings), and reads 0 once the car is level, until it is `clear_behind` behind 
 then does the controller's clear-lane timer start. Carrying the car only until level (where the true gap ends)
 was tried first: the two-lane timer of 30 frames after an overtake then still let the host move back beside a car
 passed at 1-2 m/s, as it does on the true indicators (docs/aggregation.md).
+
+Given the host's speed, the carried gap also closes by what the host gained on the car since it was lost (the
+other car assumed to hold its speed): a host that slows down to follow the car ahead while passing, as in dense
+traffic, keeps a car alongside for longer than its closing rate when seen said, and the crash clips showed the
+lane-preference rule moving into it (docs/aggregation.md). A car that the prediction puts back beyond `near`
+ahead has pulled away into the camera's view and is no longer carried.
 """
 from __future__ import annotations
 
@@ -33,6 +39,9 @@ class PassMemory:
         self.clear_behind = clear_behind  # [m] how far behind the host a passed car must be before its lane is free
         self.seen: deque[tuple[int, float]] = deque(maxlen=window)   # (frame, gap) of the last near readings
         self.carried: tuple[int, float, float] | None = None          # (frame, gap, closing rate) when lost
+        self.lost_speed: float | None = None   # [m/s] the host's speed at the car's last near reading (None: not given)
+        self.predicted = 0.0                   # [m] the carried gap now
+        self.seen_speed: float | None = None   # [m/s] the host's speed at the last near reading
         self.frame = 0
 
     def reset(self) -> None:
@@ -44,23 +53,35 @@ class PassMemory:
         frames, gaps = np.array(self.seen).T
         return float(-np.polyfit((frames - frames[-1]) * FRAME_S, gaps, 1)[0])
 
-    def filter(self, gap: float) -> float:
+    def _closing(self, speed: float | None) -> float:
+        """[m/s] how fast the carried car's gap shrinks now: its seen rate plus what the host gained on it since."""
+        assert self.carried is not None
+        gained = 0.0 if speed is None or self.lost_speed is None else speed - self.lost_speed
+        return self.carried[2] + gained
+
+    def filter(self, gap: float, speed: float | None = None) -> float:
+        """The gap the controller should read this frame, from the estimate `gap` [m] and the host's `speed` [m/s]
+        (optional: without it a carried car closes at its seen rate throughout)."""
         self.frame += 1
+        if self.carried is not None:   # a carried car moves on every frame, seen again or not
+            self.predicted -= self._closing(speed) * FRAME_S
         if gap < self.near:
             if self.seen and self.seen[-1][0] != self.frame - 1:
                 self.seen.clear()             # not the same stretch of readings
             self.seen.append((self.frame, gap))
+            self.seen_speed = speed
             return gap                        # a carried car stays carried: a flickering reading does not end it
         if self.carried is None and len(self.seen) >= self.min_seen and self.seen[-1][0] == self.frame - 1:
             rate = self.closing_rate()
             if rate > self.min_closing:
                 self.carried = (self.seen[-1][0], self.seen[-1][1], rate)
+                self.lost_speed = self.seen_speed
+                self.predicted = self.seen[-1][1] - self._closing(speed) * FRAME_S   # one frame on
         self.seen.clear()
         if self.carried is not None:
-            lost, g0, rate = self.carried
-            unseen_s = (self.frame - lost) * FRAME_S
-            predicted = g0 - rate * unseen_s
-            if predicted > -self.clear_behind and self.frame - lost <= round(self.max_s / FRAME_S):
-                return max(predicted, 0.0)    # alongside or just behind: the lane is still taken
+            lost = self.carried[0]
+            if -self.clear_behind < self.predicted < self.near and \
+                    self.frame - lost <= round(self.max_s / FRAME_S):
+                return max(self.predicted, 0.0)    # alongside or just behind: the lane is still taken
             self.carried = None
         return gap

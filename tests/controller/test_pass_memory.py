@@ -47,3 +47,26 @@ def test_reset_forgets_the_car():
     run(memory, [15.0 - 0.2 * k for k in range(10)])
     memory.reset()
     assert memory.filter(FAR) == FAR
+
+
+def test_a_host_that_slows_down_keeps_the_car_alongside_longer():
+    """The carried gap closes at the seen rate plus what the host gained since: after losing a car closing at
+    2 m/s, a host 1.5 m/s slower closes at 0.5 m/s, so the car is still 4.2 m ahead 12 s on (10.2 - 0.5 x 12),
+    where the seen rate alone had it 13.8 m behind and the lane free."""
+    seen = [16.0 - 0.2 * k for k in range(30)]
+    memory = PassMemory(max_s=30.0)
+    out = [memory.filter(g, 20.0) for g in seen] + [memory.filter(FAR, 18.5) for _ in range(120)]
+    assert out[30] == pytest.approx(10.2 - 0.05, abs=0.01)       # one frame on at 0.5 m/s
+    assert out[149] == pytest.approx(10.2 - 0.5 * 12.0, abs=0.01)
+    assert run(PassMemory(max_s=30.0), seen + [FAR] * 120)[149] == FAR   # without the speed: gone at 10.1 s
+
+
+def test_a_host_that_speeds_up_passes_sooner_and_one_that_falls_back_lets_the_car_ahead_go():
+    seen = [16.0 - 0.2 * k for k in range(30)]
+    faster = PassMemory()
+    [faster.filter(g, 20.0) for g in seen]
+    assert faster.filter(FAR, 22.0) == pytest.approx(10.2 - 0.4, abs=0.01)   # closing at 4 m/s
+    slower = PassMemory()
+    [slower.filter(g, 20.0) for g in seen]
+    out = [slower.filter(FAR, 15.0) for _ in range(40)]         # 3 m/s opening: ahead again, beyond 20 m in 3.3 s
+    assert out[0] == pytest.approx(10.2 + 0.3, abs=0.01) and out[-1] == FAR

@@ -96,10 +96,11 @@ class ChenDriver:
             self._held = est[_GAPS].copy()
         if self.pass_memory:
             changing = self.controller is not None and self.controller.state != KEEP   # the lanes change meaning
+            speed = float(percept.record[self._i_speed])
             for memory, i in zip(self.pass_memory, _NEIGHBOUR_GAPS):
                 if changing:
                     memory.reset()
-                est[i] = memory.filter(float(est[i]))
+                est[i] = memory.filter(float(est[i]), speed)
         return est
 
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,84 @@
+"""Make one checkpoint of several trained regressors of a world (perception/ensemble.py): each reads the same
+frames, the closest gap any of them reads is believed, every other output is their mean.
+
+    python -m drivestudio.ensemble --out runs/ensemble.pt runs/a.pt runs/b.pt [--gaps mean]
+
+The members must read the same input (camera, size, earlier frames, frame inset) and estimate the same outputs
+with the same normalisation; each keeps its own input statistics. The result drives, benchmarks, evaluates and
+exports as any checkpoint. Bad input is refused in one line (exit status 2) before anything is written.
+"""
+from __future__ import annotations
+
+import copy
+import sys
+
+from core.files import check_output
+from drivestudio.errors import input_errors
+from drivestudio.parsing import Parser
+from perception.checkpoint import CheckpointError, save_checkpoint
+from perception.ensemble import COMBINE, GAP_PREFIX
+from perception.models import Regressor, describe, load_model
+
+SAME_INPUT = ("channels", "height", "width", "instants", "cameras", "scaling", "inset")
+
+
+def make(paths: list[str], combine: str = "min") -> dict:
+    """The ensemble's checkpoint payload (spec and weights) from the members' checkpoint files."""
+    if len(paths) < 2:
+        raise CheckpointError("an ensemble needs at least two checkpoints")
+    if len(set(paths)) != len(paths):
+        raise CheckpointError("a checkpoint is given twice")
+    nets = [load_model(p)[0] for p in paths]
+    first = nets[0].spec
+    for path, net in zip(paths, nets):
+        spec = net.spec
+        if spec["name"] == "ensemble":
+            raise CheckpointError(f"{path} is an ensemble already; give its members")
+        if spec["input"].get("scaling") != "standardise":
+            raise CheckpointError(f"{path}: a {spec['name']} model scales its input otherwise; an ensemble "
+                                  "combines standardising regressors")
+        if (spec["world"], spec["outputs"], spec["normalisation"]) != \
+                (first["world"], first["outputs"], first["normalisation"]):
+            raise CheckpointError(f"{path} estimates other outputs than {paths[0]}; the members must estimate the "
+                                  "same ones")
+        differ = [k for k in SAME_INPUT if spec["input"].get(k) != first["input"].get(k)]
+        if differ:
+            raise CheckpointError(f"{path} reads another input than {paths[0]} ({', '.join(differ)} differ)")
+    spec = copy.deepcopy(first)
+    c = int(spec["input"]["channels"])
+    spec["name"] = "ensemble"
+    spec["input"].update(mean=[0.0] * c, std=[1.0] * c)
+    spec["options"] = {
+        "members": [{"name": n.spec["name"], "options": n.spec.get("options", {}), "mean": n.spec["input"]["mean"],
+                     "std": n.spec["input"]["std"], "title": describe(n.spec), "source": str(p)}
+                    for p, n in zip(paths, nets)],
+        "gaps": [i for i, o in enumerate(spec["outputs"]) if o.startswith(GAP_PREFIX)],
+        "combine": combine}
+    model = Regressor(spec)
+    for member, net in zip(model.net.members, nets):
+        member.load_state_dict(net.net.state_dict())
+    return {"spec": spec, "state_dict": model.state_dict()}
+
+
+def main(argv=None) -> int:
+    ap = Parser(prog="python -m drivestudio.ensemble",
+                description="Make one checkpoint of several trained regressors of a world: the closest gap any "
+                            "of them reads, the mean of every other output (docs/aggregation.md).")
+    ap.add_argument("checkpoints", nargs="+", help="the members' checkpoint files (two or more)")
+    ap.add_argument("--out", required=True, help="the ensemble's checkpoint file to write (.pt)")
+    ap.add_argument("--gaps", choices=COMBINE, default="min",
+                    help="the gaps: the closest reading (min, the default) or the mean")
+    args = ap.parse_args(argv)
+    try:
+        out = check_output(args.out, (".pt",), "checkpoint")
+        payload = make(args.checkpoints, args.gaps)
+        save_checkpoint(out, payload)
+    except input_errors() as e:
+        print(f"{ap.prog}: error: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {out}: {describe(payload['spec'])}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

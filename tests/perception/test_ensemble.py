@@ -1,0 +1,83 @@
+"""The ensemble (perception/ensemble.py, made by drivestudio/ensemble.py): every member reads the frame with its own
+input statistics, the closest gap any member reads is believed, every other output is the members' mean; members
+that read or estimate something else are refused in one line, exit status 2, nothing written."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from core.worlds.highway import HIGHWAY
+from drivestudio.ensemble import make
+from perception.checkpoint import CheckpointError, save_checkpoint
+from perception.models import build, load_model
+
+FRAMES = torch.randint(0, 256, (3, 3, 210, 280), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
+
+
+def member(path, seed: int, mean: float, std: float, instants=(0,), **kwargs):
+    """A randomly initialised MobileNet with its own input statistics, saved as a checkpoint."""
+    torch.manual_seed(seed)
+    c = 3 * len(instants)
+    model = build("mobilenet", HIGHWAY, mean=[mean] * c, std=[std] * c, instants=instants, **kwargs)
+    with torch.no_grad():   # outputs spread over the normalised range, so that min and mean differ clearly
+        for p in model.parameters():
+            p.add_(torch.randn_like(p) * 0.05)
+    save_checkpoint(path, {"spec": model.spec, "state_dict": model.state_dict()})
+    return path
+
+
+@pytest.fixture(scope="module")
+def members(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ensemble")
+    return [member(d / "a.pt", 1, 0.3, 0.2), member(d / "b.pt", 2, 0.6, 0.25)]
+
+
+def estimates(path) -> np.ndarray:
+    net, _ = load_model(path)
+    with torch.no_grad():
+        return net.denormalise(net(FRAMES))
+
+
+def test_the_closest_gap_and_the_mean_of_everything_else(members, tmp_path):
+    out = tmp_path / "ens.pt"
+    save_checkpoint(out, make([str(p) for p in members]))
+    a, b = estimates(members[0]), estimates(members[1])
+    e = estimates(out)
+    gaps = [i for i, n in enumerate(HIGHWAY.targets) if n.startswith("dist_")]
+    rest = [i for i in range(len(HIGHWAY.targets)) if i not in gaps]
+    assert len(gaps) == 5 and HIGHWAY.targets[gaps[1]] == "dist_MM"
+    np.testing.assert_allclose(e[:, gaps], np.minimum(a, b)[:, gaps], atol=1e-4)
+    np.testing.assert_allclose(e[:, rest], ((a + b) / 2)[:, rest], atol=1e-4)
+    assert not np.allclose(a[:, gaps], b[:, gaps], atol=0.5)   # the members differ: the test can tell min from mean
+
+
+def test_gaps_averaged_when_asked(members, tmp_path):
+    out = tmp_path / "mean.pt"
+    save_checkpoint(out, make([str(p) for p in members], combine="mean"))
+    np.testing.assert_allclose(estimates(out), (estimates(members[0]) + estimates(members[1])) / 2, atol=1e-4)
+
+
+def test_members_that_read_or_estimate_otherwise_are_refused(members, tmp_path):
+    temporal = member(tmp_path / "t.pt", 3, 0.5, 0.2, instants=(-1, 0))
+    fast = member(tmp_path / "f.pt", 4, 0.5, 0.2, targets=HIGHWAY.targets + ("fast",))
+    with pytest.raises(CheckpointError, match="another input"):
+        make([str(members[0]), str(temporal)])
+    with pytest.raises(CheckpointError, match="other outputs"):
+        make([str(members[0]), str(fast)])
+    with pytest.raises(CheckpointError, match="at least two"):
+        make([str(members[0])])
+
+
+def test_the_command_refuses_in_one_line_and_writes_nothing(members, tmp_path):
+    out = tmp_path / "e.pt"
+    for args in ([str(members[0])], [str(members[0]), str(tmp_path / "missing.pt")],
+                 [str(members[0]), str(members[0])]):
+        r = subprocess.run([sys.executable, "-m", "drivestudio.ensemble", "--out", str(out), *args],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "error" in r.stderr, r.stderr
+        assert not out.exists()
+    r = subprocess.run([sys.executable, "-m", "drivestudio.ensemble", "--out", str(out), *map(str, members)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and out.exists() and "Ensemble of 2" in r.stdout, r.stderr
