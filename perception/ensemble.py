@@ -30,10 +30,11 @@ class Ensemble(nn.Module):
         self.members = nn.ModuleList(family(m["name"]).build(inp, outputs, dict(m.get("options", {})))
                                      for m in members)
         c = inp.channels
+        # (members, C, 1, 1): rank 4, as every tensor of a model the predictor puts in channels-last format
         self.register_buffer("means", torch.tensor([m["mean"] for m in members], dtype=torch.float32)
-                             .view(len(members), 1, c, 1, 1))
+                             .view(len(members), c, 1, 1))
         self.register_buffer("stds", torch.tensor([m["std"] for m in members], dtype=torch.float32)
-                             .view(len(members), 1, c, 1, 1))
+                             .view(len(members), c, 1, 1))
         gaps = torch.zeros(outputs, dtype=torch.bool)
         gaps[list(options.get("gaps", []))] = True
         self.register_buffer("gaps", gaps)

@@ -12,6 +12,7 @@ from core.worlds.highway import HIGHWAY
 from drivestudio.ensemble import make
 from perception.checkpoint import CheckpointError, save_checkpoint
 from perception.models import build, load_model
+from perception.predictor import load_predictor
 
 FRAMES = torch.randint(0, 256, (3, 3, 210, 280), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
 
@@ -51,6 +52,16 @@ def test_the_closest_gap_and_the_mean_of_everything_else(members, tmp_path):
     np.testing.assert_allclose(e[:, gaps], np.minimum(a, b)[:, gaps], atol=1e-4)
     np.testing.assert_allclose(e[:, rest], ((a + b) / 2)[:, rest], atol=1e-4)
     assert not np.allclose(a[:, gaps], b[:, gaps], atol=0.5)   # the members differ: the test can tell min from mean
+
+
+def test_the_drivers_predictor_reads_frames_through_it(members, tmp_path):
+    """The closed loop's path (perception/predictor.py: channels-last weights, one frame at a time) gives the
+    ensemble's own estimates."""
+    out = tmp_path / "ens.pt"
+    save_checkpoint(out, make([str(p) for p in members]))
+    predictor = load_predictor(str(out))
+    frame = FRAMES[0].permute(1, 2, 0).numpy()
+    np.testing.assert_allclose(predictor([frame]), estimates(out)[0], atol=1e-3)
 
 
 def test_gaps_averaged_when_asked(members, tmp_path):
