@@ -183,10 +183,10 @@ def test_a_route_without_lanes_takes_the_tracks_and_without_start_lane_the_seeds
 
 
 # --- the suites nobody picked ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("name, seed", [("random", 19), ("design", 21)])
+@pytest.mark.parametrize("name, seed", [("random", 19), ("design", 21), ("design2", 22)])
 def test_a_drawn_suite_is_what_its_generator_seed_draws(name, seed):
     """Nobody swapped a route: drawing again from the seed written in the file gives the file's routes (the
-    evaluation suite random.json and design.json, the suite that choices are made on)."""
+    evaluation suite random.json and design.json and design2.json, the suites that choices are made on)."""
     suite = load_suite(SUITES_DIR / f"{name}.json")
     gen = suite.generator
     assert gen == {"seed": seed, "routes": 12, "lanes": [1, 4], "cars": [12, 60], "seconds": 240.0}
