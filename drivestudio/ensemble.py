@@ -13,7 +13,7 @@ import copy
 import sys
 
 from core.files import check_output
-from drivestudio.errors import input_errors
+from drivestudio.errors import input_errors, refuse
 from drivestudio.parsing import Parser
 from perception.checkpoint import CheckpointError, save_checkpoint
 from perception.ensemble import COMBINE, GAP_PREFIX
@@ -55,7 +55,7 @@ def make(paths: list[str], combine: str = "min") -> dict:
         "gaps": [i for i, o in enumerate(spec["outputs"]) if o.startswith(GAP_PREFIX)],
         "combine": combine}
     model = Regressor(spec)
-    for member, net in zip(model.net.members, nets):
+    for member, net in zip(model.net.get_submodule("members").children(), nets):
         member.load_state_dict(net.net.state_dict())
     return {"spec": spec, "state_dict": model.state_dict()}
 
@@ -74,8 +74,7 @@ def main(argv=None) -> int:
         payload = make(args.checkpoints, args.gaps)
         save_checkpoint(out, payload)
     except input_errors() as e:
-        print(f"{ap.prog}: error: {e}", file=sys.stderr)
-        return 2
+        return refuse(ap.prog, e)
     print(f"wrote {out}: {describe(payload['spec'])}")
     return 0
 

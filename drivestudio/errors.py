@@ -41,3 +41,9 @@ def input_errors() -> tuple[type[BaseException], ...]:
 def runtime_errors() -> tuple[type[BaseException], ...]:
     """Failures of a run rather than of its input (a peer process died)."""
     return (RunError,) + _loaded(_RUNTIME)
+
+
+def refuse(prog: str, error: BaseException) -> int:
+    """A tool's refusal: one line on stderr, `PROG: error: WHY`; returns the exit status (2)."""
+    print(f"{prog}: error: {error}", file=sys.stderr)
+    return 2

@@ -42,13 +42,14 @@ class Ensemble(nn.Module):
 
     def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         """x: frames scaled to [0, 1] (the ensemble's mean 0, std 1) -> the combined normalised outputs."""
-        outs = torch.stack([m((x - self.means[i]) / self.stds[i], modes) for i, m in enumerate(self.members)])
+        means, stds = self.get_buffer("means"), self.get_buffer("stds")
+        outs = torch.stack([m((x - means[i]) / stds[i], modes) for i, m in enumerate(self.members)])
         mean = outs.mean(dim=0)
         if self.combine != "min":
             return mean
         # a gap's normalisation has a positive scale (core/worlds/highway.py), so the smallest output is the
         # closest car
-        return torch.where(self.gaps, outs.min(dim=0).values, mean)
+        return torch.where(self.get_buffer("gaps"), outs.min(dim=0).values, mean)
 
 
 def _fits(decl) -> str:

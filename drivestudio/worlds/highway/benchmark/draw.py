@@ -27,7 +27,7 @@ import numpy as np
 
 from core.files import atomic_write, check_output
 from core.inputs import show_path
-from drivestudio.errors import input_errors
+from drivestudio.errors import input_errors, refuse
 from drivestudio.numbers import count, finite
 from drivestudio.parsing import Parser
 from drivestudio.worlds.highway.benchmark.suite import parse_suite
@@ -113,8 +113,7 @@ def main(argv=None) -> int:
         parse_suite(json.loads(text), show_path(out), out.resolve().parent)   # a name or route it cannot drive
         atomic_write(out, text.encode())
     except errors as e:
-        print(f"{ap.prog}: error: {e}", file=sys.stderr)
-        return 2
+        return refuse(ap.prog, e)
     print(f"wrote {out}: {args.routes} routes drawn from seed {args.seed}")
     return 0
 
