@@ -19,6 +19,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from core.declaration import Moment
 from perception.checkpoint import CheckpointError
 from perception.datasets import FrameStream
 from perception.mae_report import Evaluation, ModelResult, ReportLayout
@@ -48,7 +49,10 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
     spec = ckpt["spec"]
     labels = tuple(spec["labels"])
     context = tuple(c for c in (layout or ReportLayout()).context if not ds.missing_columns([c]))
-    stream = FrameStream(data, split, labels, normalised=False, shuffle=False, context=context)
+    # the frames the model reads: a temporal model (train --history) takes earlier steps beside the current one
+    instants = tuple(spec["input"].get("instants", ds.declaration.moment.instants))
+    moment = Moment(instants, ds.declaration.moment.horizon) if instants != ds.declaration.moment.instants else None
+    stream = FrameStream(data, split, labels, normalised=False, shuffle=False, context=context, moment=moment)
     loader = torch.utils.data.DataLoader(stream, batch_size=batch_size, num_workers=workers)
     batch_errors: list[np.ndarray] = []
     contexts: list[np.ndarray] = []
@@ -72,7 +76,7 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
     frames = len(errors)
     column = {c: ctx[:, i] for i, c in enumerate(context)}
     predictor = Predictor(model, spec, dev)
-    sample = FrameStream(data, split, labels, normalised=False, shuffle=False)
+    sample = FrameStream(data, split, labels, normalised=False, shuffle=False, moment=moment)
     images = []
     for img, mode, _ in sample:
         chw = img.numpy()

@@ -397,4 +397,6 @@ def test_the_extended_oracle_drives_controller_hard_cleanly_and_the_oracles_clip
     assert oracle["overall"]["collisions"] == 5   # docs/benchmark.md: the paper's controller on these routes
     rules = [c["rule"] for route in oracle["routes"] for c in route["clips"]]
     assert len(rules) == 5 and all(x.startswith(("rule 2 (overtake)", "rule 3 (lane preference)")) for x in rules)
+    # on exact indicators rule 1 on the truth is the driver's own: every lane-change collision is a blind spot
+    assert oracle["overall"]["collision_causes"] == {"blind spot": 5, "misread": 0, "keeping": 0, "unknown": 0}
     assert all(route["controller_agreed"] for e in (oracle, extended) for route in e["routes"])

@@ -10,10 +10,12 @@ import torch
 from core.worlds.highway import HIGHWAY, label_set
 from drivestudio.worlds.highway.drivers import ChenDriver
 from perception.checkpoint import CheckpointError
+from perception.evaluate import evaluate_model
 from perception.models import build, load_model
 from perception.predictor import load_predictor
+from perception.shards import Dataset
 from perception.train import train
-from tests.perception.frames import tiny_config, workdir
+from tests.perception.frames import dataset, tiny_config, workdir
 
 
 def test_it_reads_the_frame_at_half_resolution_and_predicts_every_label():
@@ -77,3 +79,21 @@ def test_the_chen_driver_feeds_a_temporal_model_the_previous_frame(temporal):
         frame = np.full((210, 280, 3), value, np.uint8)
         driver.estimate(SimpleNamespace(frames=(frame,), record=record, t=0.0))
     assert seen == [[1, 1], [1, 2], [2, 3]]   # (previous, current); the first frame stands in for the missing one
+
+
+def test_evaluate_feeds_a_temporal_model_its_earlier_frame(temporal):
+    """The MAE report reads the frames the model reads (previous and current), not one frame of three channels,
+    and measures every step that has its earlier frame."""
+    result = evaluate_model(temporal, str(dataset()), split="all", latency_frames=3, log=lambda *a: None)
+    one_instant = evaluate_model(workdir_model_one_instant(), str(dataset()), split="all", latency_frames=3,
+                                 log=lambda *a: None)
+    assert np.isfinite(result.errors).all() and result.errors.shape[1] == 13
+    episodes = len({s.episode for s in Dataset(dataset()).shards})
+    assert len(one_instant.errors) - len(result.errors) == episodes   # each episode's first step has no previous
+
+
+def workdir_model_one_instant():
+    out = workdir() / "mobilenet-h0.pt"
+    if not out.exists():
+        train(tiny_config("mobilenet", out, iterations=1), log=lambda *a: None)
+    return out
