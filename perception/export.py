@@ -37,7 +37,10 @@ class Deployable(nn.Module):
         self.register_buffer("offset", torch.tensor(model._offset))
 
     def forward(self, images: torch.Tensor, modes: torch.Tensor) -> torch.Tensor:
-        return (self.model(images, modes) - self.offset) / self.scale
+        out = (self.model(images, modes) - self.offset) / self.scale
+        # a family without behavioural modes ignores them, and the tracer drops an unused input from the graph;
+        # adding them times zero keeps the documented (images, modes) interface for every family
+        return out + modes.unsqueeze(1).to(out.dtype) * 0
 
 
 def example_inputs(spec: dict, batch: int = 1, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:

@@ -92,3 +92,18 @@ def test_the_command_refuses_in_one_line_and_writes_nothing(members, tmp_path):
     r = subprocess.run([sys.executable, "-m", "drivestudio.ensemble", "--out", str(out), *map(str, members)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and out.exists() and "Ensemble of 2" in r.stdout, r.stderr
+
+
+def test_it_exports_to_onnx_with_the_documented_inputs(members, tmp_path):
+    """A family without behavioural modes (the ensemble of MobileNets) exports too: the graph keeps its `modes`
+    input (the tracer would drop an unused one) and agrees with PyTorch."""
+    from perception.export import export_onnx  # here: onnxruntime is an optional extra, only for this test
+
+    out = tmp_path / "ens.pt"
+    save_checkpoint(out, make([str(p) for p in members]))
+    info = export_onnx(out, tmp_path / "ens.onnx")
+    assert (tmp_path / "ens.onnx").exists() and info["max_abs_difference"] < 1e-3
+    import onnxruntime as ort  # here: as above
+
+    session = ort.InferenceSession(str(tmp_path / "ens.onnx"), providers=["CPUExecutionProvider"])
+    assert [i.name for i in session.get_inputs()] == ["images", "modes"]
