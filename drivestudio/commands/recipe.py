@@ -1,6 +1,8 @@
 """drivestudio recipe: from nothing to the best learned highway driver in one command (docs/aggregation.md):
-a dataset of the expert, a MobileNet with the previous frame, data-aggregation rounds, and the benchmark of every
-round beside the oracle, ending with the leaderboard. Each step continues where an interrupted run stopped."""
+a dataset of the expert, three MobileNets with the previous frame trained side by side from three seeds, their
+ensemble with the pass memory, and the benchmark of every member and the ensemble beside the oracle, ending with
+the leaderboard. `--members 1 --rounds N` is the recipe as it was: one network and N data-aggregation rounds.
+Each step continues where an interrupted run stopped."""
 from __future__ import annotations
 
 import time
@@ -12,13 +14,16 @@ from drivestudio.cli import main
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count
 from drivestudio.outputs import write_text
+from drivestudio.side_by_side import run_side_by_side
 
 
 @dataclass(frozen=True)
 class Size:
     frames: int = 20000          # the expert dataset
-    iterations: int = 6000       # the first training
-    rounds: int = 3              # aggregation rounds
+    iterations: int = 6000       # each network's training
+    members: int = 3             # networks trained side by side (seeds 0, 1, ...) and driven as one ensemble
+    pass_memory: float = 15.0    # [s] the ensemble's pass memory (docs/controller.md; chosen on the design suites)
+    rounds: int = 0              # aggregation rounds (one network only)
     round_frames: int = 4000
     round_iterations: int = 1500
     history: int = 1             # earlier frames the model reads
@@ -26,66 +31,162 @@ class Size:
 
 
 FULL = Size()
-QUICK = Size(frames=400, iterations=20, rounds=1, round_frames=60, round_iterations=4)
+QUICK = Size(frames=400, iterations=20, members=2, round_frames=60, round_iterations=4)
 
 
 def register(sub) -> None:
-    p = sub.add_parser("recipe", help="from nothing to the best learned highway driver: generate, train, "
-                                      "aggregation rounds, benchmark",
-                       description="Generate the expert dataset, train a MobileNet that reads the previous frame too, "
-                                   "run data-aggregation rounds (the model drives, its frames get exact labels, it is "
-                                   "fine-tuned), then benchmark every round's model beside the oracle on the "
-                                   "held-out suite. About 50 minutes on a 2-core CPU, timed as one run "
-                                   "(docs/aggregation.md); running "
-                                   "the same command again continues where it stopped.")
+    p = sub.add_parser("recipe", help="from nothing to the best learned highway driver: generate, train an "
+                                      "ensemble, benchmark",
+                       description="Generate the expert dataset, train three MobileNets that read the previous frame "
+                                   "too side by side (seeds 0, 1, 2), make them one ensemble with the pass memory, "
+                                   "then benchmark every member and the ensemble beside the oracle on the held-out "
+                                   "suite. About an hour on a 2-core CPU, timed as one run (docs/aggregation.md); "
+                                   "running the same command again continues where it stopped. --members 1 "
+                                   "--rounds N trains one network and runs N data-aggregation rounds instead.")
     p.add_argument("--out", default="out/recipe", help="output folder (default out/recipe)")
     p.add_argument("--quick", action="store_true", help="every step at its smallest (what the tests run)")
     p.add_argument("--frames", type=count(200, 10**7), default=None, help=f"expert frames (default {FULL.frames})")
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
-                   help=f"iterations of the first training (default {FULL.iterations})")
-    p.add_argument("--rounds", type=count(1, 50), default=None, help=f"aggregation rounds (default {FULL.rounds})")
+                   help=f"iterations of each network's training (default {FULL.iterations})")
+    p.add_argument("--members", type=count(1, 8), default=None,
+                   help=f"networks trained side by side, one thread each, and driven as one ensemble (default "
+                        f"{FULL.members}; 1: a single network)")
+    p.add_argument("--rounds", type=count(1, 50), default=None,
+                   help="data-aggregation rounds after the training (only with --members 1; default none)")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
                    help=f"times every epoch shows a decisive frame (a car closer than 20 m ahead in the host's or a "
-                        f"neighbouring lane), in the first training and the rounds (default {FULL.emphasis})")
+                        f"neighbouring lane), in the trainings and the rounds (default {FULL.emphasis})")
     p.add_argument("--suite", default="default", help="the benchmark suite (default: the held-out default suite)")
     p.add_argument("--workers", type=count(1, 256), default=2, help="worker processes (default 2)")
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def sized(args) -> Size:
+    """The recipe's size from --quick and the options given; refuses --rounds with an ensemble."""
     size = QUICK if args.quick else FULL
-    size = replace(size, **{k: v for k, v in (("frames", args.frames), ("iterations", args.iterations),
-                                               ("rounds", args.rounds), ("emphasis", args.emphasis))
-                                   if v is not None})
-    out = make_dir(check_output_dir(args.out))
-    if args.suite not in ("default", "none") and not Path(args.suite).is_file():
-        raise UsageError(f"--suite: no such file: {args.suite}")
-    t_start = time.perf_counter()
-    log: list[str] = []
+    given = {k: v for k, v in (("frames", args.frames), ("iterations", args.iterations), ("members", args.members),
+                               ("rounds", args.rounds), ("emphasis", args.emphasis)) if v is not None}
+    size = replace(size, **given)
+    if size.rounds and size.members > 1:
+        raise UsageError(f"--rounds needs --members 1: an aggregation round fine-tunes one network, and the recipe "
+                         f"trains {size.members}")
+    return size
 
-    def step(title: str, *argv) -> None:
-        t0 = time.perf_counter()
-        print(f"\n== {title}  ({(time.perf_counter() - t_start) / 60:.1f} min so far)\n"
-              f"$ drivestudio {' '.join(map(str, argv))}", flush=True)
-        log.append("drivestudio " + " ".join(map(str, argv)))
+
+class Steps:
+    """The recipe's steps as the verbs a user would run, each timed and logged to commands.txt."""
+
+    def __init__(self, out: Path):
+        self.out = out
+        self.t_start = time.perf_counter()
+        self.log: list[str] = []
+
+    def header(self, title: str, argv_lines: list[list], program: str = "drivestudio") -> float:
+        print(f"\n== {title}  ({(time.perf_counter() - self.t_start) / 60:.1f} min so far)", flush=True)
+        for argv in argv_lines:
+            line = program + " " + " ".join(map(str, argv))
+            print("$ " + line, flush=True)
+            self.log.append(line)
+        return time.perf_counter()
+
+    def done(self, t0: float) -> None:
+        print(f"({(time.perf_counter() - t0) / 60:.1f} min)", flush=True)
+
+    def verb(self, title: str, *argv) -> None:
+        t0 = self.header(title, [list(argv)])
         rc = main([str(a) for a in argv])
         if rc != 0:
             raise SystemExit(rc)
-        print(f"({(time.perf_counter() - t0) / 60:.1f} min)", flush=True)
+        self.done(t0)
 
-    data, model = out / "data", out / "mobilenet.pt"
-    step(f"the expert's dataset: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
-         "--workers", args.workers, "--quiet")
-    step(f"a MobileNet reading the previous frame too: {size.iterations} iterations", "train", "--data", data,
-         "--model", "mobilenet", "--history", size.history, "--out", model, "--iterations", size.iterations,
-         "--val-every", max(10, size.iterations // 6), "--workers", 0, "--device", "cpu",
-         "--emphasis", size.emphasis)
-    step(f"{size.rounds} aggregation round(s) of {size.round_frames} frames, then the benchmark", "aggregate",
-         "--data", data, "--model", model, "--out", out / "aggregation", "--rounds", size.rounds, "--frames",
-         size.round_frames, "--iterations", size.round_iterations, "--emphasis", size.emphasis, "--suite", args.suite,
-         "--workers", args.workers)
-    minutes = (time.perf_counter() - t_start) / 60
-    write_text(out / "commands.txt", "\n".join(log) + "\n")
-    print(f"\nrecipe done in {minutes:.1f} min (this run); the leaderboard: {out / 'aggregation' / 'benchmark'}/"
-          f"leaderboard.md; rounds: {out / 'aggregation' / 'aggregation.md'}")
+    def side_by_side(self, title: str, commands: list[list], logs: list[Path]) -> None:
+        t0 = self.header(title, commands)
+        print(f"  (one thread each; their output in {', '.join(str(log) for log in logs)}; progress every minute)",
+              flush=True)
+        run_side_by_side([[str(a) for a in argv] for argv in commands], logs)
+        self.done(t0)
+
+    def minutes(self) -> float:
+        return (time.perf_counter() - self.t_start) / 60
+
+
+def run(args) -> int:
+    size = sized(args)
+    out = make_dir(check_output_dir(args.out))
+    if args.suite not in ("default", "none") and not Path(args.suite).is_file():
+        raise UsageError(f"--suite: no such file: {args.suite}")
+    steps = Steps(out)
+    data = out / "data"
+    steps.verb(f"the expert's dataset: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
+               "--workers", args.workers, "--quiet")
+    board = ensemble_recipe(steps, size, data, args) if size.members > 1 else single_recipe(steps, size, data, args)
+    write_text(out / "commands.txt", "\n".join(steps.log) + "\n")
+    print(f"\nrecipe done in {steps.minutes():.1f} min (this run); " +
+          (f"the leaderboard: {board}" if board else f"the models are in {out} (no benchmark: --suite none)"))
     return 0
+
+
+def train_argv(size: Size, data: Path, model: Path, seed: int = 0) -> list:
+    return ["train", "--data", data, "--model", "mobilenet", "--history", size.history, "--out", model,
+            "--iterations", size.iterations, "--val-every", max(10, size.iterations // 6), "--workers", 0,
+            "--device", "cpu", "--emphasis", size.emphasis, "--seed", seed]
+
+
+def single_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
+    """One network, then `size.rounds` aggregation rounds with their benchmark (or the benchmark alone)."""
+    model = steps.out / "mobilenet.pt"
+    steps.verb(f"a MobileNet reading the previous frame too: {size.iterations} iterations",
+               *train_argv(size, data, model))
+    if size.rounds:
+        agg = steps.out / "aggregation"
+        steps.verb(f"{size.rounds} aggregation round(s) of {size.round_frames} frames, then the benchmark",
+                   "aggregate", "--data", data, "--model", model, "--out", agg, "--rounds", size.rounds,
+                   "--frames", size.round_frames, "--iterations", size.round_iterations, "--emphasis",
+                   size.emphasis, "--suite", args.suite, "--workers", args.workers)
+        return None if args.suite == "none" else agg / "benchmark" / "leaderboard.md"
+    return benchmark(steps, [model], args)
+
+
+def ensemble_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
+    """`size.members` networks trained side by side from seeds 0, 1, ..., one ensemble of them, its benchmark."""
+    from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
+    from perception.shards import Dataset
+
+    t0 = steps.header("the frame cache, decoded once for every member", [])
+    dataset = Dataset(data)
+    prepare_cache(dataset, dataset.select("train"))   # before the members: they would race to write it
+    steps.done(t0)
+    members = [steps.out / f"member-{k}.pt" for k in range(size.members)]
+    steps.side_by_side(f"{size.members} MobileNets reading the previous frame too, {size.iterations} iterations "
+                       f"each, side by side", [train_argv(size, data, m, seed=k) for k, m in enumerate(members)],
+                       [m.with_suffix(".log") for m in members])
+    ensemble = steps.out / "ensemble.pt"
+    if not ensemble.is_file() or any(m.stat().st_mtime > ensemble.stat().st_mtime for m in members):
+        t0 = steps.header("the ensemble: the closest gap any member reads, the mean of everything else",
+                          [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
+        make_ensemble(members, ensemble)
+        steps.done(t0)
+    return benchmark(steps, [*members, f"{ensemble}@pass_memory={size.pass_memory:g}"], args)
+
+
+def make_ensemble(members: list[Path], ensemble: Path) -> None:
+    from drivestudio.ensemble import make
+    from perception.checkpoint import save_checkpoint
+    save_checkpoint(ensemble, make([str(m) for m in members]))
+
+
+def benchmark(steps: Steps, models: list, args) -> Path | None:
+    """The models beside the oracle on the suite; skipped when its leaderboard is newer than every model."""
+    if args.suite == "none":
+        return None
+    bench = steps.out / "benchmark"
+    board = bench / "leaderboard.md"
+    files = [Path(str(m).split("@")[0]) for m in models]
+    if board.is_file() and all(f.stat().st_mtime < board.stat().st_mtime for f in files):
+        print(f"\n== the benchmark: done before ({board})", flush=True)
+        return board
+    models_argv = [a for m in models for a in ("--model", m)]
+    suite = [] if args.suite == "default" else ["--suite", args.suite]
+    steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
+               "--workers", args.workers, "--quiet", "--out", bench)
+    return board

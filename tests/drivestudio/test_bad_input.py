@@ -115,6 +115,9 @@ CASES = [
     ("study", "--steer-share", "-0.1", "--out", "{root}/study"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
     ("recipe", "--emphasis", "0", "--out", "{root}/recipe"),
+    ("recipe", "--rounds", "2", "--out", "{root}/recipe"),            # rounds fine-tune one network, not three
+    ("recipe", "--members", "0", "--out", "{root}/recipe"),
+    ("recipe", "--members", "9", "--out", "{root}/recipe"),
     # files and their content
     ("probe", "/dev/zero"),
     ("probe", "{root}/deep.json"),

@@ -1,31 +1,65 @@
-"""`drivestudio recipe --quick`: from nothing to a leaderboard of every aggregation round beside the oracle, through
-the verbs a user would run (generate, train, aggregate with its benchmark), on a one-route suite."""
+"""`drivestudio recipe --quick`: from nothing to a leaderboard through the verbs a user would run, on a one-route
+suite: the ensemble recipe (generate, members trained side by side, their ensemble, the benchmark) and the single
+network's (generate, train, aggregate with its benchmark)."""
 import json
 import subprocess
 import sys
 
 import pytest
+import torch
 
-from drivestudio.commands.recipe import FULL
+from drivestudio.commands.recipe import FULL, QUICK
 
 
-@pytest.mark.slow   # about 80 s: every step of the recipe at its smallest (run with pytest -m slow)
-def test_the_recipe_goes_from_nothing_to_the_leaderboard(tmp_path):
+def tiny_suite(tmp_path):
     suite = tmp_path / "tiny.json"
     suite.write_text(json.dumps({"name": "tiny", "routes": [{"name": "oval-1l", "track": "oval", "lanes": 1,
                                                              "cars": 0, "seed": 1, "seconds": 5}]}))
+    return suite
+
+
+def recipe(tmp_path, *options):
     out = tmp_path / "recipe"
     r = subprocess.run([sys.executable, "-m", "drivestudio", "recipe", "--quick", "--out", str(out), "--suite",
-                        str(suite), "--workers", "1"], capture_output=True, text=True, timeout=900)
+                        str(tiny_suite(tmp_path)), "--workers", "1", *options], capture_output=True, text=True,
+                       timeout=900)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    assert "recipe done in" in r.stdout
+    return out, r
+
+
+@pytest.mark.slow   # about 90 s: every step of the recipe at its smallest (run with pytest -m slow)
+def test_the_recipe_trains_members_side_by_side_and_benchmarks_their_ensemble(tmp_path):
+    out, _ = recipe(tmp_path)
+    board = json.loads((out / "benchmark" / "leaderboard.json").read_text())
+    specs = [m["spec"] for m in board["models"]]
+    members = [f"member-{k}.pt" for k in range(QUICK.members)]
+    assert specs[0] == "oracle" and [s.rsplit("/", 1)[-1] for s in specs[1:-1]] == members
+    assert specs[-1].endswith(f"ensemble.pt@pass_memory={FULL.pass_memory:g}")
+    assert all(m["overall"]["route_completion"] > 0 for m in board["models"])
+    # members from different seeds: different weights; the ensemble holds each member's
+    weights = [torch.load(out / m, map_location="cpu", weights_only=False)["state_dict"] for m in members]
+    key = next(k for k, v in weights[0].items() if v.dtype.is_floating_point and v.numel() > 100)
+    assert not torch.equal(weights[0][key], weights[1][key])
+    ensemble = torch.load(out / "ensemble.pt", map_location="cpu", weights_only=False)
+    assert [m["source"].rsplit("/", 1)[-1] for m in ensemble["spec"]["options"]["members"]] == members
+    commands = (out / "commands.txt").read_text().splitlines()
+    assert [c.split()[1] for c in commands] == ["generate", "train", "train", "-m", "benchmark"]
+    assert [c.split("--seed ")[1] for c in commands[1:3]] == ["0", "1"]
+    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:3]) and FULL.emphasis > 1
+    # run again: every step is found done, nothing is trained or driven again
+    _, again = recipe(tmp_path)
+    assert "the benchmark: done before" in again.stdout and "nothing to do" in (out / "member-0.log").read_text()
+
+
+@pytest.mark.slow   # about 80 s
+def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
+    out, _ = recipe(tmp_path, "--members", "1", "--rounds", "1")
     board = json.loads((out / "aggregation" / "benchmark" / "leaderboard.json").read_text())
     specs = [m["spec"] for m in board["models"]]
     assert specs[0] == "oracle" and specs[1].endswith("mobilenet.pt") and specs[2].endswith("round-1/model.pt")
-    assert all(m["overall"]["route_completion"] > 0 for m in board["models"])
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
-    # the first training and the rounds both weigh the decisive frames by the recipe's emphasis
-    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:]) and FULL.emphasis > 1
+    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:])
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
-    assert "recipe done in" in r.stdout
