@@ -15,6 +15,12 @@ other car assumed to hold its speed): a host that slows down to follow the car a
 traffic, keeps a car alongside for longer than its closing rate when seen said, and the crash clips showed the
 lane-preference rule moving into it (docs/aggregation.md). A car that the prediction puts back beyond `near`
 ahead has pulled away into the camera's view and is no longer carried.
+
+The host's speed only ever shortens the carry where it must not: a host that speeds up after losing the car
+reckons it behind sooner, but the traffic it passes often speeds up with it (a platoon moving off together), and
+then the car stays beside the host while the reckoning has it gone. So the lane is given up only once the car is
+`clear_behind` at the rate it was seen closing too (the slower of the two reckonings: the lane stays taken as long
+as either says the car could still be beside the host).
 """
 from __future__ import annotations
 
@@ -40,7 +46,8 @@ class PassMemory:
         self.seen: deque[tuple[int, float]] = deque(maxlen=window)   # (frame, gap) of the last near readings
         self.carried: tuple[int, float, float] | None = None          # (frame, gap, closing rate) when lost
         self.lost_speed: float | None = None   # [m/s] the host's speed at the car's last near reading (None: not given)
-        self.predicted = 0.0                   # [m] the carried gap now
+        self.predicted = 0.0                   # [m] the carried gap now (with the host's speed)
+        self.steady = 0.0                      # [m] the carried gap now at the seen closing rate alone
         self.seen_speed: float | None = None   # [m/s] the host's speed at the last near reading
         self.frame = 0
 
@@ -65,6 +72,7 @@ class PassMemory:
         self.frame += 1
         if self.carried is not None:   # a carried car moves on every frame, seen again or not
             self.predicted -= self._closing(speed) * FRAME_S
+            self.steady -= self.carried[2] * FRAME_S
         if gap < self.near:
             if self.seen and self.seen[-1][0] != self.frame - 1:
                 self.seen.clear()             # not the same stretch of readings
@@ -77,11 +85,12 @@ class PassMemory:
                 self.carried = (self.seen[-1][0], self.seen[-1][1], rate)
                 self.lost_speed = self.seen_speed
                 self.predicted = self.seen[-1][1] - self._closing(speed) * FRAME_S   # one frame on
+                self.steady = self.seen[-1][1] - rate * FRAME_S
         self.seen.clear()
         if self.carried is not None:
             lost = self.carried[0]
-            if -self.clear_behind < self.predicted < self.near and \
-                    self.frame - lost <= round(self.max_s / FRAME_S):
+            behind = -self.clear_behind >= max(self.predicted, self.steady)   # clear behind by both reckonings
+            if not behind and self.predicted < self.near and self.frame - lost <= round(self.max_s / FRAME_S):
                 return max(self.predicted, 0.0)    # alongside or just behind: the lane is still taken
             self.carried = None
         return gap

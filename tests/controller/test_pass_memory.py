@@ -70,3 +70,16 @@ def test_a_host_that_speeds_up_passes_sooner_and_one_that_falls_back_lets_the_ca
     [slower.filter(g, 20.0) for g in seen]
     out = [slower.filter(FAR, 15.0) for _ in range(40)]         # 3 m/s opening: ahead again, beyond 20 m in 3.3 s
     assert out[0] == pytest.approx(10.2 + 0.3, abs=0.01) and out[-1] == FAR
+
+
+def test_a_host_that_speeds_up_gives_the_lane_up_only_when_the_seen_rate_has_the_car_clear_behind_too():
+    """Traffic often speeds up with the host: a car lost at 10.2 m closing at 2 m/s, the host then 2 m/s faster,
+    is 10 m behind after 5.05 s by the host's speed (4 m/s) but only after 10.1 s at the rate it was seen closing;
+    the lane stays taken until both say so."""
+    seen = [16.0 - 0.2 * k for k in range(30)]
+    memory = PassMemory(max_s=30.0)
+    [memory.filter(g, 20.0) for g in seen]
+    out = [memory.filter(FAR, 22.0) for _ in range(120)]
+    assert out[0] == pytest.approx(10.2 - 0.4, abs=0.01)        # the gap read is the host-speed reckoning
+    assert out[50:100] == [0.0] * 50                            # past -10 m by it (5.1 s on), still taken
+    assert out[102:] == [FAR] * 18                              # at the seen rate 10 m behind too: free
