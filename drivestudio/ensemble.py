@@ -17,7 +17,7 @@ from drivestudio.errors import input_errors, refuse
 from drivestudio.parsing import Parser
 from perception.checkpoint import CheckpointError, save_checkpoint
 from perception.ensemble import COMBINE, GAP_PREFIX
-from perception.models import Regressor, describe, load_model
+from perception.models import Regressor, describe, family_title, load_model
 
 SAME_INPUT = ("channels", "height", "width", "instants", "cameras", "scaling", "inset")
 
@@ -50,7 +50,7 @@ def make(paths: list[str], combine: str = "min") -> dict:
     spec["input"].update(mean=[0.0] * c, std=[1.0] * c)
     spec["options"] = {
         "members": [{"name": n.spec["name"], "options": n.spec.get("options", {}), "mean": n.spec["input"]["mean"],
-                     "std": n.spec["input"]["std"], "title": describe(n.spec), "source": str(p)}
+                     "std": n.spec["input"]["std"], "title": family_title(n.spec), "source": str(p)}
                     for p, n in zip(paths, nets)],
         "gaps": [i for i, o in enumerate(spec["outputs"]) if o.startswith(GAP_PREFIX)],
         "combine": combine}

@@ -167,10 +167,15 @@ def declaration_of(spec: dict) -> WorldDeclaration:
         raise CheckpointError(f"the model was trained for a world this installation does not know ({e})") from None
 
 
+def family_title(spec: dict) -> str:
+    """The family's own name for a spec, without the labels or inset beyond the paper's ("MobileNet (2 frames)")."""
+    fam = family(spec["name"])
+    return fam.describe(spec) if fam.describe else fam.title
+
+
 def describe(spec: dict) -> str:
     """A short human name: "AlexNet", "VGG-16 (conv frozen, ImageNet)", "GIST + ridge", "Z2Color (MultiNet)"."""
-    fam = family(spec["name"])
-    text = fam.describe(spec) if fam.describe else fam.title
+    text = family_title(spec)
     extra = [n for n in spec["labels"] if n in ("fast", "lanes_left")]
     inset = frame_inset(spec)
     return text + (f" [+{', '.join(extra)}]" if extra else "") + (f" with {inset}" if inset else "")

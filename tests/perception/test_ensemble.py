@@ -11,7 +11,7 @@ import torch
 from core.worlds.highway import HIGHWAY
 from drivestudio.ensemble import make
 from perception.checkpoint import CheckpointError, save_checkpoint
-from perception.models import build, load_model
+from perception.models import build, describe, load_model
 from perception.predictor import load_predictor
 
 FRAMES = torch.randint(0, 256, (3, 3, 210, 280), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
@@ -107,3 +107,12 @@ def test_it_exports_to_onnx_with_the_documented_inputs(members, tmp_path):
 
     session = ort.InferenceSession(str(tmp_path / "ens.onnx"), providers=["CPUExecutionProvider"])
     assert [i.name for i in session.get_inputs()] == ["images", "modes"]
+
+
+def test_its_name_says_what_the_members_estimate_and_see_once(tmp_path):
+    """Members with the 14th indicator: the ensemble's name carries "[+fast]" once (a member's title is its
+    family's name alone; the labels are the ensemble's own)."""
+    targets = (*HIGHWAY.targets, "fast")
+    paths = [member(tmp_path / f"{k}.pt", k, 0.5, 0.2, targets=targets) for k in (1, 2)]
+    name = describe(make([str(p) for p in paths])["spec"])
+    assert name.count("[+fast]") == 1 and name.startswith("Ensemble of 2 MobileNet"), name
