@@ -150,7 +150,7 @@ def single_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
 def ensemble_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
     """`size.members` networks trained side by side from seeds 0, 1, ..., one ensemble of them, its benchmark."""
     from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
-    from perception.shards import Dataset
+    from perception.shards import Dataset  # pyarrow: only once the recipe runs
 
     t0 = steps.header("the frame cache, decoded once for every member", [])
     dataset = Dataset(data)
@@ -170,8 +170,8 @@ def ensemble_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
 
 
 def make_ensemble(members: list[Path], ensemble: Path) -> None:
-    from drivestudio.ensemble import make
-    from perception.checkpoint import save_checkpoint
+    from drivestudio.ensemble import make  # torch: only once the recipe runs
+    from perception.checkpoint import save_checkpoint  # torch
     save_checkpoint(ensemble, make([str(m) for m in members]))
 
 
