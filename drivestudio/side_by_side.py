@@ -17,6 +17,7 @@ from pathlib import Path
 
 from drivestudio.errors import RunError
 
+# a child that leaves the other cores to its siblings (also the benchmark's route workers)
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 _COUNT = re.compile(rb"(\d+)/(\d+) \[")
 
@@ -52,7 +53,7 @@ def run_side_by_side(commands: list[list[str]], logs: list[Path], every: float =
                 procs.append(subprocess.Popen([sys.executable, "-m", "drivestudio", *argv], stdout=out,
                                               stderr=subprocess.STDOUT, env=env))
         shown = t0
-        while any(p.poll() is None for p in procs):
+        while [p.poll() for p in procs].count(None):   # every child polled: any() would stop at the first running
             failed = [(p, log) for p, log in zip(procs, logs) if p.returncode not in (None, 0)]
             if failed:
                 p, log = failed[0]

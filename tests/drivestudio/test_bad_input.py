@@ -118,6 +118,7 @@ CASES = [
     ("recipe", "--rounds", "2", "--out", "{root}/recipe"),            # rounds fine-tune one network, not three
     ("recipe", "--members", "0", "--out", "{root}/recipe"),
     ("recipe", "--members", "9", "--out", "{root}/recipe"),
+    ("recipe", "--suite", "{root}/deep.json", "--out", "{root}/recipe"),  # a bad suite: refused before training
     # files and their content
     ("probe", "/dev/zero"),
     ("probe", "{root}/deep.json"),

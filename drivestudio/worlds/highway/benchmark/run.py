@@ -16,13 +16,13 @@ from dataclasses import asdict
 from pathlib import Path
 
 from core.signals import exit_on_sigterm
+from drivestudio.side_by_side import ONE_THREAD
 from drivestudio.worker_pool import run_pool, serve
 from drivestudio.worlds.highway.benchmark.models import ModelSpec, slug
 from drivestudio.worlds.highway.benchmark.route import RunOptions, run_route
 from drivestudio.worlds.highway.benchmark.suite import Route, Suite
 
 STOP_WAIT = 5.0    # [s] a worker told to stop (SIGTERM) gets this long to unwind before it is killed
-THREADS_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
 def run_job(job: dict, progress=None) -> dict:
@@ -66,7 +66,7 @@ def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path)
 
 def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
     """Run the jobs on `workers` worker processes; on_progress(simulated seconds), on_done(result)."""
-    run_pool("drivestudio.worlds.highway.benchmark", jobs, workers, on_progress, on_done, _job_name, env=THREADS_ENV,
+    run_pool("drivestudio.worlds.highway.benchmark", jobs, workers, on_progress, on_done, _job_name, env=ONE_THREAD,
              stop_wait=STOP_WAIT)
 
 

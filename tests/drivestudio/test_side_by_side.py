@@ -1,0 +1,52 @@
+"""drivestudio/side_by_side.py, the recipe's runner of its members' trainings: real child processes of the
+`drivestudio` command; progress read from their logs; a child that fails stops the others and names itself. And
+the recipe's rule for a benchmark done before (drivestudio/commands/recipe.py: done_before)."""
+import json
+import os
+import time
+
+import pytest
+
+from drivestudio.commands.recipe import done_before
+from drivestudio.errors import RunError
+from drivestudio.side_by_side import progress, run_side_by_side
+from drivestudio.worlds.highway.benchmark import DEFAULT_SUITE, load_suite
+
+
+def test_progress_is_the_last_count_a_bar_wrote(tmp_path):
+    log = tmp_path / "a.log"
+    assert progress(log) == "-"                                    # not written yet
+    log.write_bytes(b"loading\n")
+    assert progress(log) == "-"
+    log.write_bytes(b"mobilenet:  1%| | 62/6000 [00:30<..]\rmobilenet:  3%| | 196/6000 [01:00<..]\r")
+    assert progress(log) == "196/6000"
+
+
+def test_all_children_run_and_write_their_logs(tmp_path):
+    logs = [tmp_path / "a.log", tmp_path / "b.log"]
+    run_side_by_side([["render", "--help"], ["probe", "--help"]], logs)
+    assert "drivestudio render" in logs[0].read_text() and "drivestudio probe" in logs[1].read_text()
+
+
+def test_a_child_that_fails_stops_the_others_and_is_named(tmp_path):
+    logs = [tmp_path / "slow.log", tmp_path / "bad.log"]
+    t0 = time.perf_counter()
+    with pytest.raises(RunError, match=r"bad\.log: exit status 2: .*missing\.json"):
+        run_side_by_side([["generate", "--out", str(tmp_path / "g"), "--frames", "1000000", "--workers", "1",
+                           "--quiet"], ["probe", str(tmp_path / "missing.json")]], logs)
+    assert time.perf_counter() - t0 < 60          # a million frames were not waited for: the generation was stopped
+
+
+def test_a_benchmark_is_done_before_only_for_the_same_suite_and_newer_than_every_model(tmp_path):
+    model = tmp_path / "m.pt"
+    model.write_bytes(b"x")
+    bench = tmp_path / "benchmark"
+    assert not done_before(bench, "default", [model])             # none yet
+    bench.mkdir()
+    board = bench / "leaderboard.json"
+    board.write_text(json.dumps({"suite": {"sha256": load_suite(DEFAULT_SUITE).sha256}}))
+    os.utime(model, (time.time() - 60, time.time() - 60))
+    assert done_before(bench, "default", [model])
+    assert not done_before(bench, str(DEFAULT_SUITE.parent / "design.json"), [model])   # another suite
+    os.utime(model, (time.time() + 60, time.time() + 60))
+    assert not done_before(bench, "default", [model])             # the model changed since
