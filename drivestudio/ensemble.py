@@ -3,9 +3,11 @@ frames, the closest gap any of them reads is believed, every other output is the
 
     python -m drivestudio.ensemble --out runs/ensemble.pt runs/a.pt runs/b.pt [--gaps mean]
 
-The members must read the same input (camera, size, earlier frames, frame inset) and estimate the same outputs
-with the same normalisation; each keeps its own input statistics. The result drives, benchmarks, evaluates and
-exports as any checkpoint. Bad input is refused in one line (exit status 2) before anything is written.
+The members must read the same input (camera, size, earlier frames, frame inset) of one world; each keeps its own
+input statistics. They may estimate different outputs: the ensemble estimates the union, each output combined over
+the members that estimate it (networks of the paper's 13 with one that learned only the cars beside and behind).
+The result drives, benchmarks, evaluates and exports as any checkpoint. Bad input is refused in one line (exit
+status 2) before anything is written.
 """
 from __future__ import annotations
 
@@ -17,9 +19,15 @@ from drivestudio.errors import input_errors, refuse
 from drivestudio.parsing import Parser
 from perception.checkpoint import CheckpointError, save_checkpoint
 from perception.ensemble import COMBINE, GAP_PREFIX
-from perception.models import Regressor, describe, family_title, load_model
+from perception.models import Regressor, declaration_of, describe, family_title, load_model
 
 SAME_INPUT = ("channels", "height", "width", "instants", "cameras", "scaling", "inset")
+
+
+def union(lists: list[list[str]], order: tuple[str, ...]) -> list[str]:
+    """The names of every list, in the world's declared order."""
+    have = {n for names in lists for n in names}
+    return [n for n in order if n in have]
 
 
 def make(paths: list[str], combine: str = "min") -> dict:
@@ -37,10 +45,9 @@ def make(paths: list[str], combine: str = "min") -> dict:
         if spec["input"].get("scaling") != "standardise":
             raise CheckpointError(f"{path}: a {spec['name']} model scales its input otherwise; an ensemble "
                                   "combines standardising regressors")
-        if (spec["world"], spec["outputs"], spec["normalisation"]) != \
-                (first["world"], first["outputs"], first["normalisation"]):
-            raise CheckpointError(f"{path} estimates other outputs than {paths[0]}; the members must estimate the "
-                                  "same ones")
+        if spec["world"] != first["world"]:
+            raise CheckpointError(f"{path} is a model of the {spec['world']} world, {paths[0]} of the "
+                                  f"{first['world']} world")
         differ = [k for k in SAME_INPUT if spec["input"].get(k) != first["input"].get(k)]
         if differ:
             raise CheckpointError(f"{path} reads another input than {paths[0]} ({', '.join(differ)} differ)")
@@ -48,12 +55,18 @@ def make(paths: list[str], combine: str = "min") -> dict:
     c = int(spec["input"]["channels"])
     spec["name"] = "ensemble"
     spec["input"].update(mean=[0.0] * c, std=[1.0] * c)
-    spec["options"] = {
-        "members": [{"name": n.spec["name"], "options": n.spec.get("options", {}), "mean": n.spec["input"]["mean"],
-                     "std": n.spec["input"]["std"], "title": family_title(n.spec), "source": str(p)}
-                    for p, n in zip(paths, nets)],
-        "gaps": [i for i, o in enumerate(spec["outputs"]) if o.startswith(GAP_PREFIX)],
-        "combine": combine}
+    decl = declaration_of(first)
+    spec["labels"] = union([n.spec["labels"] for n in nets], decl.label_names)
+    spec["outputs"] = union([n.spec["outputs"] for n in nets], decl.outputs(decl.label_names))
+    spec["normalisation"] = decl.normalisation(spec["outputs"])
+    members = []
+    for p, n in zip(paths, nets):
+        members.append({"name": n.spec["name"], "options": n.spec.get("options", {}), "mean": n.spec["input"]["mean"],
+                        "std": n.spec["input"]["std"], "title": family_title(n.spec), "source": str(p)})
+        if n.spec["outputs"] != spec["outputs"]:   # a member of fewer outputs (perception/ensemble.py)
+            members[-1]["estimates"] = [spec["outputs"].index(o) for o in n.spec["outputs"]]
+    spec["options"] = {"members": members, "combine": combine,
+                       "gaps": [i for i, o in enumerate(spec["outputs"]) if o.startswith(GAP_PREFIX)]}
     model = Regressor(spec)
     for member, net in zip(model.net.get_submodule("members").children(), nets):
         member.load_state_dict(net.net.state_dict())
@@ -63,7 +76,8 @@ def make(paths: list[str], combine: str = "min") -> dict:
 def main(argv=None) -> int:
     ap = Parser(prog="python -m drivestudio.ensemble",
                 description="Make one checkpoint of several trained regressors of a world: the closest gap any "
-                            "of them reads, the mean of every other output (docs/aggregation.md).")
+                            "of them reads, the mean of every other output, each over the members that estimate "
+                            "it (docs/aggregation.md).")
     ap.add_argument("checkpoints", nargs="+", help="the members' checkpoint files (two or more)")
     ap.add_argument("--out", required=True, help="the ensemble's checkpoint file to write (.pt)")
     ap.add_argument("--gaps", choices=COMBINE, default="min",

@@ -7,9 +7,15 @@ from other seeds or on other data miss different cars, so the combination believ
 reads (the same asymmetry as the controller-side gap hold: a car seen by one is a car), and averages every other
 output (angle, markings, `fast`, closing speeds), where errors of either sign cancel.
 
+Members may estimate different outputs of one world; each output is combined over the members that estimate it.
+So a network that learned only the cars beside and behind (a trunk of its own for the hard rear outputs, which
+cost the forward gaps their accuracy when they share one: docs/aggregation.md) joins networks of the paper's 13,
+and the ensemble estimates the union.
+
 The members keep their own input statistics: the ensemble's input is the frame scaled to [0, 1] (mean 0, std 1
 in its spec), and each member standardises it with the mean and std it was trained with. Its spec's options hold
-each member's family, options and statistics, and which outputs are gaps; the weights hold every member's.
+each member's family, options and statistics (for a member of fewer outputs, `estimates`: the indices of the
+ensemble's outputs it estimates, in its own order), and which outputs are gaps; the weights hold every member's.
 Made from checkpoints by `python -m drivestudio.ensemble` (docs/aggregation.md), never trained as a whole.
 """
 from __future__ import annotations
@@ -27,8 +33,9 @@ class Ensemble(nn.Module):
     def __init__(self, inp: ModelInput, outputs: int, options: dict) -> None:
         super().__init__()
         members = options["members"]
-        self.members = nn.ModuleList(family(m["name"]).build(inp, outputs, dict(m.get("options", {})))
-                                     for m in members)
+        estimates = [list(m.get("estimates", range(outputs))) for m in members]
+        self.members = nn.ModuleList(family(m["name"]).build(inp, len(e), dict(m.get("options", {})))
+                                     for m, e in zip(members, estimates))
         c = inp.channels
         # (members, C, 1, 1): rank 4, as every tensor of a model the predictor puts in channels-last format
         self.register_buffer("means", torch.tensor([m["mean"] for m in members], dtype=torch.float32)
@@ -39,17 +46,39 @@ class Ensemble(nn.Module):
         gaps[list(options.get("gaps", []))] = True
         self.register_buffer("gaps", gaps)
         self.combine = options.get("combine", "min")
+        # members of fewer outputs: each one's outputs placed among the ensemble's by a one-hot map (its outputs,
+        # the ensemble's), and which outputs each estimates; derived from the spec, so not in the weights
+        self.partial = any(len(e) != outputs for e in estimates)
+        if self.partial:
+            eye = torch.eye(outputs)
+            for i, e in enumerate(estimates):
+                self.register_buffer(f"place_{i}", eye[e], persistent=False)
+            self.register_buffer("estimated", torch.stack([eye[e].sum(dim=0) for e in estimates]) > 0,
+                                 persistent=False)
 
     def forward(self, x: torch.Tensor, modes: torch.Tensor | None = None) -> torch.Tensor:
         """x: frames scaled to [0, 1] (the ensemble's mean 0, std 1) -> the combined normalised outputs."""
         means, stds = self.get_buffer("means"), self.get_buffer("stds")
-        outs = torch.stack([m((x - means[i]) / stds[i], modes) for i, m in enumerate(self.members)])
-        mean = outs.mean(dim=0)
+        outs = [m((x - means[i]) / stds[i], modes) for i, m in enumerate(self.members)]
+        if self.partial:
+            return self._combine_partial(outs)
+        stacked = torch.stack(outs)
+        mean = stacked.mean(dim=0)
         if self.combine != "min":
             return mean
         # a gap's normalisation has a positive scale (core/worlds/highway.py), so the smallest output is the
         # closest car
-        return torch.where(self.get_buffer("gaps"), outs.min(dim=0).values, mean)
+        return torch.where(self.get_buffer("gaps"), stacked.min(dim=0).values, mean)
+
+    def _combine_partial(self, outs: list[torch.Tensor]) -> torch.Tensor:
+        """Each output over the members that estimate it (every output is estimated by one at least)."""
+        placed = torch.stack([o @ self.get_buffer(f"place_{i}") for i, o in enumerate(outs)])   # 0 where not
+        estimated = self.get_buffer("estimated").unsqueeze(1)                                   # (members, 1, out)
+        mean = placed.sum(dim=0) / estimated.sum(dim=0)
+        if self.combine != "min":
+            return mean
+        closest = torch.where(estimated, placed, torch.full_like(placed, float("inf"))).min(dim=0).values
+        return torch.where(self.get_buffer("gaps"), closest, mean)
 
 
 def _fits(decl) -> str:
