@@ -156,7 +156,8 @@ class WorldDeclaration:
     of its surroundings and itself, not the map position nor the outcomes its reward scores. decisive: (label,
     bound) pairs; a step on which any of these labels is below its bound is one on which the world's driver makes
     a rare, costly decision (the highway: a car near ahead in a neighbouring lane), which `train --emphasis W`
-    counts W times an epoch.
+    counts W times an epoch (by the labels among the model's targets: a network does not learn a decision from
+    labels it does not estimate).
     """
 
     name: str

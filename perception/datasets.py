@@ -192,8 +192,9 @@ class FrameStream(torch.utils.data.IterableDataset):
     rank, world_size: in a distributed run (torchrun), each rank reads a disjoint part of the episodes: the episode
     order of an epoch is the same on every rank (seed and epoch), rank r takes every world_size-th episode from
     the r-th, and its DataLoader workers divide those among themselves.
-    emphasis: an epoch yields each of the world's decisive steps (its declaration's `decisive`) this many times,
-    every other step once: the rare states where a misread label is costly weigh more in training."""
+    emphasis: an epoch yields each of the world's decisive steps (its declaration's `decisive`, by the labels among
+    the targets) this many times, every other step once: the rare states where a misread label is costly weigh
+    more in training."""
 
     def __init__(self, root: str | Path, split: str | None = "train", targets=None, normalised: bool = True,
                  shuffle: bool = True, seed: int = 0, buffer: int = 2048, moment: Moment | None = None,
@@ -221,13 +222,19 @@ class FrameStream(torch.utils.data.IterableDataset):
         return self.spec.outputs
 
     def _emphasis(self, weight: int) -> dict[int, np.ndarray]:
-        """Per shard, how often an epoch yields each step: `weight` for the world's decisive steps (read from the
-        labels as recorded, once, before training), 1 for the others; {} when nothing is emphasised."""
+        """Per shard, how often an epoch yields each step: `weight` for the world's decisive steps by the labels
+        among the targets (read as recorded, once, before training), 1 for the others; {} when nothing is
+        emphasised. Why only the targets: a car near behind is no decision a network of the cars ahead can learn,
+        and its frames would only crowd out those it can."""
         if weight == 1:
             return {}
-        rule = worlds.get(self.data.world).decisive
-        if not rule:
+        declared = worlds.get(self.data.world).decisive
+        if not declared:
             raise DatasetError(f"the {self.data.world} world declares no decisive steps to emphasise")
+        rule = [(n, bound) for n, bound in declared if n in self.spec.targets]
+        if not rule:
+            raise DatasetError(f"--emphasis: none of the {self.data.world} world's decisive labels "
+                               f"({', '.join(dict.fromkeys(n for n, _ in declared))}) is a target")
         names = tuple(dict.fromkeys(n for n, _ in rule))
         times = {}
         for k, shard in enumerate(self.shards):

@@ -1,14 +1,16 @@
 """Short real training runs on generated frames: the loss goes down, checkpoints resume where they stopped."""
 import csv
 
+import numpy as np
 import pytest
 import torch
 
-from core.worlds.highway import label_set
+from core.worlds.highway import HIGHWAY, label_set
 from perception.checkpoint import CheckpointError, load_checkpoint
 from perception.curves import curve_paths
-from perception.datasets import FrameDataset, FrameStream
+from perception.datasets import DatasetError, FrameDataset, FrameStream
 from perception.models import family
+from perception.shards import Dataset
 from perception.train import train
 from perception.training import TrainConfig, absolute_loss, euclidean_loss
 from tests.perception.frames import alexnet_checkpoint, dataset, gist_checkpoint, tiny_config, workdir
@@ -81,6 +83,22 @@ def test_emphasis_trains_on_the_decisive_frames_repeated_and_records_it():
     assert len(repeated) > len(plain)     # the tiny set's traffic holds decisive frames
     assert any(f"on {len(repeated)} frames" in line and "decisive frames 4 times each" in line for line in lines)
     assert load_checkpoint(path)["train"]["config"]["emphasis"] == 4
+
+
+def test_emphasis_counts_the_decisive_labels_among_the_targets_only():
+    """A network of the cars behind is emphasised on a near car behind, one of the paper's 13 on a near car ahead,
+    each step as its labels say; a model that learns none of the decisive labels is refused."""
+    data = Dataset(dataset())
+    for targets, names in ((HIGHWAY.targets, ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")),
+                           (("fast", "dist_LB", "dist_RB"), ("dist_LB", "dist_RB"))):
+        stream = FrameStream(dataset(), "train", targets=targets, emphasis=3)
+        for k, shard in enumerate(stream.shards):
+            table = data.reader(shard).labels(names)
+            near = np.logical_or.reduce([table.column(n).to_numpy() < 20.0 for n in names])
+            np.testing.assert_array_equal(stream.times[k], np.where(near, 3, 1))
+        assert any((t == 3).any() for t in stream.times.values()), targets   # the tiny set holds such steps
+    with pytest.raises(DatasetError, match="none of the highway world's decisive labels"):
+        FrameStream(dataset(), "train", targets=("angle",), emphasis=3)
 
 
 def test_alexnet_training_lowers_the_loss_on_real_frames():
