@@ -49,9 +49,6 @@ REAR: tuple[str, ...] = ("dist_LB", "dist_RB", "closing_LB", "closing_RB")
 REAR_RANGE = 100.0      # [m] rear gaps are measured up to this; also their inactive value
 CLOSING_INACTIVE = 0.0  # [m/s] closing speed when no car is within REAR_RANGE or the lane does not exist
 HOST_LENGTH = 4.6       # [m] the host car's body (sim/highway/vehicle.py VehicleParams.length, SUMO's host)
-# [m] a car this near beside or behind decides a lane change of the lookout controller: its safe gap for a car
-# closing at up to 6 m/s at 15-20 m/s (controller/highway/lookout.py safe_gap); the frames a trainer may emphasise
-REAR_OCCUPIED = 20.0
 
 # Named label sets (`train --labels NAME`): the paper's 13 stay the default; `extended` adds `fast`, `lanes_left`
 # and the four above. Names and order are fixed once published: models trained on a set depend on them.
@@ -202,10 +199,9 @@ HIGHWAY = WorldDeclaration(
     # the frames on which a misread gap costs a collision: a car near ahead in a neighbouring lane, in either
     # system (rule 1's occupancy: the Chen controller decides a lane change on it), or in the host's own lane (the
     # follow law brakes on it); rare in an expert's data. The host lane's car was added after the design suite
-    # showed it, the cars beside and behind after the crash clips of a network that learned them read a car in the
-    # mirror 30 m too far (docs/aggregation.md); a model is emphasised on those of its own targets
-    decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R"))
-    + tuple((g, REAR_OCCUPIED) for g in ("dist_LB", "dist_RB")),
+    # showed it (docs/aggregation.md). A near car behind was tried too, for a network of the rear labels, and
+    # drove worse on both design suites (docs/aggregation.md)
+    decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")),
 )
 
 # The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came
@@ -213,5 +209,4 @@ HIGHWAY = WorldDeclaration(
 HIGHWAY_WITHOUT_REAR = replace(
     HIGHWAY, labels=tuple(lab for lab in HIGHWAY.labels if lab.name not in REAR),
     truth=tuple(q for q in HIGHWAY.truth if q.name not in REAR),
-    label_sets=tuple((n, v) for n, v in HIGHWAY.label_sets if not set(v) & set(REAR)),
-    decisive=tuple((n, bound) for n, bound in HIGHWAY.decisive if n not in REAR))
+    label_sets=tuple((n, v) for n, v in HIGHWAY.label_sets if not set(v) & set(REAR)))
