@@ -97,7 +97,7 @@ def test_emphasis_counts_the_decisive_labels_among_the_targets_only():
             table = data.reader(shard).labels(names)
             near = np.logical_or.reduce([table.column(n).to_numpy() < 20.0 for n in names])
             np.testing.assert_array_equal(stream.times[k], np.where(near, 3, 1))
-    wide, narrow = (sum(FrameStream(dataset(), "train", targets=t, emphasis=3).times[k].sum() for k in range(8))
+    wide, narrow = (sum(int(n.sum()) for n in FrameStream(dataset(), "train", targets=t, emphasis=3).times.values())
                     for t in (HIGHWAY.targets, ("angle", "dist_MM")))
     assert wide > narrow   # the tiny set's near cars are in a neighbouring lane: they count only where learned
     with pytest.raises(DatasetError, match="none of the highway world's decisive labels"):
