@@ -74,3 +74,32 @@ def test_the_pass_memory_carries_only_the_neighbour_gaps_of_a_car_being_passed()
     assert e[20][ll] == 60.0 and e[25][MM] == pytest.approx(8.0 + 0.2 * 25)
     without = _estimates(ChenDriver(Scripted([row(k) for k in range(40)])), 40)
     assert without[20][rr] == 60.0
+
+
+class ScriptedRear(Scripted):
+    """A predictor of the rear labels only (as the extended set's rear network), scripted."""
+    outputs = ("dist_LB", "dist_RB", "closing_LB", "closing_RB")
+
+
+def test_the_rear_memory_holds_a_car_lost_from_the_mirror_alongside_on_its_side_only():
+    """docs/controller.md: dist_LB read closing in at 5 m/s and then far is held at 0 with its closing speed for
+    15 m / 5 m/s = 3 s; the right side, whose car keeps its distance, passes through."""
+    lb, rb, clb = ESTIMATE.index("dist_LB"), ESTIMATE.index("dist_RB"), ESTIMATE.index("closing_LB")
+    rows = [(18.0 - 0.5 * k, 12.0, 5.0, 0.0) for k in range(5)] + [(100.0, 12.0, 0.0, 0.0)] * 40
+    e = _estimates(ChenDriver(ScriptedRear(rows), lookout=True, rear_memory=10.0), 45)
+    assert [x[lb] for x in e[5:35]] == [0.0] * 30 and [x[clb] for x in e[5:35]] == [5.0] * 30
+    assert e[35][lb] == 100.0 and e[35][clb] == 0.0
+    assert all(x[rb] == 12.0 for x in e)
+    without = _estimates(ChenDriver(ScriptedRear(rows), lookout=True), 45)
+    assert without[5][lb] == 100.0
+
+
+def test_the_rear_memory_forgets_once_the_host_is_on_the_marking():
+    from controller.highway.chen import LEFT_1, LEFT_2
+    lb = ESTIMATE.index("dist_LB")
+    rows = [(16.0, 100.0, 5.0, 0.0)] * 5 + [(100.0, 100.0, 0.0, 0.0)] * 10
+    driver = ChenDriver(ScriptedRear(rows), lookout=True, rear_memory=10.0)
+    driver.controller = SimpleNamespace(state=LEFT_1)      # phase 1: still in its lane, L2 reads the memory
+    assert _estimates(driver, 6)[-1][lb] == 0.0
+    driver.controller = SimpleNamespace(state=LEFT_2)      # on the marking: dist_LB changes meaning
+    assert _estimates(driver, 1)[-1][lb] == 100.0

@@ -156,3 +156,13 @@ def test_aggregation_drives_the_learner_as_the_benchmark_does(models, extended_m
         assert plugin.declaration_for(options).cameras[0].inset == ("mirror" if name == "extended" else "")
     finally:
         world.close()
+
+
+def test_the_rear_memory_is_refused_for_a_model_that_reads_nothing_behind(models):
+    """--rear-memory holds the rear labels: a model of the paper's 13 has none, and is refused in one line."""
+    args = drive_args(models["mirror"])
+    args.rear_memory = 10.0
+    with pytest.raises(UsageError, match="--rear-memory holds the rear labels .* which .*mirror.pt does not"):
+        Plugin().driver(str(models["mirror"]), args, MIRRORED)
+    args.rear_memory = 0.0
+    assert Plugin().driver(str(models["mirror"]), args, MIRRORED).rear_memory == []

@@ -8,10 +8,11 @@ import time
 import numpy as np
 
 from controller.highway import ChenController
-from controller.highway.chen import KEEP
+from controller.highway.chen import KEEP, LEFT_2, RIGHT_2
 from controller.highway.expert import PerturbedExpert
 from controller.highway.lookout import NOTHING_BEHIND, LookoutController
 from controller.highway.pass_memory import PassMemory
+from controller.highway.rear_memory import RearMemory
 from core.worlds.highway import HIGHWAY, INDICATORS, REAR
 from drivestudio.loop import Percept
 from perception.history import History
@@ -22,6 +23,7 @@ _GAPS = [i for i, n in enumerate(ESTIMATE) if n.startswith("dist_")]
 _TRUTH_OF_ESTIMATE = [HIGHWAY.index(n) for n in ESTIMATE]   # every label is a field of the truth record
 _REAR = [ESTIMATE_INDEX[n] for n in REAR]
 _NEIGHBOUR_GAPS = [ESTIMATE_INDEX["dist_LL"], ESTIMATE_INDEX["dist_RR"]]   # what the controller's rule 1 reads
+_REAR_SIDES = [(ESTIMATE_INDEX[f"dist_{k}B"], ESTIMATE_INDEX[f"closing_{k}B"]) for k in "LR"]   # what L1 reads
 
 # the drivers on exact labels, by --model name: whether each looks beside and behind (controller/highway/lookout.py)
 ORACLES = {"oracle": False, "oracle-extended": True}
@@ -55,13 +57,16 @@ class ChenDriver:
     lane count is known."""
 
     def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0, lookout: bool = False,
-                 pass_memory: float = 0.0):
+                 pass_memory: float = 0.0, rear_memory: float = 0.0):
         self.predictor = predictor
         self.lookout = lookout
         self.smoothing, self.gap_hold = smoothing, gap_hold
         # a car being passed in a neighbour lane, carried on unseen (controller/highway/pass_memory.py)
         self.pass_memory = [PassMemory(max_s=pass_memory) for _ in _NEIGHBOUR_GAPS] \
             if pass_memory > 0 and predictor is not None else []
+        # a car seen closing in the mirror, held alongside once lost (controller/highway/rear_memory.py)
+        self.rear_memory = [RearMemory(max_s=rear_memory) for _ in _REAR_SIDES] \
+            if rear_memory > 0 and predictor is not None and lookout else []
         self.timings = {"perception": 0.0, "control": 0.0}
         self.controller: ChenController | None = None
         self._i_speed, self._i_lanes = HIGHWAY.index("speed"), HIGHWAY.index("lanes")
@@ -94,14 +99,22 @@ class ChenDriver:
             if self._held is not None:
                 est[_GAPS] = np.fmin(est[_GAPS], self.gap_hold * self._held + (1 - self.gap_hold) * est[_GAPS])
             self._held = est[_GAPS].copy()
-        if self.pass_memory:
-            changing = self.controller is not None and self.controller.state != KEEP   # the lanes change meaning
-            speed = float(percept.record[self._i_speed])
-            for memory, i in zip(self.pass_memory, _NEIGHBOUR_GAPS):
-                if changing:
-                    memory.reset()
-                est[i] = memory.filter(float(est[i]), speed)
+        self._remember(est, float(percept.record[self._i_speed]))
         return est
+
+    def _remember(self, est: np.ndarray, speed: float) -> None:
+        """The memories of cars out of view, in place: the pass memory on the neighbour gaps ahead, the rear memory
+        on the gaps and closing speeds behind. A lane change forgets them (the lanes change meaning): the pass
+        memory for its whole length, the rear memory once the host is on the marking (until then L2 reads it)."""
+        state = KEEP if self.controller is None else self.controller.state
+        for memory, i in zip(self.pass_memory, _NEIGHBOUR_GAPS):
+            if state != KEEP:
+                memory.reset()
+            est[i] = memory.filter(float(est[i]), speed)
+        for rear, (g, c) in zip(self.rear_memory, _REAR_SIDES):
+            if state in (LEFT_2, RIGHT_2):
+                rear.reset()
+            est[g], est[c] = rear.filter(float(est[g]), float(est[c]))
 
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
         t0 = time.perf_counter()

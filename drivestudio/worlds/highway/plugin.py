@@ -64,6 +64,10 @@ class Plugin(base.Plugin):
                         help="carry a car being passed in a neighbour lane on at its closing rate once the camera "
                         "loses it, until it is 10 m behind the host or for at most S seconds, 0-60 (default 0: "
                         "none; docs/controller.md)")
+            options.add(self.name, g, "--rear-memory", type=finite(0.0, 60.0), metavar="S",
+                        help="hold a car that the mirror loses while it closes in alongside, for as long as it takes "
+                        "to pass the host or at most S seconds, 0-60 (default 0: none; a model of the rear labels "
+                        "only; docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
@@ -147,9 +151,14 @@ class Plugin(base.Plugin):
             had = "with" if predictor.inset else "without"
             raise UsageError(f"{model} learned frames {had} the rear-view mirror and this world renders "
                              f"{'one' if declaration.cameras[0].inset else 'none'}: start the world {had} --mirror")
+        lookout = reads_behind(predictor.outputs)
+        rear_memory = getattr(args, "rear_memory", None) or 0.0
+        if rear_memory and not lookout:
+            raise UsageError(f"--rear-memory holds the rear labels (dist_LB, dist_RB, closing_LB, closing_RB), "
+                             f"which {model} does not estimate")
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
-                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=reads_behind(predictor.outputs),
-                          pass_memory=getattr(args, "pass_memory", None) or 0.0)
+                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=lookout,
+                          pass_memory=getattr(args, "pass_memory", None) or 0.0, rear_memory=rear_memory)
 
     def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
@@ -203,7 +212,8 @@ class Plugin(base.Plugin):
     def driver_args(self, args) -> list[str]:
         out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
         out += ["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else []
-        return out + (["--pass-memory", str(args.pass_memory)] if getattr(args, "pass_memory", None) else [])
+        out += ["--pass-memory", str(args.pass_memory)] if getattr(args, "pass_memory", None) else []
+        return out + (["--rear-memory", str(args.rear_memory)] if getattr(args, "rear_memory", None) else [])
 
     def recorder(self, world, path, label: str):
         return OverlayRecorder(path, world, label)
