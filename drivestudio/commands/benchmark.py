@@ -4,6 +4,7 @@
     benchmark --model runs/gist.pt --model runs/alexnet.pt       two checkpoints (the oracle row is always added)
     benchmark --model runs/alexnet.pt@smoothing=0.5              the controller smooths the estimates (0-0.95)
     benchmark --model runs/alexnet.pt@gap_hold=0.8               ... or holds the gaps (a closer car at once)
+    benchmark --model runs/ex.pt@pass_memory=15,rear_memory=10   ... or remembers the cars out of view
     benchmark --model runs/ppo-highway.zip                       a trained policy on the exact affordances
     benchmark --suite my-suite.json --workers 2 --shm --out DIR
 
@@ -46,9 +47,9 @@ def register(sub) -> None:
     p = sub.add_parser("benchmark", help="drive fixed routes with every model and rank them by driving score",
                        description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", action="append", metavar="M",
-                   help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B, or a policy "
-                        "(a saved Stable-Baselines3 .zip, or policy:MODULE:NAME); repeat for more rows (default: the "
-                        "oracle alone; the oracle row is always added as the upper bound)")
+                   help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B,pass_memory=S,"
+                        "rear_memory=S, or a policy (a saved Stable-Baselines3 .zip, or policy:MODULE:NAME); repeat "
+                        "for more rows (default: the oracle alone; the oracle row is always added as the upper bound)")
     p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from drivestudio.commands.recipe import FULL, QUICK
+from drivestudio.commands.recipe_extended import EXTENDED, REAR_TARGETS, Extended
 
 
 def tiny_suite(tmp_path):
@@ -63,3 +64,39 @@ def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
     assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:])
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
+
+
+@pytest.mark.slow   # about 2 minutes
+def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(tmp_path):
+    out, _ = recipe(tmp_path, "--extended")
+    board = json.loads((out / "benchmark" / "leaderboard.json").read_text())
+    specs = [m["spec"] for m in board["models"]]
+    assert specs[:2] == ["oracle", "oracle-extended"]
+    assert specs[2].endswith(f"ensemble.pt@pass_memory={EXTENDED.pass_memory:g},rear_memory={EXTENDED.rear_memory:g}")
+    assert "lookout" in board["models"][2]["model"]
+    ensemble = torch.load(out / "ensemble.pt", map_location="cpu", weights_only=False)
+    sources = [m["source"] for m in ensemble["spec"]["options"]["members"]]
+    assert [s.split("/")[-3:] for s in sources[:2]] == [[f"aggregation-{k}", "round-1", "model.pt"] for k in (0, 1)]
+    assert sources[2].endswith("rear.pt") and set(ensemble["spec"]["outputs"]) >= {"dist_LB", "closing_RB", "dist_MM"}
+    commands = (out / "commands.txt").read_text().splitlines()
+    assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "aggregate",
+                                                "aggregate", "-m", "benchmark"]
+    assert "--mirror --lanes 1,2,3 " in commands[0] and "--mirror --lanes 1,2,3,4 " in commands[1]
+    assert f"--targets {REAR_TARGETS}" in commands[4] and "--emphasis" not in commands[4]
+    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4] + commands[5:7])
+    assert all(f"--beta {EXTENDED.beta:g}" in c for c in commands[5:7])
+
+
+def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
+    from types import SimpleNamespace
+
+    from drivestudio.commands.recipe import Size, sized
+    from drivestudio.errors import UsageError
+    none = dict(frames=None, iterations=None, members=None, rounds=None, emphasis=None, quick=False)
+    assert sized(SimpleNamespace(**none, extended=False)) == FULL
+    assert sized(SimpleNamespace(**{**none, "rounds": 2, "members": 3}, extended=True)) == \
+        Extended(rounds=2, members=3)
+    assert isinstance(sized(SimpleNamespace(**{**none, "quick": True}, extended=True)), Extended)
+    with pytest.raises(UsageError, match="--rounds needs --members 1"):
+        sized(SimpleNamespace(**{**none, "rounds": 2}, extended=False))
+    assert isinstance(sized(SimpleNamespace(**{**none, "rounds": 2, "members": 1}, extended=False)), Size)

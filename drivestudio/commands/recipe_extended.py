@@ -1,0 +1,87 @@
+"""`drivestudio recipe --extended`: the best learned driver of the extended label set (docs/aggregation.md, the
+recipe): networks of the paper's 13 and one of the cars behind, all reading the frame with the rear-view mirror,
+the forward ones improved by an aggregation round each, driven as one ensemble by the lookout controller.
+
+The steps, as the verbs a user would run: two datasets with the mirror (the forward networks' of 1-3 lanes, the
+rear network's with four-lane roads too: a car beside the host exists on both sides of it only there); the
+forward networks (seeds 0, 1, ...) and the rear network trained side by side, one thread each; one aggregation
+round for each forward network, side by side (each driving its own frames with the expert's share `beta`); the
+ensemble of the rounds' networks and the rear network; the benchmark beside both oracles."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
+
+
+@dataclass(frozen=True)
+class Extended:
+    frames: int = 20000          # each of the two datasets
+    iterations: int = 6000       # each network's training
+    members: int = 2             # forward networks of the paper's 13 (seeds 0, 1, ...)
+    rounds: int = 1              # aggregation rounds of each forward network
+    round_frames: int = 6000
+    round_iterations: int = 2000
+    beta: float = 0.25           # the expert's share of the steps in round 1
+    pass_memory: float = 15.0    # [s] the ensemble's memories (docs/controller.md; chosen on the design suites)
+    rear_memory: float = 10.0
+    history: int = 1             # earlier frames each network reads
+    emphasis: int = 4            # the forward networks' decisive frames, in their trainings and rounds
+
+
+EXTENDED = Extended()
+EXTENDED_QUICK = Extended(frames=400, iterations=20, round_frames=60, round_iterations=4)
+
+
+def train_argv(size: Extended, data: Path, model: Path, seed: int, rear: bool) -> list:
+    targets = ["--targets", REAR_TARGETS] if rear else ["--emphasis", size.emphasis]
+    return ["train", "--data", data, "--model", "mobilenet", "--history", size.history, "--out", model,
+            "--iterations", size.iterations, "--val-every", max(10, size.iterations // 6), "--workers", 0,
+            "--device", "cpu", "--seed", seed, *targets]
+
+
+def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int) -> list:
+    return ["aggregate", "--data", data, "--model", model, "--out", out, "--rounds", size.rounds,
+            "--frames", size.round_frames, "--beta", size.beta, "--iterations", size.round_iterations,
+            "--emphasis", size.emphasis, "--suite", "none", "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
+
+
+def extended_recipe(steps, size: Extended, args) -> Path | None:
+    """The steps above; returns the leaderboard (None with --suite none)."""
+    from drivestudio.commands.recipe import benchmark, make_ensemble  # the recipe's shared steps
+    from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
+    from perception.shards import Dataset  # pyarrow: only once the recipe runs
+
+    out = steps.out
+    forward_data, rear_data = out / "data-mirror", out / "data-mirror-4lanes"
+    for data, lanes in ((forward_data, "1,2,3"), (rear_data, "1,2,3,4")):
+        steps.verb(f"the expert's dataset with the mirror, {lanes} lanes: {size.frames} frames", "generate",
+                   "--out", data, "--frames", size.frames, "--mirror", "--lanes", lanes, "--workers", args.workers,
+                   "--quiet")
+    t0 = steps.header("the frame caches, decoded once for every network", [])
+    for data in (forward_data, rear_data):
+        dataset = Dataset(data)
+        prepare_cache(dataset, dataset.select("train"))   # before the trainings: they would race to write it
+    steps.done(t0)
+    forward = [out / f"forward-{k}.pt" for k in range(size.members)]
+    rear = out / "rear.pt"
+    steps.side_by_side(f"{size.members} networks of the paper's 13 and one of the cars behind, {size.iterations} "
+                       f"iterations each, side by side",
+                       [train_argv(size, forward_data, m, k, rear=False) for k, m in enumerate(forward)]
+                       + [train_argv(size, rear_data, rear, 0, rear=True)],
+                       [m.with_suffix(".log") for m in [*forward, rear]])
+    rounds = [out / f"aggregation-{k}" for k in range(size.members)]
+    steps.side_by_side(f"{size.rounds} aggregation round(s) of {size.round_frames} frames for each forward network, "
+                       f"side by side", [aggregate_argv(size, forward_data, m, agg, k)
+                                         for k, (m, agg) in enumerate(zip(forward, rounds))],
+                       [agg.with_suffix(".log") for agg in rounds])
+    members = [agg / f"round-{size.rounds}" / "model.pt" for agg in rounds] + [rear]
+    ensemble = out / "ensemble.pt"
+    if not ensemble.is_file() or any(m.stat().st_mtime > ensemble.stat().st_mtime for m in members):
+        t0 = steps.header("the ensemble: each output over the members that estimate it",
+                          [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
+        make_ensemble(members, ensemble)
+        steps.done(t0)
+    memories = f"pass_memory={size.pass_memory:g},rear_memory={size.rear_memory:g}"
+    return benchmark(steps, ["oracle-extended", f"{ensemble}@{memories}"], args)
