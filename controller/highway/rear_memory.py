@@ -16,6 +16,9 @@ from the last reading: the mirror loses a car only in the blind spot, and the ne
 the mirror as farther than they are (so a gap carried on from the last reading would free the lane too early).
 While carried, a near reading does not end it (a car alongside is misread as near-behind too); the smaller gap and
 the larger closing speed are what the lookout reads. A lane change forgets it (the lanes change meaning).
+
+A driver with the rear memory also hands the cars it passes over to the mirror (controller/highway/pass_memory.py,
+`behind_seen`): the same blind spot hides a passed car that speeds up.
 """
 from __future__ import annotations
 

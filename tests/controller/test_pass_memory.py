@@ -83,3 +83,22 @@ def test_a_host_that_speeds_up_gives_the_lane_up_only_when_the_seen_rate_has_the
     assert out[0] == pytest.approx(10.2 - 0.4, abs=0.01)        # the gap read is the host-speed reckoning
     assert out[50:100] == [0.0] * 50                            # past -10 m by it (5.1 s on), still taken
     assert out[102:] == [FAR] * 18                              # at the seen rate 10 m behind too: free
+
+
+def test_with_a_mirror_a_passed_car_is_given_up_only_once_the_rear_view_has_it():
+    """The hand-over: the reckoning has the car 10 m behind 10.1 s after it was lost (the first test); while the
+    rear view reads nothing near behind it is still alongside, and the lane is free on the first frame it does."""
+    seen = [16.0 - 0.2 * k for k in range(30)]
+    memory = PassMemory(clear_behind=10.0, max_s=30.0)
+    out = [memory.filter(g) for g in seen] + [memory.filter(FAR, None, False) for _ in range(150)]
+    assert out[30 + 102:] == [0.0] * 48                       # behind by the reckoning, not in the mirror: taken
+    assert memory.filter(FAR, None, True) == FAR              # the mirror has it: free
+    plain = PassMemory(clear_behind=10.0, max_s=30.0)
+    assert [plain.filter(g, None, None) for g in seen + [FAR] * 150][30 + 102:] == [FAR] * 48   # no mirror: as before
+
+
+def test_the_hand_over_never_outlasts_max_s():
+    memory = PassMemory(max_s=5.0)
+    out = [memory.filter(g) for g in [16.0 - 0.2 * k for k in range(30)]]
+    out += [memory.filter(FAR, None, False) for _ in range(60)]
+    assert out[30:30 + 50] != [FAR] * 50 and out[30 + 51:] == [FAR] * 9

@@ -103,3 +103,23 @@ def test_the_rear_memory_forgets_once_the_host_is_on_the_marking():
     assert _estimates(driver, 6)[-1][lb] == 0.0
     driver.controller = SimpleNamespace(state=LEFT_2)      # on the marking: dist_LB changes meaning
     assert _estimates(driver, 1)[-1][lb] == 100.0
+
+
+def test_with_the_rear_memory_the_pass_memory_hands_a_passed_car_over_to_the_mirror():
+    """A car passed on the right at 2 m/s is lost at 10.2 m; the reckoning has it 10 m behind 10.1 s on. With the
+    rear memory the lane stays taken until the rear view reads a car near behind on the right (`dist_RB` < 25 m)."""
+    rr, rb = ESTIMATE.index("dist_RR"), ESTIMATE.index("dist_RB")
+
+    class Both(Scripted):
+        outputs = (*INDICATORS[:13], "dist_LB", "dist_RB", "closing_LB", "closing_RB")
+
+    def row(k):
+        r = _row(50.0)
+        r[INDICATORS.index("dist_RR")] = 16.0 - 0.2 * k if k < 30 else 60.0
+        return r + [100.0, 100.0 if k < 150 else 12.0, 0.0, 0.0]   # the mirror has it from frame 150 on
+    rows = [row(k) for k in range(160)]
+    with_mirror = _estimates(ChenDriver(Both(rows), lookout=True, pass_memory=30.0, rear_memory=10.0), 160)
+    assert [e[rr] for e in with_mirror[135:150]] == [0.0] * 15 and with_mirror[150][rr] == 60.0
+    assert with_mirror[151][rb] == 12.0
+    alone = _estimates(ChenDriver(Both(rows), lookout=True, pass_memory=30.0), 160)
+    assert [e[rr] for e in alone[135:150]] == [60.0] * 15

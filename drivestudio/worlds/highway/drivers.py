@@ -107,10 +107,12 @@ class ChenDriver:
         on the gaps and closing speeds behind. A lane change forgets them (the lanes change meaning): the pass
         memory for its whole length, the rear memory once the host is on the marking (until then L2 reads it)."""
         state = KEEP if self.controller is None else self.controller.state
-        for memory, i in zip(self.pass_memory, _NEIGHBOUR_GAPS):
+        for k, (memory, i) in enumerate(zip(self.pass_memory, _NEIGHBOUR_GAPS)):
             if state != KEEP:
                 memory.reset()
-            est[i] = memory.filter(float(est[i]), speed)
+            # with the rear memory, the mirror takes a passed car over (controller/highway/pass_memory.py)
+            behind = bool(est[_REAR_SIDES[k][0]] < self.rear_memory[k].near) if self.rear_memory else None
+            est[i] = memory.filter(float(est[i]), speed, behind)
         for rear, (g, c) in zip(self.rear_memory, _REAR_SIDES):
             if state in (LEFT_2, RIGHT_2):
                 rear.reset()

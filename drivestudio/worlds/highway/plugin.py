@@ -66,8 +66,8 @@ class Plugin(base.Plugin):
                         "none; docs/controller.md)")
             options.add(self.name, g, "--rear-memory", type=finite(0.0, 60.0), metavar="S",
                         help="hold a car that the mirror loses while it closes in alongside, for as long as it takes "
-                        "to pass the host or at most S seconds, 0-60 (default 0: none; a model of the rear labels "
-                        "only; docs/controller.md)")
+                        "to pass the host or at most S seconds, and keep a car being passed until the mirror has it, "
+                        "0-60 (default 0: none; a model of the rear labels only; docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
