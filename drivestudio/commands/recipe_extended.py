@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from drivestudio.commands.recipe_steps import Steps, benchmark, make_ensemble
+
 REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
 
 
@@ -47,9 +49,8 @@ def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int
             "--emphasis", size.emphasis, "--suite", "none", "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
 
 
-def extended_recipe(steps, size: Extended, args) -> Path | None:
+def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
     """The steps above; returns the leaderboard (None with --suite none)."""
-    from drivestudio.commands.recipe import benchmark, make_ensemble  # the recipe's shared steps
     from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
     from perception.shards import Dataset  # pyarrow: only once the recipe runs
 

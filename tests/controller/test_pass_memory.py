@@ -102,3 +102,30 @@ def test_the_hand_over_never_outlasts_max_s():
     out = [memory.filter(g) for g in [16.0 - 0.2 * k for k in range(30)]]
     out += [memory.filter(FAR, None, False) for _ in range(60)]
     assert out[30:30 + 50] != [FAR] * 50 and out[30 + 51:] == [FAR] * 9
+
+
+EXIT = [6.0, 3.0, 1.0, 2.0, 4.0, 7.0, 10.0, 13.0, 16.0, 19.0]   # near, then opening at 30 m/s: the view's edge
+
+
+def test_with_a_mirror_a_car_leaving_the_view_at_its_side_is_beside_the_host_until_the_mirror_has_it():
+    memory = PassMemory(max_s=15.0)
+    out = [memory.filter(g, None, False) for g in EXIT] + [memory.filter(FAR, None, False) for _ in range(50)]
+    assert out[len(EXIT):] == [0.0] * 50                      # lost while opening faster than traffic: beside
+    assert memory.filter(FAR, None, True) == FAR              # the mirror has it: free
+
+
+def test_a_car_pulling_away_or_one_never_near_is_not_taken_for_a_view_exit():
+    away = [5.0 + 0.3 * k for k in range(50)]                  # 3 m/s: traffic moving apart, still in view
+    memory = PassMemory()
+    assert [memory.filter(g, None, False) for g in away + [FAR] * 5][50:] == [FAR] * 5
+    far_exit = [12.0 + 3.0 * k for k in range(3)]              # opening fast, but never nearer than 8 m
+    memory = PassMemory()
+    assert [memory.filter(g, None, False) for g in far_exit + [FAR] * 5][3:] == [FAR] * 5
+    plain = PassMemory()                                       # no mirror: nothing could ever release it
+    assert [plain.filter(g) for g in EXIT + [FAR] * 5][len(EXIT):] == [FAR] * 5
+
+
+def test_a_view_exit_is_held_at_most_max_s():
+    memory = PassMemory(max_s=2.0)
+    out = [memory.filter(g, None, False) for g in EXIT] + [memory.filter(FAR, None, False) for _ in range(30)]
+    assert out[len(EXIT):len(EXIT) + 20] == [0.0] * 20 and out[len(EXIT) + 22:] == [FAR] * 8

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from drivestudio.commands.recipe import done_before
+from drivestudio.commands.recipe_steps import done_before
 from drivestudio.errors import RunError
 from drivestudio.side_by_side import progress, run_side_by_side
 from drivestudio.worlds.highway.benchmark import DEFAULT_SUITE, load_suite

@@ -1,0 +1,81 @@
+"""The recipes' shared steps (drivestudio/commands/recipe.py, recipe_extended.py): the verbs a user would run,
+each timed and logged; the ensemble; the benchmark, skipped when it is newer than its models."""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from drivestudio.cli import main
+from drivestudio.side_by_side import run_side_by_side
+
+
+class Steps:
+    """The recipe's steps as the verbs a user would run, each timed and logged to commands.txt."""
+
+    def __init__(self, out: Path):
+        self.out = out
+        self.t_start = time.perf_counter()
+        self.log: list[str] = []
+
+    def header(self, title: str, argv_lines: list[list], program: str = "drivestudio") -> float:
+        print(f"\n== {title}  ({(time.perf_counter() - self.t_start) / 60:.1f} min so far)", flush=True)
+        for argv in argv_lines:
+            line = program + " " + " ".join(map(str, argv))
+            print("$ " + line, flush=True)
+            self.log.append(line)
+        return time.perf_counter()
+
+    def done(self, t0: float) -> None:
+        print(f"({(time.perf_counter() - t0) / 60:.1f} min)", flush=True)
+
+    def verb(self, title: str, *argv) -> None:
+        t0 = self.header(title, [list(argv)])
+        rc = main([str(a) for a in argv])
+        if rc != 0:
+            raise SystemExit(rc)
+        self.done(t0)
+
+    def side_by_side(self, title: str, commands: list[list], logs: list[Path]) -> None:
+        t0 = self.header(title, commands)
+        print(f"  (one thread each; their output in {', '.join(str(log) for log in logs)}; progress every minute)",
+              flush=True)
+        run_side_by_side([[str(a) for a in argv] for argv in commands], logs)
+        self.done(t0)
+
+    def minutes(self) -> float:
+        return (time.perf_counter() - self.t_start) / 60
+
+
+def make_ensemble(members: list[Path], ensemble: Path) -> None:
+    from drivestudio.ensemble import make  # torch: only once the recipe runs
+    from perception.checkpoint import save_checkpoint  # torch
+    save_checkpoint(ensemble, make([str(m) for m in members]))
+
+
+def benchmark(steps: Steps, models: list, args) -> Path | None:
+    """The models beside the oracle on the suite; skipped when its leaderboard is newer than every model."""
+    if args.suite == "none":
+        return None
+    bench = steps.out / "benchmark"
+    board = bench / "leaderboard.md"
+    if done_before(bench, args.suite, [Path(str(m).split("@")[0]) for m in models if str(m) != "oracle-extended"]):
+        print(f"\n== the benchmark: done before ({board})", flush=True)
+        return board
+    models_argv = [a for m in models for a in ("--model", m)]
+    suite = [] if args.suite == "default" else ["--suite", args.suite]
+    steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
+               "--workers", args.workers, "--quiet", "--out", bench)
+    return board
+
+
+def done_before(bench: Path, suite: str, models: list[Path]) -> bool:
+    """Whether `bench` holds a leaderboard of this suite (the same file content) newer than every model file."""
+    from drivestudio.worlds.highway.benchmark import load_suite  # the world's benchmark: only when asked
+    board = bench / "leaderboard.json"
+    try:
+        drove = json.loads(board.read_text())["suite"]["sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    same = drove == load_suite(None if suite == "default" else suite).sha256
+    return same and all(m.stat().st_mtime < board.stat().st_mtime for m in models)
