@@ -27,6 +27,13 @@ the rear view reads a car near behind in it too (the rear memory's driver passes
 reckoning has behind but the mirror does not show is still alongside, in neither view. A car the host passed
 that then speeds up stays beside it for as long as it likes (a crash clip of the design suites: closing at 4.3
 m/s when lost, at 1.2 m/s two seconds later, and still alongside when the reckoning had it 10 m behind).
+
+The view also loses a car at its side in a way that looks like the car pulling away: a network reads a car that
+the frame's edge cuts off as farther and farther (a replay of that clip: read at 0.2-8 m, then 10, 19, 25, 45 m
+within 1.5 s while the true gap stayed 3 m and then 0). A car cannot open a gap faster than traffic moves apart,
+so with a mirror a car read nearer than `beside` whose readings then open faster than `exit_rate` before it is
+lost is taken to have left the view beside the host: the lane reads 0 until the mirror has the car near behind
+(or `max_s` passed).
 """
 from __future__ import annotations
 
@@ -43,12 +50,17 @@ class PassMemory:
     """One neighbour lane's gap: `filter(g)` once a frame returns the gap the controller should read."""
 
     def __init__(self, near: float = ChenParams.occupied_gap, window: int = 10, min_seen: int = 3,
-                 min_closing: float = 0.2, max_s: float = 10.0, clear_behind: float = 10.0):
+                 min_closing: float = 0.2, max_s: float = 10.0, clear_behind: float = 10.0, beside: float = 8.0,
+                 exit_rate: float = 6.0):
         self.near = near                  # [m] a reading below this is a car (the controller's occupied gap)
         self.min_seen = min_seen          # near readings in a row before a car counts as seen
         self.min_closing = min_closing    # [m/s] slower closing: the car is not being passed
         self.max_s = max_s                # [s] longest a car is carried on unseen
         self.clear_behind = clear_behind  # [m] how far behind the host a passed car must be before its lane is free
+        self.beside = beside              # [m] a car read this close has the view's edge a few metres on (the exit)
+        self.exit_rate = exit_rate        # [m/s] readings opening faster than traffic moves apart: leaving the view
+        self.closest = np.inf             # [m] the nearest reading of the present stretch of near readings
+        self.exited = False               # the carried car left the view at its side (held until the mirror has it)
         self.seen: deque[tuple[int, float]] = deque(maxlen=window)   # (frame, gap) of the last near readings
         self.carried: tuple[int, float, float] | None = None          # (frame, gap, closing rate) when lost
         self.lost_speed: float | None = None   # [m/s] the host's speed at the car's last near reading (None: not given)
@@ -60,6 +72,7 @@ class PassMemory:
     def reset(self) -> None:
         self.seen.clear()
         self.carried = None
+        self.closest = np.inf
 
     def closing_rate(self) -> float:
         """[m/s] how fast the gap shrank over the near readings (least-squares slope, positive when closing)."""
@@ -84,22 +97,30 @@ class PassMemory:
         if gap < self.near:
             if self.seen and self.seen[-1][0] != self.frame - 1:
                 self.seen.clear()             # not the same stretch of readings
+                self.closest = np.inf
             self.seen.append((self.frame, gap))
+            self.closest = min(self.closest, gap)
             self.seen_speed = speed
             return gap                        # a carried car stays carried: a flickering reading does not end it
         if self.carried is None and len(self.seen) >= self.min_seen and self.seen[-1][0] == self.frame - 1:
             rate = self.closing_rate()
-            if rate > self.min_closing:
+            self.exited = behind_seen is not None and self.closest < self.beside and rate < -self.exit_rate
+            if rate > self.min_closing or self.exited:
                 self.carried = (self.seen[-1][0], self.seen[-1][1], rate)
                 self.lost_speed = self.seen_speed
                 self.predicted = self.seen[-1][1] - self._closing(speed) * FRAME_S   # one frame on
                 self.steady = self.seen[-1][1] - rate * FRAME_S
         self.seen.clear()
+        self.closest = np.inf
         if self.carried is not None:
-            lost = self.carried[0]
-            behind = -self.clear_behind >= max(self.predicted, self.steady)   # clear behind by both reckonings
-            behind = behind and behind_seen is not False     # ... and, with a mirror, in its view (the hand-over)
-            if not behind and self.predicted < self.near and self.frame - lost <= round(self.max_s / FRAME_S):
-                return max(self.predicted, 0.0)    # alongside or just behind: the lane is still taken
+            in_time = self.frame - self.carried[0] <= round(self.max_s / FRAME_S)
+            if self.exited:   # beside the host until the mirror has it
+                if in_time and not behind_seen:
+                    return 0.0
+            else:
+                behind = -self.clear_behind >= max(self.predicted, self.steady)   # clear behind by both reckonings
+                behind = behind and behind_seen is not False   # ... and, with a mirror, in its view (the hand-over)
+                if not behind and self.predicted < self.near and in_time:
+                    return max(self.predicted, 0.0)    # alongside or just behind: the lane is still taken
             self.carried = None
         return gap
