@@ -11,7 +11,7 @@ from pathlib import Path
 
 from core.files import check_output_dir, make_dir
 from drivestudio.commands.recipe_extended import EXTENDED, EXTENDED_QUICK, Extended, extended_recipe
-from drivestudio.commands.recipe_steps import Steps, benchmark, make_ensemble
+from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count
 from drivestudio.outputs import write_text
@@ -135,9 +135,6 @@ def ensemble_recipe(steps: Steps, size: Size, data: Path, args) -> Path | None:
                        f"each, side by side", [train_argv(size, data, m, seed=k) for k, m in enumerate(members)],
                        [m.with_suffix(".log") for m in members])
     ensemble = steps.out / "ensemble.pt"
-    if not ensemble.is_file() or any(m.stat().st_mtime > ensemble.stat().st_mtime for m in members):
-        t0 = steps.header("the ensemble: the closest gap any member reads, the mean of everything else",
-                          [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
-        make_ensemble(members, ensemble)
-        steps.done(t0)
+    ensemble_step(steps, "the ensemble: the closest gap any member reads, the mean of everything else", members,
+                  ensemble)
     return benchmark(steps, [*members, f"{ensemble}@pass_memory={size.pass_memory:g}"], args)

@@ -3,7 +3,7 @@ recipe): networks of the paper's 13 and one of the cars behind, all reading the 
 the forward ones improved by an aggregation round each, driven as one ensemble by the lookout controller.
 
 The steps, as the verbs a user would run: two datasets with the mirror (the forward networks' of 1-3 lanes, the
-rear network's with four-lane roads too: a car beside the host exists on both sides of it only there); the
+rear network's with four-lane roads too: more lanes with a car beside the host on both sides); the
 forward networks (seeds 0, 1, ...) and the rear network trained side by side, one thread each; one aggregation
 round for each forward network, side by side (each driving its own frames with the expert's share `beta`); the
 ensemble of the rounds' networks and the rear network; the benchmark beside both oracles."""
@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivestudio.commands.recipe_steps import Steps, benchmark, make_ensemble
+from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step
 
 REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
 
@@ -79,10 +79,6 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
                        [agg.with_suffix(".log") for agg in rounds])
     members = [agg / f"round-{size.rounds}" / "model.pt" for agg in rounds] + [rear]
     ensemble = out / "ensemble.pt"
-    if not ensemble.is_file() or any(m.stat().st_mtime > ensemble.stat().st_mtime for m in members):
-        t0 = steps.header("the ensemble: each output over the members that estimate it",
-                          [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
-        make_ensemble(members, ensemble)
-        steps.done(t0)
+    ensemble_step(steps, "the ensemble: each output over the members that estimate it", members, ensemble)
     memories = f"pass_memory={size.pass_memory:g},rear_memory={size.rear_memory:g}"
     return benchmark(steps, ["oracle-extended", f"{ensemble}@{memories}"], args)

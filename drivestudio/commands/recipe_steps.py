@@ -9,6 +9,8 @@ from pathlib import Path
 from drivestudio.cli import main
 from drivestudio.side_by_side import run_side_by_side
 
+EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
+
 
 class Steps:
     """The recipe's steps as the verbs a user would run, each timed and logged to commands.txt."""
@@ -53,13 +55,22 @@ def make_ensemble(members: list[Path], ensemble: Path) -> None:
     save_checkpoint(ensemble, make([str(m) for m in members]))
 
 
+def ensemble_step(steps: Steps, title: str, members: list[Path], ensemble: Path) -> None:
+    """The members as one ensemble, unless `ensemble` is newer than every member (made before)."""
+    if ensemble.is_file() and all(m.stat().st_mtime <= ensemble.stat().st_mtime for m in members):
+        return
+    t0 = steps.header(title, [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
+    make_ensemble(members, ensemble)
+    steps.done(t0)
+
+
 def benchmark(steps: Steps, models: list, args) -> Path | None:
     """The models beside the oracle on the suite; skipped when its leaderboard is newer than every model."""
     if args.suite == "none":
         return None
     bench = steps.out / "benchmark"
     board = bench / "leaderboard.md"
-    if done_before(bench, args.suite, [Path(str(m).split("@")[0]) for m in models if str(m) != "oracle-extended"]):
+    if done_before(bench, args.suite, [Path(str(m).split("@")[0]) for m in models if str(m) not in EXACT]):
         print(f"\n== the benchmark: done before ({board})", flush=True)
         return board
     models_argv = [a for m in models for a in ("--model", m)]
