@@ -48,13 +48,17 @@ def register(sub) -> None:
     p.add_argument("--extended", action="store_true",
                    help="the extended label set's driver instead: two networks of the paper's 13 (--members) and one "
                         "of the cars behind, all with the rear-view mirror, an aggregation round (--rounds) for each "
-                        "forward network, their ensemble with the lookout controller; about 80 minutes")
+                        "forward network, their ensemble with the lookout controller; 78 minutes")
     p.add_argument("--frames", type=count(200, 10**7), default=None, help=f"expert frames (default {FULL.frames})")
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
                    help=f"iterations of each network's training (default {FULL.iterations})")
     p.add_argument("--members", type=count(1, 8), default=None,
                    help=f"networks trained side by side, one thread each, and driven as one ensemble (default "
                         f"{FULL.members}; 1: a single network)")
+    p.add_argument("--rear-members", type=count(1, 4), default=None,
+                   help=f"with --extended: networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of "
+                        f"theirs believed (default {EXTENDED.rear_members}; 2 builds the best driver measured, about "
+                        f"20 minutes more)")
     p.add_argument("--rounds", type=count(1, 50), default=None,
                    help="data-aggregation rounds after the training (only with --members 1; default none)")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
@@ -72,6 +76,11 @@ def sized(args) -> Size | Extended:
         QUICK if args.quick else FULL
     given = {k: v for k, v in (("frames", args.frames), ("iterations", args.iterations), ("members", args.members),
                                ("rounds", args.rounds), ("emphasis", args.emphasis)) if v is not None}
+    rear_members = getattr(args, "rear_members", None)
+    if rear_members is not None:
+        if not isinstance(size, Extended):
+            raise UsageError("--rear-members is of the extended recipe: give --extended too")
+        given["rear_members"] = rear_members
     size = replace(size, **given)
     if isinstance(size, Size) and size.rounds and size.members > 1:
         raise UsageError(f"--rounds needs --members 1: an aggregation round fine-tunes one network, and the recipe "

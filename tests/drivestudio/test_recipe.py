@@ -68,7 +68,7 @@ def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
 
 @pytest.mark.slow   # about 2 minutes
 def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(tmp_path):
-    out, _ = recipe(tmp_path, "--extended")
+    out, _ = recipe(tmp_path, "--extended", "--rear-members", "2")
     board = json.loads((out / "benchmark" / "leaderboard.json").read_text())
     specs = [m["spec"] for m in board["models"]]
     assert specs[:2] == ["oracle", "oracle-extended"]
@@ -77,14 +77,17 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     ensemble = torch.load(out / "ensemble.pt", map_location="cpu", weights_only=False)
     sources = [m["source"] for m in ensemble["spec"]["options"]["members"]]
     assert [s.split("/")[-3:] for s in sources[:2]] == [[f"aggregation-{k}", "round-1", "model.pt"] for k in (0, 1)]
-    assert sources[2].endswith("rear.pt") and set(ensemble["spec"]["outputs"]) >= {"dist_LB", "closing_RB", "dist_MM"}
+    assert [s.rsplit("/", 1)[-1] for s in sources[2:]] == ["rear.pt", "rear-1.pt"]
+    assert set(ensemble["spec"]["outputs"]) >= {"dist_LB", "closing_RB", "dist_MM"}
     commands = (out / "commands.txt").read_text().splitlines()
-    assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "aggregate",
-                                                "aggregate", "-m", "benchmark"]
+    assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "train",
+                                                "aggregate", "aggregate", "-m", "benchmark"]
     assert "--mirror --lanes 1,2,3 " in commands[0] and "--mirror --lanes 1,2,3,4 " in commands[1]
-    assert f"--targets {REAR_TARGETS}" in commands[4] and "--emphasis" not in commands[4]
-    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4] + commands[5:7])
-    assert all(f"--beta {EXTENDED.beta:g}" in c for c in commands[5:7])
+    assert [c.split("--seed ")[1].split()[0] for c in commands[2:6]] == ["0", "1", "0", "2"]   # rear: seeds 0, 2
+    assert all(f"--targets {REAR_TARGETS}" in c and "--emphasis" not in c for c in commands[4:6])
+    assert all("data-mirror-4lanes" in c for c in commands[4:6])
+    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4] + commands[6:8])
+    assert all(f"--beta {EXTENDED.beta:g}" in c for c in commands[6:8])
 
 
 def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
@@ -92,7 +95,8 @@ def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_r
 
     from drivestudio.commands.recipe import Size, sized
     from drivestudio.errors import UsageError
-    none = dict(frames=None, iterations=None, members=None, rounds=None, emphasis=None, quick=False)
+    none = dict(frames=None, iterations=None, members=None, rounds=None, emphasis=None, quick=False,
+                rear_members=None)
     assert sized(SimpleNamespace(**none, extended=False)) == FULL
     assert sized(SimpleNamespace(**{**none, "rounds": 2, "members": 3}, extended=True)) == \
         Extended(rounds=2, members=3)
@@ -100,3 +104,6 @@ def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_r
     with pytest.raises(UsageError, match="--rounds needs --members 1"):
         sized(SimpleNamespace(**{**none, "rounds": 2}, extended=False))
     assert isinstance(sized(SimpleNamespace(**{**none, "rounds": 2, "members": 1}, extended=False)), Size)
+    assert sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=True)) == Extended(rear_members=2)
+    with pytest.raises(UsageError, match="--rear-members is of the extended recipe"):
+        sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=False))
