@@ -75,12 +75,10 @@ def sized(args) -> Size | Extended:
     size: Size | Extended = (EXTENDED_QUICK if args.quick else EXTENDED) if getattr(args, "extended", False) else \
         QUICK if args.quick else FULL
     given = {k: v for k, v in (("frames", args.frames), ("iterations", args.iterations), ("members", args.members),
-                               ("rounds", args.rounds), ("emphasis", args.emphasis)) if v is not None}
-    rear_members = getattr(args, "rear_members", None)
-    if rear_members is not None:
-        if not isinstance(size, Extended):
-            raise UsageError("--rear-members is of the extended recipe: give --extended too")
-        given["rear_members"] = rear_members
+                               ("rear_members", args.rear_members), ("rounds", args.rounds),
+                               ("emphasis", args.emphasis)) if v is not None}
+    if "rear_members" in given and not isinstance(size, Extended):
+        raise UsageError("--rear-members is of the extended recipe: give --extended too")
     size = replace(size, **given)
     if isinstance(size, Size) and size.rounds and size.members > 1:
         raise UsageError(f"--rounds needs --members 1: an aggregation round fine-tunes one network, and the recipe "
