@@ -51,7 +51,8 @@ def register(sub) -> None:
                         "(--rounds) for each forward network, their ensemble with the lookout controller; 78 minutes")
     p.add_argument("--frames", type=count(200, 10**7), default=None, help=f"expert frames (default {FULL.frames})")
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
-                   help=f"iterations of each network's training (default {FULL.iterations})")
+                   help=f"iterations of each network's training (default {FULL.iterations}; with --extended the "
+                        f"networks of the cars behind train two thirds of it)")
     p.add_argument("--members", type=count(1, 8), default=None,
                    help=f"networks trained side by side, one thread each, and driven as one ensemble (default "
                         f"{FULL.members}; 1: a single network)")
