@@ -217,6 +217,7 @@ def test_driver_closing_after_an_unnoticed_world_death_removes_the_segment(name)
         proc.communicate()
 
 
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")   # the dropped exception: the point
 def test_a_sigterm_whose_exception_a_finaliser_swallowed_still_ends_the_loop():
     """A signal landing while Python runs a weakref callback loses the handler's exception ("Exception ignored
     in ..."); check() raises it at the loop's next step (a training run once ran on for minutes after SIGTERM)."""
