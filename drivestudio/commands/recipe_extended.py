@@ -11,7 +11,7 @@ one aggregation round for each forward network, side by side (each driving its o
 Why a second rear network: the rear gaps are the hardest labels (a car 40 m back is a few pixels of the mirror),
 networks from two seeds misread different cars, and the ensemble believes the nearer gap either reads: with a
 second one the driver equalled the oracle on both design suites and passed the random suite's target
-(docs/aggregation.md, results). Off by default: with it the recipe would take about 91 minutes of the two cores
+(docs/aggregation.md, results). Off by default: with it the recipe would take about 90 minutes of the two cores
 (untimed), and its timed variant with two shorter rear networks (4,000 iterations, 78.4 minutes) drove worse on both
 random suites than the recipe without (docs/aggregation.md, "Tried: two shorter rear networks")."""
 from __future__ import annotations
