@@ -71,11 +71,21 @@ class SampleSpec:
         return torch.from_numpy(self.decl.normalise(raw, self.outputs) if self.normalised else raw)
 
 
-def _stack(images) -> torch.Tensor:
-    """(h, w, 3) RGB arrays -> one uint8 (3 * len, h, w) tensor."""
-    if len(images) == 1:
-        return torch.from_numpy(np.ascontiguousarray(images[0].transpose(2, 0, 1)))
-    return torch.from_numpy(np.ascontiguousarray(np.concatenate(images, axis=2).transpose(2, 0, 1)))
+def _stack(images, channels_last: bool = False) -> torch.Tensor:
+    """(h, w, 3) RGB arrays -> one uint8 (3 * len, h, w) tensor; channels_last: its channels innermost in memory,
+    as they are in the frames (a batch of them is channels-last already: no transposing copy here or in training)."""
+    if not channels_last:
+        hwc = np.concatenate(images, axis=2) if len(images) > 1 else images[0]
+        return torch.from_numpy(np.ascontiguousarray(hwc.transpose(2, 0, 1)))
+    hwc = np.concatenate(images, axis=2) if len(images) > 1 else np.array(images[0])   # the cache's is read-only
+    return torch.from_numpy(hwc).permute(2, 0, 1)
+
+
+def collate_channels_last(batch: list) -> tuple:
+    """default_collate for a FrameStream with channels_last: its images stacked as they lie in memory, which makes
+    a channels-last batch without the transposing copies of stacking them as (C, h, w) and converting back."""
+    images = torch.stack([sample[0].permute(1, 2, 0) for sample in batch]).permute(0, 3, 1, 2)
+    return (images, *torch.utils.data.default_collate([sample[1:] for sample in batch]))
 
 
 def _mode_tensor(value) -> torch.Tensor:
@@ -216,6 +226,7 @@ class FrameStream(torch.utils.data.IterableDataset):
         if not self.shards or not len(self):
             raise DatasetError(f"dataset {self.data.root} has no samples in split '{split}'")
         self.epoch = 0
+        self.channels_last = False   # samples' memory layout (the values are the same): see _stack
 
     @property
     def outputs(self) -> tuple[str, ...]:
@@ -340,7 +351,7 @@ class FrameStream(torch.utils.data.IterableDataset):
     def _emit(self, items):
         for images, mode, raw, context in items:   # images: encoded bytes, or decoded arrays from the cache
             decoded = [decode_image(b) if isinstance(b, bytes) else b for b in images]
-            sample = (_stack(decoded), _mode_tensor(mode), self.spec.target_tensor(raw))
+            sample = (_stack(decoded, self.channels_last), _mode_tensor(mode), self.spec.target_tensor(raw))
             if self.context:
                 yield (*sample, torch.from_numpy(np.asarray(context, dtype=np.float64)))
             else:

@@ -182,14 +182,18 @@ def describe(spec: dict) -> str:
 
 
 def _block_mean(x: torch.Tensor, fh: int, fw: int) -> torch.Tensor:
-    """Area resampling by a whole-number factor: the mean of each fh x fw block. As a sum of strided slices it is
-    4.5x faster on the CPU than interpolate(mode="area") or avg_pool2d (at batch 1 those took a third of Z2Color's
-    time); on frames of whole numbers the sums are exact, so the result equals theirs bit for bit."""
-    total = x[..., 0::fh, 0::fw]
+    """Area resampling by a whole-number factor: the mean of each fh x fw block, in float32. As a sum of strided
+    slices it is 4.5x faster on the CPU than interpolate(mode="area") or avg_pool2d (at batch 1 those took a third
+    of Z2Color's time); on frames of whole numbers the sums are exact, so for 2 x 2 blocks the result equals
+    theirs bit for bit.
+    uint8 frames are summed in 16-bit integers, each slice converted as it is added (exact too): 3x faster than
+    converting the frames to floats first, which was a sixth of a MobileNet's training step."""
+    whole = x.dtype == torch.uint8 and fh * fw * 255 <= torch.iinfo(torch.int16).max
+    total = x[..., 0::fh, 0::fw].to(torch.int16 if whole else torch.float32)
     for k in range(1, fh * fw):
         i, j = divmod(k, fw)
         total = total + x[..., i::fh, j::fw]
-    return total / (fh * fw)
+    return total.float() / (fh * fw)
 
 
 class Regressor(nn.Module):
@@ -218,14 +222,14 @@ class Regressor(nn.Module):
 
     def scale_input(self, images: torch.Tensor) -> torch.Tensor:
         """uint8 frames -> the network's input: resized (area) to its size and scaled."""
-        x = images.float()
-        h, w = x.shape[-2:]
-        if (h, w) != self.size:
-            fh, fw = h // self.size[0], w // self.size[1]
-            if (h, w) == (fh * self.size[0], fw * self.size[1]):
-                x = _block_mean(x, fh, fw)
-            else:
-                x = F.interpolate(x, size=self.size, mode="area")
+        h, w = images.shape[-2:]
+        fh, fw = h // self.size[0], w // self.size[1]
+        if (h, w) == self.size:
+            x = images.float()
+        elif (h, w) == (fh * self.size[0], fw * self.size[1]):
+            x = _block_mean(images, fh, fw)
+        else:
+            x = F.interpolate(images.float(), size=self.size, mode="area")
         return self._scale_values(x, images.dtype == torch.uint8)
 
     def _scale_values(self, x: torch.Tensor, from_uint8: bool) -> torch.Tensor:

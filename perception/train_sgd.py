@@ -29,7 +29,7 @@ from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import curve_paths, write_curves
-from perception.datasets import FrameStream
+from perception.datasets import FrameStream, collate_channels_last
 from perception.distributed import Distributed
 from perception.frame_cache import FrameCache, prepare_cache
 from perception.models import (
@@ -237,6 +237,7 @@ class SGDRun:
         self.channels_last = cfg.channels_last and device.type == "cpu"
         if self.channels_last:   # oneDNN's convolutions are faster on channels-last weights and inputs
             self.model.to(memory_format=torch.channels_last)
+            self.stream.channels_last = True   # batches come channels-last: step's conversion copies nothing
         self.net: torch.nn.Module = self.model   # what the steps call: the model or its DistributedDataParallel
         if dist.active:
             self.net = torch.nn.parallel.DistributedDataParallel(
@@ -347,6 +348,8 @@ class SGDRun:
                         pin_memory=self.device.type == "cuda")
         if self.cfg.workers:
             kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
+        if self.stream.channels_last:
+            kw.update(collate_fn=collate_channels_last)
         return torch.utils.data.DataLoader(self.stream, **kw)
 
     def step(self, x, m, y) -> tuple[float, bool | None]:

@@ -16,6 +16,7 @@ second one the driver equalled the oracle on both design suites and passed the r
 random suites than the recipe without (docs/aggregation.md, "Tried: two shorter rear networks")."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,16 +76,16 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
     steps.done(t0)
     forward = [out / f"forward-{k}.pt" for k in range(size.members)]
     rears = [out / ("rear.pt" if k == 0 else f"rear-{k}.pt") for k in range(size.rear_members)]
-    steps.side_by_side(f"{size.members} networks of the paper's 13 and {size.rear_members} of the cars behind, "
-                       f"{size.iterations} iterations each, side by side",
-                       [train_argv(size, forward_data, m, k, rear=False) for k, m in enumerate(forward)]
-                       + [train_argv(size, rear_data, r, 2 * k, rear=True) for k, r in enumerate(rears)],
-                       [m.with_suffix(".log") for m in [*forward, *rears]])
     rounds = [out / f"aggregation-{k}" for k in range(size.members)]
-    steps.side_by_side(f"{size.rounds} aggregation round(s) of {size.round_frames} frames for each forward network, "
-                       f"side by side", [aggregate_argv(size, forward_data, m, agg, k)
-                                         for k, (m, agg) in enumerate(zip(forward, rounds))],
-                       [agg.with_suffix(".log") for agg in rounds])
+    trainings = [train_argv(size, forward_data, m, k, rear=False) for k, m in enumerate(forward)] \
+        + [train_argv(size, rear_data, r, 2 * k, rear=True) for k, r in enumerate(rears)]
+    steps.side_by_side(f"{size.members} networks of the paper's 13 and {size.rear_members} of the cars behind, "
+                       f"{size.iterations} iterations each; as each forward network is done, its {size.rounds} "
+                       f"aggregation round(s) of {size.round_frames} frames",
+                       trainings + [aggregate_argv(size, forward_data, m, agg, k)
+                                    for k, (m, agg) in enumerate(zip(forward, rounds))],
+                       [p.with_suffix(".log") for p in [*forward, *rears, *rounds]], slots=os.cpu_count() or 1,
+                       after=[None] * len(trainings) + list(range(size.members)))
     members = [agg / f"round-{size.rounds}" / "model.pt" for agg in rounds] + rears
     ensemble = out / "ensemble.pt"
     ensemble_step(steps, "the ensemble: each output over the members that estimate it", members, ensemble)

@@ -138,3 +138,26 @@ def test_scale_pixels_is_scale_input_bit_for_bit(dtype):
     assert net.scale_pixels(rng.integers(0, 256, (1, 2 * h, 2 * w, 12), dtype=np.uint8), dtype) is None
     assert build("alexnet", HIGHWAY, LABEL_SETS[0]).scale_pixels(
         rng.integers(0, 256, (1, 210, 280, 3), dtype=np.uint8), dtype) is None
+
+
+@pytest.mark.parametrize("factor", [2, 3])
+@pytest.mark.parametrize("channels_last", [False, True], ids=["nchw", "channels-last"])
+def test_block_mean_of_uint8_frames_is_the_area_mean_of_their_floats_bit_for_bit(factor, channels_last):
+    """The 16-bit integer sums of uint8 frames give exactly the block means of the same frames as floats, in
+    either memory layout, which are area resampling's, and the block of every output pixel is its own."""
+    import torch.nn.functional as F
+
+    from perception.models import _block_mean
+    g = torch.Generator().manual_seed(factor)
+    frames = torch.randint(0, 256, (2, 6, 7 * factor, 5 * factor), dtype=torch.uint8, generator=g)
+    if channels_last:
+        frames = frames.contiguous(memory_format=torch.channels_last)
+    got = _block_mean(frames, factor, factor)
+    assert got.dtype == torch.float32 and got.shape == (2, 6, 7, 5)
+    area = F.interpolate(frames.float(), size=(7, 5), mode="area")
+    if factor == 2:           # a division by 4 is exact, as the sums are: area resampling's result bit for bit
+        assert torch.equal(got, area)
+    torch.testing.assert_close(got, area)
+    assert torch.equal(got, _block_mean(frames.float(), factor, factor))
+    for i, j in ((0, 0), (0, 1), (2, 3)):       # each output pixel is the mean of its own block
+        assert got[0, 1, i, j] == frames[0, 1, i * factor:(i + 1) * factor, j * factor:(j + 1) * factor].float().mean()

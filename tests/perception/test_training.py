@@ -179,3 +179,25 @@ def test_vgg16_frozen_trains_its_head_from_a_random_trunk_and_says_so(tmp_path):
     assert record["iteration"] == 4
     ckpt = load_checkpoint(tmp_path / "vgg.pt", model="vgg16")
     assert ckpt["spec"]["options"] == {"weights": None, "frozen": True, "batch_norm": False}
+
+
+def test_a_channels_last_stream_batches_the_same_values_channels_last():
+    """FrameStream.channels_last changes the images' memory layout only: the same samples in the same order, and
+    collate_channels_last makes of them the batch default_collate makes, already channels-last (what the trainer
+    converts its batches to) and with the history's frames in their channel order."""
+    from perception.datasets import collate_channels_last
+    from perception.training import history_moment
+
+    moment = history_moment(HIGHWAY, 1)
+    plain = FrameStream(dataset(), "train", seed=5, moment=moment)
+    fast = FrameStream(dataset(), "train", seed=5, moment=moment)
+    fast.channels_last = True
+    a = list(zip(range(6), plain))
+    b = list(zip(range(6), fast))
+    for (_, sa), (_, sb) in zip(a, b):
+        assert torch.equal(sa[0], sb[0]) and torch.equal(sa[2], sb[2])
+        assert sb[0].shape == (6, 210, 280) and sb[0].permute(1, 2, 0).is_contiguous()
+    batch = collate_channels_last([s for _, s in b])
+    want = torch.utils.data.default_collate([s for _, s in a])
+    assert batch[0].is_contiguous(memory_format=torch.channels_last)
+    assert all(torch.equal(x, y) for x, y in zip(batch, want))
