@@ -187,7 +187,7 @@ def _block_mean(x: torch.Tensor, fh: int, fw: int) -> torch.Tensor:
     of Z2Color's time); on frames of whole numbers the sums are exact, so for 2 x 2 blocks the result equals
     theirs bit for bit.
     uint8 frames are summed in 16-bit integers, each slice converted as it is added (exact too): 3x faster than
-    converting the frames to floats first, which was a sixth of a MobileNet's training step."""
+    converting the frames to floats first (27 ms of a MobileNet's training step of about 360 on one thread)."""
     whole = x.dtype == torch.uint8 and fh * fw * 255 <= torch.iinfo(torch.int16).max
     total = x[..., 0::fh, 0::fw].to(torch.int16 if whole else torch.float32)
     for k in range(1, fh * fw):

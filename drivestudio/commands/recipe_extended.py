@@ -4,19 +4,19 @@ the forward ones improved by an aggregation round each, driven as one ensemble b
 
 The steps, as the verbs a user would run: two datasets with the mirror (the forward networks' of 1-3 lanes, the
 rear network's with four-lane roads too: more lanes with a car beside the host on both sides); the
-forward networks (seeds 0, 1, ...) and the rear networks (seeds 0, 2, ...) trained side by side, one thread each;
-one aggregation round for each forward network, side by side (each driving its own frames with the expert's share
-`beta`); the ensemble of the rounds' networks and the rear networks; the benchmark beside both oracles.
+forward networks (seeds 0, 1, ...) and the rear networks (seeds 0, 2, ...) trained side by side, one thread each,
+and one aggregation round for each forward network, started as soon as that network is done (each driving its
+own frames with the expert's share `beta`); the ensemble of the rounds' networks and the rear networks; the
+benchmark beside both oracles. A training's or a round's result does not depend on what runs beside it.
 
 Why a second rear network: the rear gaps are the hardest labels (a car 40 m back is a few pixels of the mirror),
 networks from two seeds misread different cars, and the ensemble believes the nearer gap either reads: with a
 second one the driver equalled the oracle on both design suites and passed the random suite's target
-(docs/aggregation.md, results). Off by default: with it the recipe would take about 90 minutes of the two cores
-(untimed), and its timed variant with two shorter rear networks (4,000 iterations, 78.4 minutes) drove worse on both
-random suites than the recipe without (docs/aggregation.md, "Tried: two shorter rear networks")."""
+(docs/aggregation.md, results). Off by default: that driver's second rear network was trained on two threads, which
+the 90 minutes do not allow, and the recipe's own (one thread, or 4,000 iterations) drove the design suites no
+better than one rear network or worse on the random suites (docs/aggregation.md, "Tried")."""
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,7 +84,7 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
                        f"aggregation round(s) of {size.round_frames} frames",
                        trainings + [aggregate_argv(size, forward_data, m, agg, k)
                                     for k, (m, agg) in enumerate(zip(forward, rounds))],
-                       [p.with_suffix(".log") for p in [*forward, *rears, *rounds]], slots=os.cpu_count() or 1,
+                       [p.with_suffix(".log") for p in [*forward, *rears, *rounds]],
                        after=[None] * len(trainings) + list(range(size.members)))
     members = [agg / f"round-{size.rounds}" / "model.pt" for agg in rounds] + rears
     ensemble = out / "ensemble.pt"

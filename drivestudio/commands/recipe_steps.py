@@ -38,12 +38,12 @@ class Steps:
             raise SystemExit(rc)
         self.done(t0)
 
-    def side_by_side(self, title: str, commands: list[list], logs: list[Path], slots: int | None = None,
+    def side_by_side(self, title: str, commands: list[list], logs: list[Path],
                      after: list[int | None] | None = None) -> None:
         t0 = self.header(title, commands)
-        print(f"  (one thread each{f', {slots} at a time' if slots else ''}; their output in "
-              f"{', '.join(str(log) for log in logs)}; progress every minute)", flush=True)
-        run_side_by_side([[str(a) for a in argv] for argv in commands], logs, slots=slots, after=after)
+        print(f"  (one thread each; their output in {', '.join(str(log) for log in logs)}; progress every minute)",
+              flush=True)
+        run_side_by_side([[str(a) for a in argv] for argv in commands], logs, after=after)
         self.done(t0)
 
     def minutes(self) -> float:
