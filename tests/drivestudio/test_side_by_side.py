@@ -69,3 +69,25 @@ def test_a_benchmark_is_done_before_only_for_the_same_suite_and_newer_than_every
     assert not done_before(bench, str(DEFAULT_SUITE.parent / "design.json"), [model])   # another suite
     os.utime(model, (time.time() + 60, time.time() + 60))
     assert not done_before(bench, "default", [model])             # the model changed since
+
+
+def test_sigterm_to_the_runner_stops_its_children(tmp_path):
+    """A recipe stopped with SIGTERM (a scheduler's, a CI's timeout) leaves no training running behind it."""
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "gen-stopped"
+    code = ("from pathlib import Path\nfrom drivestudio.side_by_side import run_side_by_side\n"
+            f"run_side_by_side([['generate', '--out', {str(out)!r}, '--frames', '1000000', '--workers', '1', "
+            f"'--quiet']], [Path({str(tmp_path / 'g.log')!r})])\n")
+    runner = subprocess.Popen([sys.executable, "-c", code])
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "g.log").exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    time.sleep(3)                                                   # the child is running
+    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 0
+    runner.send_signal(signal.SIGTERM)
+    assert runner.wait(timeout=60) != 0
+    time.sleep(1)
+    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 1   # none left
