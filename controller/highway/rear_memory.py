@@ -17,12 +17,6 @@ the mirror as farther than they are (so a gap carried on from the last reading w
 While carried, a near reading does not end it (a car alongside is misread as near-behind too); the smaller gap and
 the larger closing speed are what the lookout reads. A lane change forgets it (the lanes change meaning).
 
-The hold (`hold_s`, off by default): each rear gap is read as the nearest read in the last `hold_s` seconds. The
-networks misread a car alongside as far for a few frames at a time, after reading it right (a crash clip of the
-random suite: 0.0 m two seconds before the lane change, 59 m half a second before), and a car whose closing speed
-is misread, or that was seen for fewer than `min_seen` frames, is never carried; the hold keeps such a lane taken
-for `hold_s` after the last near reading, at the price of a lane change that much later after a car has passed.
-
 A driver with the rear memory also hands the cars it passes over to the mirror (controller/highway/pass_memory.py,
 `behind_seen`): the same blind spot hides a passed car that speeds up.
 """
@@ -40,7 +34,7 @@ class RearMemory:
     lookout should read."""
 
     def __init__(self, max_s: float = 10.0, near: float = 25.0, min_seen: int = 3, window: int = 10,
-                 min_closing: float = 0.3, ahead: float = 15.0, hold_s: float = 0.0):
+                 min_closing: float = 0.3, ahead: float = 15.0):
         self.max_s = max_s                # [s] longest a car is held alongside
         self.near = near                  # [m] a reading below this is a car behind worth remembering
         self.min_seen = min_seen          # near readings in a row before a car counts as seen
@@ -49,13 +43,10 @@ class RearMemory:
         self.seen: deque[tuple[int, float]] = deque(maxlen=window)   # (frame, closing) of the last near readings
         self.carried: tuple[int, int, float] | None = None            # (frame lost, frames held, closing speed)
         self.frame = 0
-        # the gap readings of the last hold_s seconds, of which the nearest is read (hold_s 0: the current one)
-        self.recent: deque[float] = deque(maxlen=max(1, round(hold_s / FRAME_S)))
 
     def reset(self) -> None:
         self.seen.clear()
         self.carried = None
-        self.recent.clear()
 
     def _hold(self, closing: float) -> int:
         """Frames a car passing at `closing` [m/s] is held alongside."""
@@ -76,7 +67,6 @@ class RearMemory:
                 if rate > self.min_closing:
                     self.carried = (self.frame, self._hold(rate), rate)
             self.seen.clear()
-        self.recent.append(gap)
         if self.carried is not None:
             return 0.0, max(closing, self.carried[2])   # alongside: the lane is taken
-        return min(self.recent), closing
+        return gap, closing

@@ -48,9 +48,8 @@ def register(sub) -> None:
                        description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", action="append", metavar="M",
                    help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B,pass_memory=S,"
-                        "rear_memory=S,rear_hold=S, or a policy (a saved Stable-Baselines3 .zip, or "
-                        "policy:MODULE:NAME); repeat for more rows (default: the oracle alone; the oracle row is "
-                        "always added as the upper bound)")
+                        "rear_memory=S, or a policy (a saved Stable-Baselines3 .zip, or policy:MODULE:NAME); repeat "
+                        "for more rows (default: the oracle alone; the oracle row is always added as the upper bound)")
     p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,

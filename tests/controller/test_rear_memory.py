@@ -58,22 +58,3 @@ def test_reset_forgets_the_car():
     run(memory, [(16.0, 5.0)] * 5)
     memory.reset()
     assert memory.filter(*FAR) == FAR
-
-
-def test_the_hold_reads_the_nearest_gap_of_the_last_hold_s_seconds_then_lets_go():
-    """A car alongside read right once (0 m), then misread as far: the gap stays 0 for hold_s (2 s: the reading's
-    own frame and 19 more at 10 Hz), its closing speed is the current reading's; a short sighting is not carried."""
-    out = run(RearMemory(hold_s=2.0), [FAR, (0.0, 0.1)] + [(59.0, 0.2)] * 25)
-    assert out[:2] == [FAR, (0.0, 0.1)]
-    assert out[2:21] == [(0.0, 0.2)] * 19
-    assert out[21:] == [(59.0, 0.2)] * 6
-    assert run(RearMemory(hold_s=0.5), [(12.0, 0.0), (30.0, 0.0), (20.0, 0.0)] + [FAR] * 5) == \
-        [(12.0, 0.0), (12.0, 0.0), (12.0, 0.0), (12.0, 0.0), (12.0, 0.0), (20.0, 0.0), (20.0, 0.0), FAR]
-
-
-def test_without_a_hold_the_current_reading_is_read_and_reset_forgets_the_held_gap():
-    assert run(RearMemory(), [(0.0, 0.1), (59.0, 0.2)]) == [(0.0, 0.1), (59.0, 0.2)]
-    memory = RearMemory(hold_s=2.0)
-    run(memory, [(0.0, 0.1)])
-    memory.reset()                                               # a lane change: the lanes change meaning
-    assert memory.filter(59.0, 0.2) == (59.0, 0.2)

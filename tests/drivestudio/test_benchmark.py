@@ -275,12 +275,10 @@ def test_model_options_after_an_at_sign():
     assert parse_model("runs/a.pt@pass_memory=10") == ("runs/a.pt", {"pass_memory": 10.0})   # seconds, not a factor
     assert parse_model("runs/a.pt@pass_memory=15,rear_memory=10") == ("runs/a.pt", {"pass_memory": 15.0,
                                                                                 "rear_memory": 10.0})
-    assert parse_model("runs/a.pt@rear_memory=10,rear_hold=2") == ("runs/a.pt", {"rear_memory": 10.0,
-                                                                            "rear_hold": 2.0})
     for bad in ("runs/a.pt@smoothing=2", "runs/a.pt@smoothing=nan", "runs/a.pt@speed=1", "oracle@smoothing=0.5",
                 "runs/a.pt@gap_hold=1", "oracle@gap_hold=0.5", "runs/a.pt@pass_memory=61",
                 "runs/a.pt@pass_memory=-1", "oracle@pass_memory=10", "runs/a.pt@rear_memory=61",
-                "oracle-extended@rear_memory=10", "runs/a.pt@rear_memory=10,rear_hold=11", " "):
+                "oracle-extended@rear_memory=10", " "):
         with pytest.raises(UsageError):
             parse_model(bad)
 
@@ -297,7 +295,6 @@ def test_the_cli_refuses_bad_input_in_one_line_before_driving(tmp_path, blind):
         (["--model", tmp_path / "none.pt"], "no such file"),
         (["--model", f"{blind}@smoothing=0.99"], "smoothing must be a number from 0 to 0.95"),
         (["--model", f"{blind}@rear_memory=10"], "which blind.pt does not estimate"),
-        (["--model", f"{blind}@rear_hold=2"], "rear_hold is part of the rear memory"),
         (["--model", blind, "--model", f"{blind}@smoothing=0"], "is the same model as"),
         (["--suite", tmp_path / "none.json"], "no such file"),
         (["--routes", "zz"], "no route 'zz'"),

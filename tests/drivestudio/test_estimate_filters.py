@@ -94,18 +94,6 @@ def test_the_rear_memory_holds_a_car_lost_from_the_mirror_alongside_on_its_side_
     assert without[5][lb] == 100.0
 
 
-def test_the_rear_hold_keeps_a_near_reading_of_a_car_alongside_for_its_seconds_on_its_side_only():
-    """docs/controller.md: a car alongside read right (0 m) for one frame, not closing by the estimate (so the
-    rear memory does not carry it), then misread as 59 m: with rear_hold 2 the lookout reads 0 for 2 s."""
-    lb, rb = ESTIMATE.index("dist_LB"), ESTIMATE.index("dist_RB")
-    rows = [(100.0, 12.0, 0.0, 0.0), (0.0, 12.0, 0.0, 0.0)] + [(59.0, 12.0, 0.0, 0.0)] * 30
-    e = _estimates(ChenDriver(ScriptedRear(rows), lookout=True, rear_memory=10.0, rear_hold=2.0), 32)
-    assert [x[lb] for x in e[1:21]] == [0.0] * 20 and e[21][lb] == 59.0
-    assert all(x[rb] == 12.0 for x in e)
-    without = _estimates(ChenDriver(ScriptedRear(rows), lookout=True, rear_memory=10.0), 32)
-    assert without[2][lb] == 59.0
-
-
 def test_the_rear_memory_forgets_once_the_host_is_on_the_marking():
     from controller.highway.chen import LEFT_1, LEFT_2
     lb = ESTIMATE.index("dist_LB")

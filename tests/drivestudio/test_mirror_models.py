@@ -166,6 +166,3 @@ def test_the_rear_memory_is_refused_for_a_model_that_reads_nothing_behind(models
         Plugin().driver(str(models["mirror"]), args, MIRRORED)
     args.rear_memory = 0.0
     assert Plugin().driver(str(models["mirror"]), args, MIRRORED).rear_memory == []
-    args.rear_hold = 2.0                                         # the hold is part of the rear memory
-    with pytest.raises(UsageError, match="--rear-hold is part of the rear memory"):
-        Plugin().driver(str(models["mirror"]), args, MIRRORED)

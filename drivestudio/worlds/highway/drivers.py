@@ -57,7 +57,7 @@ class ChenDriver:
     lane count is known."""
 
     def __init__(self, predictor=None, smoothing: float = 0.0, gap_hold: float = 0.0, lookout: bool = False,
-                 pass_memory: float = 0.0, rear_memory: float = 0.0, rear_hold: float = 0.0):
+                 pass_memory: float = 0.0, rear_memory: float = 0.0):
         self.predictor = predictor
         self.lookout = lookout
         self.smoothing, self.gap_hold = smoothing, gap_hold
@@ -65,7 +65,7 @@ class ChenDriver:
         self.pass_memory = [PassMemory(max_s=pass_memory) for _ in _NEIGHBOUR_GAPS] \
             if pass_memory > 0 and predictor is not None else []
         # a car seen closing in the mirror, held alongside once lost (controller/highway/rear_memory.py)
-        self.rear_memory = [RearMemory(max_s=rear_memory, hold_s=rear_hold) for _ in _REAR_SIDES] \
+        self.rear_memory = [RearMemory(max_s=rear_memory) for _ in _REAR_SIDES] \
             if rear_memory > 0 and predictor is not None and lookout else []
         self.timings = {"perception": 0.0, "control": 0.0}
         self.controller: ChenController | None = None

@@ -68,10 +68,6 @@ class Plugin(base.Plugin):
                         help="hold a car that the mirror loses while it closes in alongside, for as long as it takes "
                         "to pass the host or at most S seconds, and keep a car being passed until the mirror has it, "
                         "0-60 (default 0: none; a model of the rear labels only; docs/controller.md)")
-            options.add(self.name, g, "--rear-hold", type=finite(0.0, 10.0), metavar="S",
-                        help="with --rear-memory: read each rear gap as the nearest read in the last S seconds, so "
-                        "that a car alongside misread as far for a moment still keeps the lane, 0-10 (default 0: "
-                        "the current reading; docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
@@ -157,16 +153,12 @@ class Plugin(base.Plugin):
                              f"{'one' if declaration.cameras[0].inset else 'none'}: start the world {had} --mirror")
         lookout = reads_behind(predictor.outputs)
         rear_memory = getattr(args, "rear_memory", None) or 0.0
-        rear_hold = getattr(args, "rear_hold", None) or 0.0
         if rear_memory and not lookout:
             raise UsageError(f"--rear-memory holds the rear labels (dist_LB, dist_RB, closing_LB, closing_RB), "
                              f"which {model} does not estimate")
-        if rear_hold and not rear_memory:
-            raise UsageError("--rear-hold is part of the rear memory: give --rear-memory S too")
         return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
                           gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=lookout,
-                          pass_memory=getattr(args, "pass_memory", None) or 0.0, rear_memory=rear_memory,
-                          rear_hold=rear_hold)
+                          pass_memory=getattr(args, "pass_memory", None) or 0.0, rear_memory=rear_memory)
 
     def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
@@ -221,8 +213,7 @@ class Plugin(base.Plugin):
         out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
         out += ["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else []
         out += ["--pass-memory", str(args.pass_memory)] if getattr(args, "pass_memory", None) else []
-        out += ["--rear-memory", str(args.rear_memory)] if getattr(args, "rear_memory", None) else []
-        return out + (["--rear-hold", str(args.rear_hold)] if getattr(args, "rear_hold", None) else [])
+        return out + (["--rear-memory", str(args.rear_memory)] if getattr(args, "rear_memory", None) else [])
 
     def recorder(self, world, path, label: str):
         return OverlayRecorder(path, world, label)

@@ -11,7 +11,6 @@ of its estimates, or a trained policy on the exact affordances (drivestudio/worl
     --model runs/alexnet.pt@smoothing=0.3,gap_hold=0.8
     --model runs/alexnet.pt@pass_memory=10     a car being passed is carried on unseen for up to 10 s
     --model runs/ex.pt@rear_memory=10          a car lost from the mirror is held alongside for up to 10 s
-    --model runs/ex.pt@rear_memory=10,rear_hold=2   ... and each rear gap read as the nearest of the last 2 s
     --model runs/ppo-highway.zip               a saved Stable-Baselines3 policy (drivestudio/worlds/highway/rl_train.py)
     --model policy:mypackage.drivers:careful   any callable from the affordance observation to an action
 
@@ -34,10 +33,9 @@ EXTENDED = "oracle-extended"
 EXACT = (ORACLE, EXTENDED)   # the drivers on exact labels; the plain oracle's row is the upper bound
 MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
 MAX_PASS_MEMORY = 60.0   # [s] as drive --pass-memory
-MAX_REAR_HOLD = 10.0     # [s] as drive --rear-hold
-FILTERS = ("smoothing", "gap_hold", "pass_memory", "rear_memory", "rear_hold")
+FILTERS = ("smoothing", "gap_hold", "pass_memory", "rear_memory")
 LIMIT = {"smoothing": MAX_SMOOTHING, "gap_hold": MAX_SMOOTHING, "pass_memory": MAX_PASS_MEMORY,
-         "rear_memory": MAX_PASS_MEMORY, "rear_hold": MAX_REAR_HOLD}
+         "rear_memory": MAX_PASS_MEMORY}
 OPTION = re.compile(r"([a-z_]+)=(.*)")
 
 
@@ -55,7 +53,6 @@ class ModelSpec:
     mirror: bool = False       # the checkpoint learned frames with the rear-view mirror: its routes render one
     pass_memory: float = 0.0   # [s] the longest a car being passed is carried on unseen (0: not at all)
     rear_memory: float = 0.0   # [s] the longest a car lost from the mirror is held alongside (0: not at all)
-    rear_hold: float = 0.0     # [s] the rear gaps read as the nearest of this long (0: the current reading)
 
     @property
     def key(self) -> str:
@@ -65,8 +62,7 @@ class ModelSpec:
         return self.family if self.path is None else \
             f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}" + \
             (f",{self.pass_memory:g}" if self.pass_memory else "") + \
-            (f",rear {self.rear_memory:g}" if self.rear_memory else "") + \
-            (f",hold {self.rear_hold:g}" if self.rear_hold else "")
+            (f",rear {self.rear_memory:g}" if self.rear_memory else "")
 
     def filters(self) -> dict[str, float]:
         """The controller-side filters in use, by name."""
@@ -104,7 +100,7 @@ def _factor(name: str, value: str, text: str) -> float:
 
 def parse_model(text: str) -> tuple[str, dict[str, float]]:
     """(checkpoint, 'oracle' or 'oracle-extended', {filter: factor}) of a --model value: a name, PATH or
-    PATH@smoothing=A,gap_hold=B,pass_memory=S,rear_memory=S,rear_hold=S."""
+    PATH@smoothing=A,gap_hold=B,pass_memory=S,rear_memory=S."""
     if not text.strip():
         raise UsageError("--model: empty; give 'oracle', 'oracle-extended' or a checkpoint file")
     path, filters = text, {}
@@ -116,7 +112,7 @@ def parse_model(text: str) -> tuple[str, dict[str, float]]:
             if m is None or m[1] not in FILTERS:
                 raise UsageError(f"--model {text}: after '@' the options are smoothing=A and gap_hold=B (0 to "
                                  f"{MAX_SMOOTHING}), pass_memory=S and rear_memory=S (0 to {MAX_PASS_MEMORY:g} s), "
-                                 f"rear_hold=S (0 to {MAX_REAR_HOLD:g} s), got {part!r}")
+                                 f"got {part!r}")
             value = _factor(m[1], m[2], text)
             if value:
                 filters[m[1]] = value
@@ -147,15 +143,13 @@ def check_model(text: str) -> ModelSpec:
     if filters.get("rear_memory") and not lookout:
         raise UsageError(f"--model {text}: rear_memory holds the rear labels (dist_LB, dist_RB, closing_LB, "
                          f"closing_RB), which {Path(path).name} does not estimate")
-    if filters.get("rear_hold") and not filters.get("rear_memory"):
-        raise UsageError(f"--model {text}: rear_hold is part of the rear memory: give rear_memory=S too")
     label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
                                                                for f, a in filters.items()) \
         + (", lookout" if lookout else "")
     return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
                      smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout,
                      mirror=frame_inset(spec) == "mirror", pass_memory=filters.get("pass_memory", 0.0),
-                     rear_memory=filters.get("rear_memory", 0.0), rear_hold=filters.get("rear_hold", 0.0))
+                     rear_memory=filters.get("rear_memory", 0.0))
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:

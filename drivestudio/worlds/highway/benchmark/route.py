@@ -186,7 +186,7 @@ def driver_for(model: ModelSpec, device: str):
         from drivestudio.checkpoints import load_predictor_for  # lazy: as the drivers, only in a route's process
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
     return ChenDriver(_PREDICTORS[key], smoothing=model.smoothing, gap_hold=model.gap_hold, lookout=model.lookout,
-                      pass_memory=model.pass_memory, rear_memory=model.rear_memory, rear_hold=model.rear_hold)
+                      pass_memory=model.pass_memory, rear_memory=model.rear_memory)
 
 
 def _driver_command(name: str, model: ModelSpec, device: str) -> list[str]:

@@ -121,7 +121,7 @@ def leaderboard(suite, models, results: list[dict]) -> dict:
         rows = [route_row(by[(m.key, r.name)], by.get((oracle.key, r.name))) for r in suite.routes]
         entries.append({"model": m.label, "spec": m.text, "family": m.family, "smoothing": m.smoothing,
                         "gap_hold": m.gap_hold, "pass_memory": m.pass_memory,
-                        "rear_memory": m.rear_memory, "rear_hold": m.rear_hold,
+                        "rear_memory": m.rear_memory,
                         "checkpoint": m.path, "overall": overall(rows), "routes": rows})
     top = entries[0]["overall"]["driving_score"]
     for e in entries:
