@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import pickle
+import warnings
 from pathlib import Path
 
 import torch
@@ -86,7 +87,9 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
         is_archive = f.read(4) == b"PK\x03\x04"  # torch.save's zip format
     try:
         # mmap: tensors are read when used, so a predictor does not read a training checkpoint's optimiser state
-        ckpt = torch.load(path, map_location=map_location, weights_only=True, mmap=is_archive)
+        with warnings.catch_warnings():   # a file of another kind may read as an odd pickle: our line says it
+            warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
+            ckpt = torch.load(path, map_location=map_location, weights_only=True, mmap=is_archive)
     except pickle.UnpicklingError:  # pickled code (refused by weights_only), or a file of another kind
         raise CheckpointError(f"{path} is not a drivestudio checkpoint (it holds pickled objects or is no "
                               "torch file)") from None

@@ -58,7 +58,7 @@ def register(sub) -> None:
     p.add_argument("--rear-members", type=count(1, 4), default=None,
                    help=f"with --extended: networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of "
                         f"theirs believed (default {EXTENDED.rear_members}; 2 builds one like the best driver "
-                        f"measured, about 90 minutes in all, untimed)")
+                        f"measured, about 105 minutes in all, untimed)")
     p.add_argument("--rounds", type=count(1, 50), default=None,
                    help="data-aggregation rounds after the training (only with --members 1; default none)")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
