@@ -23,7 +23,7 @@ import numpy as np
 
 NAME = re.compile(r"[A-Za-z][A-Za-z0-9_+]{0,30}")     # field, label, camera and mode names (C identifiers + '+')
 SCALAR_KINDS = ("f32", "f64", "i8", "i32", "i64", "bool")   # how a dataset stores a scalar of the truth record
-INSETS = ("", "mirror")   # what a world may composite into a camera's image (Camera.inset)
+INSETS = ("", "mirror", "mirror+sides")   # what a world may composite into a camera's image (Camera.inset)
 COLUMN_KIND = re.compile(r"(str|f32|f64)(\[\d+\])?(\*)?")   # str, f32[5] (fixed list), f32[5]* (list of them)
 
 
@@ -41,8 +41,9 @@ def _name(value: str, what: str) -> str:
 @dataclass(frozen=True)
 class Camera:
     """One camera of the world: its name and the size of the RGB image it renders [px]. `inset` names what the
-    world composites into that image besides the scene ("" nothing; "mirror": a rear-view mirror, docs/rendering.md):
-    a model learns the frames it was shown, so it is part of what a frame means."""
+    world composites into that image besides the scene ("" nothing; "mirror": a rear-view mirror; "mirror+sides": it
+    and the views out of both side windows, docs/rendering.md): a model learns the frames it was shown, so it is part
+    of what a frame means."""
 
     name: str
     height: int

@@ -50,8 +50,8 @@ def _inset(path: str, mtime_ns: int) -> str:
 
 
 def checkpoint_inset(model: str) -> str:
-    """What the frames checkpoint `model` learned held besides the scene ("" or "mirror"): the world that feeds it
-    renders the same. Read once per file version; a bad file is refused in one line (exit status 2)."""
+    """What the frames checkpoint `model` learned held besides the scene ("", "mirror" or "mirror+sides"): the world
+    that feeds it renders the same. Read once per file version; a bad file is refused in one line (exit status 2)."""
     path = check_checkpoint_path(model)
     return _inset(str(path), path.stat().st_mtime_ns)
 

@@ -156,7 +156,7 @@ def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=No
 
 def frame_inset(spec: dict) -> str:
     """What the frames a model learned held besides the scene (core/declaration.py Camera.inset): "" or
-    "mirror". A world must render the same for the model to read it."""
+    "mirror" or "mirror+sides". A world must render the same for the model to read it."""
     return str(spec["input"].get("inset", ""))
 
 

@@ -6,6 +6,10 @@ mirror. This one is a second, wide camera on the host car's roof looking backwar
 right, as a mirror shows it (a car in the lane to the left appears on the left), and pasted into a strip at the
 top centre of the frame, where the front view holds only sky. The frame keeps its size, so every model family,
 dataset and bridge reads it unchanged; the camera's declaration names the inset (`Camera.inset = "mirror"`).
+
+A car level with the host is in neither the front view nor the mirror: the blind spot. `SideViews` adds what a
+driver's glance over the shoulder shows: two more cameras on the roof looking left and right out of the side
+windows, pasted below the mirror at the frame's outer edges (inset "mirror+sides").
 """
 from __future__ import annotations
 
@@ -24,6 +28,26 @@ EYE_HEIGHT = 1.5       # [m] on the roof, above the driver's eye, to see over th
 PITCH_DEG = -4.0       # looking slightly down: the road behind fills the lower part
 BORDER = 2             # [px] the mirror's dark frame
 BORDER_RGB = (24, 24, 24)
+
+SIDE_TOP_SHARE = 0.276      # rows 58-89 of 210: below the mirror, above the front view's horizon (row ~99)
+SIDE_HEIGHT_SHARE = 0.152   # 32 px of 210
+SIDE_WIDTH_SHARE = 0.357    # 100 px of 280 each, at the outer edges: the middle, where the lane ahead lies, stays
+SIDE_MARGIN_SHARE = 0.015   # 4 px from the frame's edge
+SIDE_HFOV_DEG = 90.0        # 45-135 degrees from ahead: the front view ends at 38, the mirror begins at 135
+SIDE_PITCH_DEG = -12.0      # looking down: a car in the next lane, 2-5 m away, fills the window's height
+
+INSET_FLAGS = {"": (False, False), "mirror": (True, False), "mirror+sides": (True, True)}  # inset: (mirror, sides)
+
+
+def inset_name(mirror: bool, sides: bool = False) -> str:
+    """The camera's inset (core/declaration.py) for a world with the mirror and the side views; sides need the
+    mirror (they see the blind spot between it and the front view)."""
+    return "mirror+sides" if sides else ("mirror" if mirror else "")
+
+
+def inset_options(inset: str) -> dict:
+    """The world options (generate's, WorldConfig's) that render `inset`, those switched on only."""
+    return {k: True for k, on in zip(("mirror", "side_views"), INSET_FLAGS[inset]) if on}
 
 
 @dataclass(frozen=True)
@@ -54,4 +78,37 @@ class RearMirror:
         top, left, h, w = self.rect
         frame[top:top + h, left:left + w] = BORDER_RGB
         frame[top + BORDER:top + h - BORDER, left + BORDER:left + w - BORDER] = rear[:, ::-1]
+        return frame
+
+
+@dataclass(frozen=True)
+class SideViews:
+    """The views out of the left and right side windows for a front frame of `frame_height` x `frame_width` pixels:
+    the left one at the frame's left edge, the right one at its right, each a camera's image as it is (not flipped:
+    a window, not a mirror; the left view shows ahead on its right, the right view ahead on its left)."""
+
+    frame_height: int
+    frame_width: int
+
+    @property
+    def rects(self) -> tuple[tuple[int, int, int, int], tuple[int, int, int, int]]:
+        """(top, left, height, width) of the left and the right view in the frame [px], border included."""
+        top, h = round(self.frame_height * SIDE_TOP_SHARE), max(8, round(self.frame_height * SIDE_HEIGHT_SHARE))
+        w, margin = max(16, round(self.frame_width * SIDE_WIDTH_SHARE)), round(self.frame_width * SIDE_MARGIN_SHARE)
+        return (top, margin, h, w), (top, self.frame_width - margin - w, h, w)
+
+    @property
+    def camera(self) -> CameraConfig:
+        """The side cameras (drawn with the host's yaw +- pi/2) for a view's glass, inside the border."""
+        _, _, h, w = self.rects[0]
+        gh, gw = h - 2 * BORDER, w - 2 * BORDER
+        vfov = 2 * math.degrees(math.atan(math.tan(math.radians(SIDE_HFOV_DEG) / 2) * gh / gw))
+        return CameraConfig(width=gw, height=gh, fov_deg=vfov, eye_height=EYE_HEIGHT, eye_forward=0.0,
+                            pitch_deg=SIDE_PITCH_DEG, far=150.0, cull_distance=120.0)
+
+    def composite(self, frame: np.ndarray, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+        """Paste the left and right cameras' images into `frame` (in place); returns frame."""
+        for (top, x0, h, w), image in zip(self.rects, (left, right)):
+            frame[top:top + h, x0:x0 + w] = BORDER_RGB
+            frame[top + BORDER:top + h - BORDER, x0 + BORDER:x0 + w - BORDER] = image
         return frame

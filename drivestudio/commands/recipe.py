@@ -59,6 +59,9 @@ def register(sub) -> None:
                    help=f"with --extended: networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of "
                         f"theirs believed (default {EXTENDED.rear_members}; 2 builds one like the best driver "
                         f"measured, about 105 minutes in all, untimed)")
+    p.add_argument("--side-views", action="store_true",
+                   help="with --extended: frames with the views out of both side windows too, where a car level "
+                        "with the host shows (docs/rendering.md)")
     p.add_argument("--rounds", type=count(1, 50), default=None,
                    help="data-aggregation rounds after the training (only with --members 1; default none)")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
@@ -77,8 +80,11 @@ def sized(args) -> Size | Extended:
     given = {k: v for k, v in (("frames", args.frames), ("iterations", args.iterations), ("members", args.members),
                                ("rear_members", args.rear_members), ("rounds", args.rounds),
                                ("emphasis", args.emphasis)) if v is not None}
-    if "rear_members" in given and not isinstance(size, Extended):
-        raise UsageError("--rear-members is of the extended recipe: give --extended too")
+    if getattr(args, "side_views", False):
+        given["side_views"] = True
+    for key in ("rear_members", "side_views"):
+        if key in given and not isinstance(size, Extended):
+            raise UsageError(f"--{key.replace('_', '-')} is of the extended recipe: give --extended too")
     size = replace(size, **given)
     if isinstance(size, Size) and size.rounds and size.members > 1:
         raise UsageError(f"--rounds needs --members 1: an aggregation round fine-tunes one network, and the recipe "

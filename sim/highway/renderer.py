@@ -7,7 +7,7 @@
 
 Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped. With a rear-view
 mirror (sim/mirror.py) the same three layers are drawn a second time, small, from the mirror's rear camera, and
-pasted into the top of the frame.
+pasted into the top of the frame; with the side views, twice more from the side cameras, pasted below it.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from sim.camera import CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
-from sim.mirror import RearMirror
+from sim.mirror import RearMirror, SideViews
 from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
@@ -26,7 +26,7 @@ CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 class Renderer:
     def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny",
-                 mirror: bool = False):
+                 mirror: bool = False, sides: bool = False):
         from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
         self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)
@@ -41,6 +41,11 @@ class Renderer:
             rear = self.mirror.camera
             self._rear_painter = GroundPainter(chunks, self.look, rear, GROUND_MATERIALS)
             self._rear_backdrop = self._make_backdrop(rear)
+        self.sides = SideViews(camera.height, camera.width) if sides and mirror else None
+        if self.sides is not None:
+            side = self.sides.camera
+            self._side_painter = GroundPainter(chunks, self.look, side, GROUND_MATERIALS)
+            self._side_backdrop = self._make_backdrop(side)
 
     def _make_backdrop(self, cam: CameraConfig) -> np.ndarray:
         look = self.look
@@ -65,11 +70,16 @@ class Renderer:
         return in_wedge & (dist - radii < camera.cull_distance)
 
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
-        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the mirror pasted in."""
+        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in."""
         frame = self._view(self.camera, self._painter, self._backdrop, x, y, yaw, cars)
         if self.mirror is not None:
             rear = self._view(self.mirror.camera, self._rear_painter, self._rear_backdrop, x, y, yaw + np.pi, cars)
             self.mirror.composite(frame, rear)
+        if self.sides is not None:
+            cam, painter, backdrop = self.sides.camera, self._side_painter, self._side_backdrop
+            left = self._view(cam, painter, backdrop, x, y, yaw + np.pi / 2, cars)
+            right = self._view(cam, painter, backdrop, x, y, yaw - np.pi / 2, cars)
+            self.sides.composite(frame, left, right)
         return frame
 
     def _view(self, camera: CameraConfig, painter: GroundPainter, backdrop: np.ndarray, x: float, y: float,

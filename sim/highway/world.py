@@ -19,6 +19,7 @@ from sim.highway.sumo_traffic import SumoTraffic
 from sim.highway.traffic import CarStates, ScriptedTraffic
 from sim.highway.truth import GroundTruth, ground_truth, truth_record
 from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
+from sim.mirror import inset_name
 from sim.track import Track, load_track
 
 LOST_MARGIN = 6.0  # [m] beyond the road edge the host car is lost and the episode ends
@@ -36,6 +37,12 @@ class WorldConfig:
     renderer: str = "tiny"          # "tiny" (TinyRenderer) or "egl"
     camera: CameraConfig = field(default_factory=CameraConfig)
     mirror: bool = False            # a rear-view mirror pasted into the top of the frame (sim/mirror.py)
+    side_views: bool = False        # with the mirror: the views out of both side windows, below it (sim/mirror.py)
+
+    @property
+    def inset(self) -> str:
+        """What the frames hold besides the scene (core/declaration.py Camera.inset)."""
+        return inset_name(self.mirror, self.side_views)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
     start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
@@ -74,7 +81,7 @@ class World:
     def __init__(self, config: WorldConfig | None = None, scenario: Scenario | None = None):
         self.config = config = config or WorldConfig()
         cam = config.camera
-        self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width, "mirror" if config.mirror else "")
+        self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width, config.inset)
         self.dt = config.dt
         self.scenario = scenario
         if scenario is not None:
@@ -188,6 +195,6 @@ class World:
             if self._renderer is not None:
                 self._renderer.close()
             self._renderer = Renderer(self.track, self.seed, self.config.camera, self.config.renderer,
-                                      self.config.mirror)
+                                      self.config.mirror, self.config.side_views)
             self._renderer_seed = self.seed
         return self._renderer.render(ego[0], ego[1], ego[2], cars)

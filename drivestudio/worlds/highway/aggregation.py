@@ -48,6 +48,7 @@ from perception.merge import Source, merge
 from perception.shards import MANIFEST, Dataset, read_manifest
 from perception.train import train
 from perception.training import TrainConfig
+from sim.mirror import inset_options
 
 STATE = "aggregation.json"
 MADE_BEFORE = {"emphasis": 1}   # a setting's value in runs made before it existed
@@ -147,13 +148,13 @@ def expert_lanes(data: str) -> list[int]:
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     """generate's highway options for a round: the default training plan with the expert dataset's lane counts
     (seed cfg.seed * 100 + round, so that every round drives new traffic on new procedural tracks), denser traffic,
-    and the learner, whose frames carry the rear-view mirror when it learned one."""
+    and the learner, whose frames carry the rear-view mirror (and the side views) when it learned them."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
     lanes = expert_lanes(cfg.data)
     options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.cars),
                "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0,
-               **({"mirror": True} if checkpoint_inset(str(learner)) == "mirror" else {})}
+               **inset_options(checkpoint_inset(str(learner)))}
     held_out = benchmark_tracks()
     tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in lanes)]
     return {**options, "tracks": tracks, "learner": str(learner.resolve()), "beta": cfg.beta_of(round_),

@@ -23,6 +23,7 @@ from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
 from perception.highway.table3 import Table3Layout
 from sim.camera import CameraConfig
+from sim.mirror import INSET_FLAGS, inset_name
 from sim.track import load_track, preset_names
 
 if TYPE_CHECKING:
@@ -53,6 +54,10 @@ class Plugin(base.Plugin):
             options.add(self.name, g, "--mirror", action="store_true",
                         help="paste a rear-view mirror into the top of the frame (docs/rendering.md); drive turns it "
                         "on by itself for a model that learned it")
+            options.add(self.name, g, "--side-views", action="store_true",
+                        help="with the mirror (implied): paste the views out of both side windows below it, where a "
+                        "car level with the host shows (docs/rendering.md); drive turns them on for a model that "
+                        "learned them")
         if verb == "drive":
             options.add(self.name, g, "--smoothing", type=finite(0.0, 0.95),
                         help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
@@ -94,20 +99,20 @@ class Plugin(base.Plugin):
                               fov_deg=getattr(args, "fov", None) or 60.0)
         return WorldConfig(track=args.track or "oval", lanes=args.lanes, seed=args.seed,
                            cars=DEFAULT_CARS if args.cars is None else args.cars, renderer=args.renderer,
-                           render=render, camera=camera, mirror=bool(getattr(args, "mirror", False)),
+                           render=render, camera=camera, **_inset_flags(args),
                            start_speed=START_SPEED if args.start_speed is None else args.start_speed, **extra)
 
     def resolve_args(self, args) -> None:
-        """drive's --mirror follows the checkpoint that drives: a model reads frames like the ones it learned, so
-        one that learned the mirror gets it, and --mirror with one that learned none is refused."""
+        """drive's --mirror and --side-views follow the checkpoint that drives: a model reads frames like the ones
+        it learned, so one that learned the mirror gets it, and insets it did not learn are refused."""
         model = getattr(args, "model", None)
         if not model or model in self.expert_names or is_policy(model):
             return
-        inset = checkpoint_inset(model)
-        if args.mirror and inset != "mirror":
-            raise UsageError(f"--mirror: {model} learned frames without the rear-view mirror; drive it without "
-                             "--mirror")
-        args.mirror = inset == "mirror"
+        inset, asked = checkpoint_inset(model), inset_name(**_inset_flags(args))
+        if asked and asked != inset:
+            raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it "
+                             f"{f'with {_inset_options(inset)}' if inset else 'without --mirror'}")
+        args.mirror, args.side_views = INSET_FLAGS.get(inset, (False, False))
 
     def world(self, args, render: bool) -> World:
         from sim.highway.world import World  # lazy: trimesh
@@ -121,7 +126,8 @@ class Plugin(base.Plugin):
                 raise UsageError("--track and --warmup go without a scenario file (a scenario places its own cars)")
             cfg = self.config(args, render=False)
             scenario = load_scenario(args.scenario, lanes=args.lanes)
-            world = World(WorldConfig(renderer=args.renderer, camera=cfg.camera, cars=0, mirror=cfg.mirror),
+            world = World(WorldConfig(renderer=args.renderer, camera=cfg.camera, cars=0, mirror=cfg.mirror,
+                                      side_views=cfg.side_views),
                           scenario=scenario)
         else:
             world = self.world(args, render=False)
@@ -148,9 +154,9 @@ class Plugin(base.Plugin):
         predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
         if declaration is not None and predictor.inset != declaration.cameras[0].inset:
             # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
-            had = "with" if predictor.inset else "without"
-            raise UsageError(f"{model} learned frames {had} the rear-view mirror and this world renders "
-                             f"{'one' if declaration.cameras[0].inset else 'none'}: start the world {had} --mirror")
+            want = f"with {_inset_options(predictor.inset)}" if predictor.inset else "without --mirror"
+            raise UsageError(f"{model} learned frames {_inset_words(predictor.inset)} and this world renders them "
+                             f"{_inset_words(declaration.cameras[0].inset)}: start the world {want}")
         lookout = reads_behind(predictor.outputs)
         rear_memory = getattr(args, "rear_memory", None) or 0.0
         if rear_memory and not lookout:
@@ -203,7 +209,7 @@ class Plugin(base.Plugin):
 
     def describe_run(self, world, args) -> dict:
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars,
-                "mirror": world.config.mirror}
+                "mirror": world.config.mirror, "side_views": world.config.side_views}
 
     def studio(self) -> StudioKit:
         from drivestudio.worlds.highway.studio import KIT  # lazy: the overlays and presets only for the studio
@@ -232,7 +238,7 @@ class Plugin(base.Plugin):
         options = {"tracks": tracks, "procedural": 3 if args.procedural is None else args.procedural,
                    "lanes": list(lanes), "cars": list(cars), "width": args.width or FRAME[1],
                    "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov,
-                   **({"mirror": True} if args.mirror else {})}
+                   **{k: True for k, on in _inset_flags(args).items() if on}}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)
@@ -240,7 +246,7 @@ class Plugin(base.Plugin):
 
     def declaration_for(self, options: dict):
         return HIGHWAY.with_camera("front", options["height"], options["width"],
-                                   "mirror" if options.get("mirror") else "")
+                                   inset_name(bool(options.get("mirror")), bool(options.get("side_views"))))
 
     @staticmethod
     def track_list(options: dict, seed_: int) -> list[str]:
@@ -272,7 +278,7 @@ class Plugin(base.Plugin):
         p = ep.params
         world = World(WorldConfig(track=p["track"], lanes=p["lanes"], cars=p["cars"], seed=ep.seed,
                                   renderer=renderer, camera=camera, render=False, start_speed=START_SPEED,
-                                  mirror=bool(options.get("mirror"))))
+                                  mirror=bool(options.get("mirror")), side_views=bool(options.get("side_views"))))
         expert = ExpertDriver(p["lanes"], world.track.lane_width, ep.seed, world.dt)
 
         def columns(obs) -> dict:
@@ -309,3 +315,17 @@ def _range(text: str) -> tuple[int, int]:
     except ValueError:
         raise UsageError(f"expected N or A-B for --cars, got '{text}'") from None
 
+
+def _inset_flags(args) -> dict:
+    """The world's mirror and side views asked for on the command line (--side-views implies the mirror)."""
+    sides = bool(getattr(args, "side_views", False))
+    return {"mirror": sides or bool(getattr(args, "mirror", False)), "side_views": sides}
+
+
+def _inset_options(inset: str) -> str:
+    return "--mirror --side-views" if inset == "mirror+sides" else "--mirror"
+
+
+def _inset_words(inset: str) -> str:
+    return {"": "without the rear-view mirror", "mirror": "with the rear-view mirror",
+            "mirror+sides": "with the rear-view mirror and the side views"}[inset]

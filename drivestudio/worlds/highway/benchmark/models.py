@@ -50,7 +50,7 @@ class ModelSpec:
     gap_hold: float = 0.0
     lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
     policy: bool = False       # a policy on the exact affordances (path: its .zip or policy:MODULE:NAME)
-    mirror: bool = False       # the checkpoint learned frames with the rear-view mirror: its routes render one
+    inset: str = ""            # what the checkpoint's frames held besides the scene (the mirror): its routes render it
     pass_memory: float = 0.0   # [s] the longest a car being passed is carried on unseen (0: not at all)
     rear_memory: float = 0.0   # [s] the longest a car lost from the mirror is held alongside (0: not at all)
 
@@ -148,7 +148,7 @@ def check_model(text: str) -> ModelSpec:
         + (", lookout" if lookout else "")
     return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
                      smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout,
-                     mirror=frame_inset(spec) == "mirror", pass_memory=filters.get("pass_memory", 0.0),
+                     inset=frame_inset(spec), pass_memory=filters.get("pass_memory", 0.0),
                      rear_memory=filters.get("rear_memory", 0.0))
 
 

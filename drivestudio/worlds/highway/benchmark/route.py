@@ -153,14 +153,15 @@ class RouteWorld:
         self.world.close()
 
 
-def world_for(route: Route, renderer: str = "tiny", mirror: bool = False):
+def world_for(route: Route, renderer: str = "tiny", inset: str = ""):
     """The route's world, built as `drive` builds it (the highway plugin's defaults) at the route's start lane, with
-    the rear-view mirror for a model that learned it."""
+    the inset (the rear-view mirror, the side views) of a model that learned one."""
     from drivestudio import worlds  # lazy: the plugin registry loads the worlds, only in a route's process
     from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
+    from sim.mirror import INSET_FLAGS  # lazy: with the world
     ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                             cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None,
-                            mirror=mirror)
+                            mirror=INSET_FLAGS[inset][0], side_views=INSET_FLAGS[inset][1])
     plugin: Any = worlds.get("highway")   # the highway plugin: its config() builds the WorldConfig
     return World(plugin.config(ns, render=True, start_lane=route.start_lane))
 
@@ -209,7 +210,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
     )
     from drivestudio.worlds.highway.metrics import HighwayMetrics  # lazy: only in a route's process
 
-    world = world_for(route, opts.renderer, model.mirror)
+    world = world_for(route, opts.renderer, model.inset)
     t0 = time.perf_counter()
     try:
         metrics = RouteMetrics(world, HighwayMetrics(world))
