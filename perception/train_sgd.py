@@ -144,12 +144,13 @@ def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, opt
 
 
 def check_inset(where: str, spec: dict, decl: WorldDeclaration) -> None:
-    """A model goes on learning only frames like the ones it learned: with the rear-view mirror or without it."""
+    """A model goes on learning only frames like the ones it learned: with the same inset (the rear-view mirror,
+    the side views) or without one."""
     had, has = frame_inset(spec), decl.cameras[0].inset
     if had != has:
-        raise CheckpointError(f"{where} learned frames {f'with a {had}' if had else 'without an inset'}; this data's "
-                              f"frames are {f'with a {has}' if has else 'without one'}: use data like its own, or "
-                              "another --out")
+        raise CheckpointError(f"{where} learned frames {f'with the {had} inset' if had else 'without an inset'}; this "
+                              f"data's frames are {f'with the {has} inset' if has else 'without one'}: use data like "
+                              "its own, or another --out")
 
 
 def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict:

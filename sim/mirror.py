@@ -39,10 +39,10 @@ SIDE_PITCH_DEG = -12.0      # looking down: a car in the next lane, 2-5 m away, 
 INSET_FLAGS = {"": (False, False), "mirror": (True, False), "mirror+sides": (True, True)}  # inset: (mirror, sides)
 
 
-def inset_name(mirror: bool, sides: bool = False) -> str:
+def inset_name(mirror: bool, side_views: bool = False) -> str:
     """The camera's inset (core/declaration.py) for a world with the mirror and the side views; sides need the
     mirror (they see the blind spot between it and the front view)."""
-    return "mirror+sides" if sides else ("mirror" if mirror else "")
+    return "mirror+sides" if side_views else ("mirror" if mirror else "")
 
 
 def inset_options(inset: str) -> dict:

@@ -36,12 +36,12 @@ class Renderer:
         self._painter = GroundPainter(chunks, self.look, camera, GROUND_MATERIALS)
         self._objects = BulletScene(chunks, self.look, camera, renderer)
         self._backdrop = self._make_backdrop(camera)
-        self.mirror = RearMirror(camera.height, camera.width) if mirror else None
+        self.mirror = RearMirror(camera.height, camera.width) if mirror or sides else None   # sides need it
         if self.mirror is not None:
             rear = self.mirror.camera
             self._rear_painter = GroundPainter(chunks, self.look, rear, GROUND_MATERIALS)
             self._rear_backdrop = self._make_backdrop(rear)
-        self.sides = SideViews(camera.height, camera.width) if sides and mirror else None
+        self.sides = SideViews(camera.height, camera.width) if sides else None
         if self.sides is not None:
             side = self.sides.camera
             self._side_painter = GroundPainter(chunks, self.look, side, GROUND_MATERIALS)

@@ -23,6 +23,7 @@ from perception.train_sgd import check_inset
 
 DS = [sys.executable, "-m", "drivestudio"]
 MIRRORED = HIGHWAY.with_camera("front", 210, 280, "mirror")
+SIDES = HIGHWAY.with_camera("front", 210, 280, "mirror+sides")
 
 
 @pytest.fixture(scope="module")
@@ -30,16 +31,16 @@ def models(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("mirror-models")
     torch.manual_seed(0)
     out = {}
-    for name, decl in (("plain", HIGHWAY), ("mirror", MIRRORED)):
+    for name, decl in (("plain", HIGHWAY), ("mirror", MIRRORED), ("sides", SIDES)):
         model = Regressor(make_spec("gist", decl))
         out[name] = root / f"{name}.pt"
         save_checkpoint(out[name], {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
     return out
 
 
-def drive_args(model, mirror=False):
+def drive_args(model, mirror=False, side_views=False):
     return argparse.Namespace(track="oval", lanes=3, seed=0, cars=4, renderer="tiny", start_speed=None, width=None,
-                              height=None, fov=None, model=str(model), mirror=mirror)
+                              height=None, fov=None, model=str(model), mirror=mirror, side_views=side_views)
 
 
 def test_the_spec_records_the_inset_of_the_frames_it_learned(models):
@@ -47,10 +48,14 @@ def test_the_spec_records_the_inset_of_the_frames_it_learned(models):
     assert frame_inset(make_spec("gist", HIGHWAY)) == "" and "inset" not in make_spec("gist", HIGHWAY)["input"]
 
 
-def resolved(model, mirror=False) -> bool:
-    args = drive_args(model, mirror)
+def resolved(model, mirror=False, side_views=False) -> bool:
+    return resolved_inset(model, mirror, side_views) != ""
+
+
+def resolved_inset(model, mirror=False, side_views=False) -> str:
+    args = drive_args(model, mirror, side_views)
     Plugin().resolve_args(args)
-    return Plugin().config(args, render=True).mirror
+    return Plugin().config(args, render=True).inset
 
 
 def test_drive_renders_the_mirror_for_a_model_that_learned_it_and_only_then(models):
@@ -62,21 +67,40 @@ def test_drive_renders_the_mirror_for_a_model_that_learned_it_and_only_then(mode
         resolved(models["plain"], mirror=True)
 
 
+def test_drive_renders_the_side_views_for_a_model_that_learned_them_and_only_then(models):
+    assert resolved_inset(models["sides"]) == "mirror+sides"
+    assert resolved_inset(models["sides"], mirror=True, side_views=True) == "mirror+sides"
+    assert resolved_inset(models["mirror"]) == "mirror"
+    assert resolved_inset("oracle", side_views=True) == "mirror+sides"    # --side-views brings the mirror with it
+    with pytest.raises(UsageError, match="^--mirror: .* learned frames with the rear-view mirror and the side views; "
+                                         "drive it with --mirror --side-views$"):
+        resolved_inset(models["sides"], mirror=True)
+    with pytest.raises(UsageError, match="^--mirror --side-views: .* learned frames with the rear-view mirror; "
+                                         "drive it with --mirror$"):
+        resolved_inset(models["mirror"], side_views=True)
+
+
 def test_a_running_world_unlike_the_models_frames_is_refused(models):
     """Over the bridge or in the studio the world runs before the driver is made: its declaration decides."""
     plugin = Plugin()
     args = drive_args(models["plain"])
     assert plugin.driver(str(models["mirror"]), args, MIRRORED) is not None
     assert plugin.driver(str(models["plain"]), args, HIGHWAY) is not None
-    with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world renders none"):
+    with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world's are without the "
+                                         "rear-view mirror: start the world with --mirror$"):
         plugin.driver(str(models["mirror"]), args, HIGHWAY)
-    with pytest.raises(UsageError, match="learned frames without the rear-view mirror and this world renders one"):
+    with pytest.raises(UsageError, match="learned frames without the rear-view mirror and this world's are with the "
+                                         "rear-view mirror: start the world without --mirror"):
         plugin.driver(str(models["plain"]), args, MIRRORED)
+    with pytest.raises(UsageError, match="with the rear-view mirror and the side views and this world's are with the "
+                                         "rear-view mirror: start the world with --mirror --side-views"):
+        plugin.driver(str(models["sides"]), args, MIRRORED)
 
 
 def test_the_benchmark_renders_the_mirror_for_that_row(models):
-    assert check_model(str(models["mirror"])).mirror is True
-    assert check_model(str(models["plain"])).mirror is False and check_model("oracle").mirror is False
+    assert check_model(str(models["mirror"])).inset == "mirror"
+    assert check_model(str(models["sides"])).inset == "mirror+sides"
+    assert check_model(str(models["plain"])).inset == "" and check_model("oracle").inset == ""
     assert "with mirror" in check_model(str(models["mirror"])).label
 
 
@@ -100,8 +124,10 @@ def test_training_goes_on_only_with_frames_like_the_models_own(models):
     mirrored = make_spec("gist", MIRRORED)
     check_inset("m.pt", mirrored, MIRRORED)
     check_inset("p.pt", make_spec("gist", HIGHWAY), HIGHWAY)
-    with pytest.raises(CheckpointError, match="learned frames with a mirror"):
+    with pytest.raises(CheckpointError, match="learned frames with the mirror inset"):
         check_inset("m.pt", mirrored, HIGHWAY)
+    with pytest.raises(CheckpointError, match="with the mirror\\+sides inset; this data's frames are with the mirror "):
+        check_inset("s.pt", make_spec("gist", SIDES), MIRRORED)
     with pytest.raises(CheckpointError, match="learned frames without an inset"):
         check_inset("p.pt", make_spec("gist", HIGHWAY), MIRRORED)
 
@@ -111,17 +137,20 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     from perception.merge import Source, merge
     from perception.shards import Dataset, DatasetError
 
-    for name, extra in (("plain", []), ("mirror", ["--mirror", "--lanes", "2,4"])):
+    for name, extra in (("plain", []), ("mirror", ["--mirror", "--lanes", "2,4"]), ("sides", ["--side-views"])):
         run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
                                    "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
                              capture_output=True, text=True, timeout=180)
         assert run.returncode == 0, run.stderr
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
+    assert Dataset(tmp_path / "sides").declaration.cameras[0].inset == "mirror+sides"   # --side-views: the mirror too
     from drivestudio.worlds.highway.aggregation import expert_lanes
     assert expert_lanes(str(tmp_path / "mirror")) == [2, 4] and expert_lanes(str(tmp_path / "plain")) == [1, 2, 3]
     with pytest.raises(DatasetError, match="another world or camera"):
         merge(tmp_path / "merged", [Source(tmp_path / "plain"), Source(tmp_path / "mirror")], log=lambda *a: None)
+    with pytest.raises(DatasetError, match="another world or camera"):
+        merge(tmp_path / "merged", [Source(tmp_path / "mirror"), Source(tmp_path / "sides")], log=lambda *a: None)
     assert not (tmp_path / "merged").exists()
 
 

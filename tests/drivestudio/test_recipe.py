@@ -107,3 +107,6 @@ def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_r
     assert sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=True)) == Extended(rear_members=2)
     with pytest.raises(UsageError, match="--rear-members is of the extended recipe"):
         sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=False))
+    assert sized(SimpleNamespace(**none, side_views=True, extended=True)) == Extended(side_views=True)
+    with pytest.raises(UsageError, match="--side-views is of the extended recipe"):
+        sized(SimpleNamespace(**none, side_views=True, extended=False))

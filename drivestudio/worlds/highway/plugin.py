@@ -155,7 +155,7 @@ class Plugin(base.Plugin):
         if declaration is not None and predictor.inset != declaration.cameras[0].inset:
             # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
             want = f"with {_inset_options(predictor.inset)}" if predictor.inset else "without --mirror"
-            raise UsageError(f"{model} learned frames {_inset_words(predictor.inset)} and this world renders them "
+            raise UsageError(f"{model} learned frames {_inset_words(predictor.inset)} and this world's are "
                              f"{_inset_words(declaration.cameras[0].inset)}: start the world {want}")
         lookout = reads_behind(predictor.outputs)
         rear_memory = getattr(args, "rear_memory", None) or 0.0
