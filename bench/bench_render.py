@@ -3,7 +3,8 @@
 The host car drives along the track at 15 m/s while 12 scripted cars keep pace in the three lanes 8-80 m
 ahead, so every frame has 12 cars in view and the scenery streams past as in a real run.
 
-    python bench/bench_render.py [--track oval] [--frames 2000] [--renderer tiny|egl] [--mirror] [--side-views] [--json F]
+    python bench/bench_render.py [--track oval] [--frames 2000] [--renderer tiny|egl] [--mirror] [--side-views]
+                                 [--json F]
 
 --mirror adds the rear-view mirror (sim/mirror.py): a second, small view drawn per frame, with 4 scripted cars
 behind the host as well. --side-views adds the views out of both side windows (and the mirror): two more small
@@ -42,7 +43,8 @@ def main() -> None:
         cars += [{"s": 0.5, "d": d, "speed": speed} for d in (4.0, -4.0)]
     scenario = scenario_from_dict({"track": args.track, "lanes": 3, "seed": 1,
                                    "ego": {"s": 0.0, "d": 0.0, "speed": speed}, "cars": cars})
-    with World(WorldConfig(renderer=args.renderer, cars=0, mirror=args.mirror, side_views=args.side_views), scenario=scenario) as world:
+    config = WorldConfig(renderer=args.renderer, cars=0, mirror=args.mirror, side_views=args.side_views)
+    with World(config, scenario=scenario) as world:
         obs = world.observe()
         in_view = []
         for _ in range(20):  # warm caches
@@ -56,7 +58,8 @@ def main() -> None:
             in_view.append(int(np.sum(world.track.gap(world.ego.s, obs.truth.cars[:, 3]) > 0)))
         dt = time.perf_counter() - t0
         t = world.timings
-    print(f"track {args.track}, 3 lanes, renderer {args.renderer}{', mirror' if args.mirror else ''}{', side views' if args.side_views else ''}, "
+    insets = (", mirror" if args.mirror else "") + (", side views" if args.side_views else "")
+    print(f"track {args.track}, 3 lanes, renderer {args.renderer}{insets}, "
           f"{args.frames} frames of "
           f"{obs.frame.shape[1]}x{obs.frame.shape[0]}, cars ahead per frame: {np.mean(in_view):.1f}")
     print(f"render + ground truth: {args.frames / dt:.1f} frames/s ({dt / args.frames * 1e3:.2f} ms/frame; "
@@ -65,7 +68,8 @@ def main() -> None:
           f" physics {t['physics'] / (args.frames + 20) * 1e3:.2f} ms)")
     if args.json:
         args.json.write_text(json.dumps({
-            "track": args.track, "renderer": args.renderer, "mirror": args.mirror, "side_views": args.side_views, "frames": args.frames,
+            "track": args.track, "renderer": args.renderer, "mirror": args.mirror, "side_views": args.side_views,
+            "frames": args.frames,
             "size": [int(obs.frame.shape[1]), int(obs.frame.shape[0])], "cars_ahead": float(np.mean(in_view)),
             "frames_per_s": args.frames / dt, "ms_per_frame": dt / args.frames * 1e3,
             "render_ms": t["render"] / (args.frames + 21) * 1e3, "truth_ms": t["truth"] / (args.frames + 21) * 1e3,

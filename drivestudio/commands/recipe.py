@@ -47,8 +47,8 @@ def register(sub) -> None:
     p.add_argument("--quick", action="store_true", help="every step at its smallest (what the tests run)")
     p.add_argument("--extended", action="store_true",
                    help="the extended label set's driver instead: two networks of the paper's 13 (--members) and one "
-                        "of the cars behind, all with the rear-view mirror, an aggregation round (--rounds) for each "
-                        "forward network, their ensemble with the lookout controller; 78 minutes")
+                        "of the cars behind, all with the rear-view mirror and the side views, an aggregation round "
+                        "(--rounds) for each forward network, their ensemble with the lookout controller; 79 minutes")
     p.add_argument("--frames", type=count(200, 10**7), default=None, help=f"expert frames (default {FULL.frames})")
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
                    help=f"iterations of each network's training (default {FULL.iterations})")
@@ -59,9 +59,10 @@ def register(sub) -> None:
                    help=f"with --extended: networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of "
                         f"theirs believed (default {EXTENDED.rear_members}; 2 builds one like the best driver "
                         f"measured, about 105 minutes in all, untimed)")
-    p.add_argument("--side-views", action="store_true",
-                   help="with --extended: frames with the views out of both side windows too, where a car level "
-                        "with the host shows (docs/rendering.md)")
+    p.add_argument("--no-side-views", action="store_true",
+                   help="with --extended: frames with the rear-view mirror alone, without the views out of both side "
+                        "windows (where a car level with the host shows; docs/rendering.md): the driver built before "
+                        "them")
     p.add_argument("--rounds", type=count(1, 50), default=None,
                    help="data-aggregation rounds after the training (only with --members 1; default none)")
     p.add_argument("--emphasis", type=count(1, 100), default=None,
@@ -80,11 +81,11 @@ def sized(args) -> Size | Extended:
     given = {k: v for k, v in (("frames", args.frames), ("iterations", args.iterations), ("members", args.members),
                                ("rear_members", args.rear_members), ("rounds", args.rounds),
                                ("emphasis", args.emphasis)) if v is not None}
-    if getattr(args, "side_views", False):
-        given["side_views"] = True
-    for key in ("rear_members", "side_views"):
+    if getattr(args, "no_side_views", False):
+        given["side_views"] = False
+    for key, option in (("rear_members", "--rear-members"), ("side_views", "--no-side-views")):
         if key in given and not isinstance(size, Extended):
-            raise UsageError(f"--{key.replace('_', '-')} is of the extended recipe: give --extended too")
+            raise UsageError(f"{option} is of the extended recipe: give --extended too")
     size = replace(size, **given)
     if isinstance(size, Size) and size.rounds and size.members > 1:
         raise UsageError(f"--rounds needs --members 1: an aggregation round fine-tunes one network, and the recipe "

@@ -82,7 +82,9 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "train",
                                                 "aggregate", "aggregate", "-m", "benchmark"]
-    assert "--mirror --lanes 1,2,3 " in commands[0] and "--mirror --lanes 1,2,3,4 " in commands[1]
+    assert "--mirror --side-views --lanes 1,2,3 " in commands[0]
+    assert "--mirror --side-views --lanes 1,2,3,4 " in commands[1]
+    assert ensemble["spec"]["input"]["inset"] == "mirror+sides"
     assert [c.split("--seed ")[1].split()[0] for c in commands[2:6]] == ["0", "1", "0", "2"]   # rear: seeds 0, 2
     assert all(f"--targets {REAR_TARGETS}" in c and "--emphasis" not in c for c in commands[4:6])
     assert all("data-mirror-4lanes" in c for c in commands[4:6])
@@ -107,6 +109,7 @@ def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_r
     assert sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=True)) == Extended(rear_members=2)
     with pytest.raises(UsageError, match="--rear-members is of the extended recipe"):
         sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=False))
-    assert sized(SimpleNamespace(**none, side_views=True, extended=True)) == Extended(side_views=True)
-    with pytest.raises(UsageError, match="--side-views is of the extended recipe"):
-        sized(SimpleNamespace(**none, side_views=True, extended=False))
+    assert Extended().side_views and sized(SimpleNamespace(**none, extended=True)).side_views
+    assert sized(SimpleNamespace(**none, no_side_views=True, extended=True)) == Extended(side_views=False)
+    with pytest.raises(UsageError, match="--no-side-views is of the extended recipe"):
+        sized(SimpleNamespace(**none, no_side_views=True, extended=False))
