@@ -38,15 +38,15 @@ class WorldConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     mirror: bool = False            # a rear-view mirror pasted into the top of the frame (sim/mirror.py)
     side_views: bool = False        # with the mirror: the views out of both side windows, below it (sim/mirror.py)
+    vehicle: VehicleParams = field(default_factory=VehicleParams)
+    start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
+    start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
+    sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
 
     @property
     def inset(self) -> str:
         """What the frames hold besides the scene (core/declaration.py Camera.inset)."""
         return inset_name(self.mirror, self.side_views)
-    vehicle: VehicleParams = field(default_factory=VehicleParams)
-    start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
-    start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
-    sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
 
 
 @dataclass

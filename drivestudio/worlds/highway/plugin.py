@@ -23,7 +23,7 @@ from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
 from perception.highway.table3 import Table3Layout
 from sim.camera import CameraConfig
-from sim.mirror import INSET_FLAGS, inset_name
+from sim.mirror import INSET_FLAGS, inset_name, inset_options
 from sim.track import load_track, preset_names
 
 if TYPE_CHECKING:
@@ -112,7 +112,7 @@ class Plugin(base.Plugin):
         if asked and asked != inset:
             raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it "
                              f"{f'with {_inset_options(inset)}' if inset else 'without --mirror'}")
-        args.mirror, args.side_views = INSET_FLAGS.get(inset, (False, False))
+        args.mirror, args.side_views = INSET_FLAGS[inset]
 
     def world(self, args, render: bool) -> World:
         from sim.highway.world import World  # lazy: trimesh
@@ -238,7 +238,7 @@ class Plugin(base.Plugin):
         options = {"tracks": tracks, "procedural": 3 if args.procedural is None else args.procedural,
                    "lanes": list(lanes), "cars": list(cars), "width": args.width or FRAME[1],
                    "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov,
-                   **{k: True for k, on in _inset_flags(args).items() if on}}
+                   **inset_options(inset_name(**_inset_flags(args)))}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)

@@ -158,10 +158,10 @@ def world_for(route: Route, renderer: str = "tiny", inset: str = ""):
     the inset (the rear-view mirror, the side views) of a model that learned one."""
     from drivestudio import worlds  # lazy: the plugin registry loads the worlds, only in a route's process
     from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
-    from sim.mirror import INSET_FLAGS  # lazy: with the world
+    from sim.mirror import inset_options  # lazy: with the world
     ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                             cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None,
-                            mirror=INSET_FLAGS[inset][0], side_views=INSET_FLAGS[inset][1])
+                            **inset_options(inset))
     plugin: Any = worlds.get("highway")   # the highway plugin: its config() builds the WorldConfig
     return World(plugin.config(ns, render=True, start_lane=route.start_lane))
 
