@@ -48,7 +48,8 @@ def register(sub) -> None:
     p.add_argument("--extended", action="store_true",
                    help="the extended label set's driver instead: two networks of the paper's 13 (--members) and one "
                         "of the cars behind, all with the rear-view mirror and the side views, an aggregation round "
-                        "(--rounds) for each forward network, their ensemble with the lookout controller; 79 minutes")
+                        "(--rounds) for each forward network, their ensemble with the lookout controller; 46-79 "
+                        "minutes by the CPU")
     p.add_argument("--frames", type=count(200, 10**7), default=None, help=f"expert frames (default {FULL.frames})")
     p.add_argument("--iterations", type=count(1, 10**7), default=None,
                    help=f"iterations of each network's training (default {FULL.iterations})")
