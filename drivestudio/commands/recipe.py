@@ -11,7 +11,7 @@ from pathlib import Path
 
 from core.files import check_output_dir, make_dir
 from drivestudio.commands.recipe_extended import EXTENDED, EXTENDED_QUICK, Extended, extended_recipe
-from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step
+from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step, fingerprints
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count
 from drivestudio.outputs import write_text
@@ -109,6 +109,7 @@ def run(args) -> int:
                    size.frames, "--workers", args.workers, "--quiet")
         board = ensemble_recipe(steps, size, data, args) if size.members > 1 else \
             single_recipe(steps, size, data, args)
+    fingerprints(steps)
     write_text(out / "commands.txt", "\n".join(steps.log) + "\n")
     print(f"\nrecipe done in {steps.minutes():.1f} min (this run); " +
           (f"the leaderboard: {board}" if board else f"the models are in {out} (no benchmark: --suite none)"))

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from drivestudio.cli import main
+from drivestudio.outputs import write_json
 from drivestudio.side_by_side import run_side_by_side
 
 EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
@@ -79,6 +80,24 @@ def benchmark(steps: Steps, models: list, args) -> Path | None:
     steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
                "--workers", args.workers, "--quiet", "--out", bench)
     return board
+
+
+def fingerprints(steps: Steps) -> Path:
+    """fingerprints.json: the content fingerprint of every dataset and network under the recipe's folder
+    (perception/fingerprint.py), so that two runs can be compared step by step (`diff`): the first that differs is
+    where they parted."""
+    from perception.fingerprint import dataset_fingerprint, network_fingerprint  # torch: only once the recipe runs
+    from perception.shards import MANIFEST, Dataset  # pyarrow: likewise
+
+    t0 = steps.header("the fingerprints of every dataset and network, to compare two runs", [])
+    datasets = sorted(p.parent for p in steps.out.rglob(MANIFEST))
+    networks = sorted(p for p in steps.out.rglob("*.pt") if p.is_file())
+    table = {"datasets": {str(d.relative_to(steps.out)): dataset_fingerprint(Dataset(d)) for d in datasets},
+             "networks": {str(n.relative_to(steps.out)): network_fingerprint(n) for n in networks}}
+    path = steps.out / "fingerprints.json"
+    write_json(path, table)
+    steps.done(t0)
+    return path
 
 
 def done_before(bench: Path, suite: str, models: list[Path]) -> bool:

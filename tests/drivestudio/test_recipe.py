@@ -90,6 +90,16 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     assert all("data-mirror-4lanes" in c for c in commands[4:6])
     assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4] + commands[6:8])
     assert all(f"--beta {EXTENDED.beta:g}" in c for c in commands[6:8])
+    # every dataset and network fingerprinted, as `stats --fingerprint` and the checkpoint's stored digest say
+    prints = json.loads((out / "fingerprints.json").read_text())
+    assert {"data-mirror", "data-mirror-4lanes", "aggregation-0/round-1/data"} <= set(prints["datasets"])
+    assert {"forward-0.pt", "forward-1.pt", "rear.pt", "rear-1.pt", "aggregation-1/round-1/model.pt",
+            "ensemble.pt"} <= set(prints["networks"])
+    subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(out / "data-mirror"), "--fingerprint",
+                    "--out", str(tmp_path / "stats")], capture_output=True, text=True, check=True)
+    assert json.loads((tmp_path / "stats" / "stats.json").read_text())["fingerprint"] == \
+        prints["datasets"]["data-mirror"]
+    assert prints["networks"]["rear.pt"] == torch.load(out / "rear.pt", weights_only=False)["state_sha256"]
 
 
 def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
