@@ -93,6 +93,8 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     # every dataset and network fingerprinted, as `stats --fingerprint` and the checkpoint's stored digest say
     prints = json.loads((out / "fingerprints.json").read_text())
     assert {"data-mirror", "data-mirror-4lanes", "aggregation-0/round-1/data"} <= set(prints["datasets"])
+    merged = prints["datasets"]["aggregation-0/round-1/merged"]   # its frames are its sources': labels alone
+    assert merged["images"] is None and merged["frames"] > prints["datasets"]["data-mirror"]["frames"]
     assert {"forward-0.pt", "forward-1.pt", "rear.pt", "rear-1.pt", "aggregation-1/round-1/model.pt",
             "ensemble.pt"} <= set(prints["networks"])
     subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(out / "data-mirror"), "--fingerprint",
