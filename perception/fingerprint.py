@@ -66,7 +66,7 @@ def dataset_fingerprint(ds: Dataset, split: str | None = None, images: bool = Tr
 
 def _hash_frames(h, ds: Dataset, cache, shard: ShardInfo, camera: str) -> None:
     if not cache.missing([shard]):
-        h.update(memoryview(np.ascontiguousarray(cache.frames(shard, camera))).cast("B"))   # no copy of the map
+        h.update(np.ascontiguousarray(cache.frames(shard, camera)).data)   # the map itself, not a copy
         return
     for group in ds.reader(shard).iter_row_groups([image_column(camera)]):
         for data in group.column(0).to_pylist():
