@@ -17,13 +17,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from perception.shards import Dataset, ShardInfo, decode_image, image_column, label_columns
+from perception.shards import Dataset, ShardInfo, ShardReader, decode_image, image_column, label_columns
 
 
 def _column_bytes(col: pa.ChunkedArray) -> list[bytes]:
     """A column's values as bytes that do not depend on how Arrow chunked or laid them out: list columns flattened
     (with each row's length, so [[1], [2, 3]] and [[1, 2], [3]] differ), strings joined with their lengths, numbers
-    as their little-endian bytes with NaNs and nulls marked by a mask."""
+    as their little-endian bytes (a NaN by its bit pattern) after a mask of the nulls."""
     arr = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col
     if pa.types.is_list(arr.type) or pa.types.is_fixed_size_list(arr.type):
         lengths = pc.fill_null(pc.list_value_length(arr), 0).to_numpy(zero_copy_only=False).astype("<i8")
@@ -59,16 +59,16 @@ def dataset_fingerprint(ds: Dataset, split: str | None = None, images: bool = Tr
                 h_labels.update(part)
         if images:
             for camera in cameras:
-                _hash_frames(h_images, ds, cache, shard, camera)
+                _hash_frames(h_images, reader, cache, shard, camera)
         frames += table.num_rows
     return {"frames": frames, "labels": h_labels.hexdigest(), "images": h_images.hexdigest() if images else None}
 
 
-def _hash_frames(h, ds: Dataset, cache, shard: ShardInfo, camera: str) -> None:
+def _hash_frames(h, reader: ShardReader, cache, shard: ShardInfo, camera: str) -> None:
     if not cache.missing([shard]):
         h.update(np.ascontiguousarray(cache.frames(shard, camera)).data)   # the map itself, not a copy
         return
-    for group in ds.reader(shard).iter_row_groups([image_column(camera)]):
+    for group in reader.iter_row_groups([image_column(camera)]):
         for data in group.column(0).to_pylist():
             h.update(decode_image(data).tobytes())
 
