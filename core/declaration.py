@@ -296,6 +296,21 @@ class WorldDeclaration:
                                    f"(modes: {', '.join(self.modes) or 'none'})")
         return self.modes.index(mode)
 
+    def mode_list(self, text: str | None, option: str = "--modes") -> tuple[str, ...]:
+        """The behavioural modes a comma-separated list names; None gives all the world's. A list that names no
+        mode (an empty string, ",") is refused as every other empty list is, not read as all of them."""
+        if text is None:
+            return self.modes
+        names = tuple(m.strip() for m in str(text).split(",") if m.strip())
+        if not names:
+            raise DeclarationError(f"{option} {text!r} names no mode (leave it out for all: "
+                                   f"{', '.join(self.modes) or 'none'})")
+        unknown = [m for m in names if m not in self.modes]
+        if unknown:
+            raise DeclarationError(f"unknown behavioural mode {unknown[0]!r} "
+                                   f"(modes: {', '.join(self.modes) or 'none'})")
+        return names
+
     # --- the truth record ----------------------------------------------------------------------------------------
     def pack(self, values: Mapping[str, float] | None = None, /, *, partial: bool = False, **more) -> np.ndarray:
         """The truth record (float64, `truth` order) from a {field: value} mapping and keyword fields; booleans

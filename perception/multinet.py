@@ -36,13 +36,14 @@ import threading
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from core.declaration import DeclarationError, WorldDeclaration
 from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
@@ -205,18 +206,26 @@ class Progress:
     seconds: float = 0.0
 
 
+def run_modes(cfg, decl: WorldDeclaration) -> list[str]:
+    """The modes a run trains on: cfg.mtl's one, else cfg.modes' (None: all the world's). A list that names no
+    mode ("", ",") is refused, not read as all of them; so is an unknown mode."""
+    if cfg.mtl is not None and cfg.modes is not None:
+        raise CheckpointError("--mtl MODE trains on one mode: leave out --modes")
+    try:
+        names = list(decl.mode_list(cfg.mtl, "--mtl") if cfg.mtl is not None else decl.mode_list(cfg.modes))
+    except DeclarationError as e:
+        raise CheckpointError(f"the {decl.name} world: {e}") from None
+    if cfg.mtl is not None and len(names) != 1:
+        raise CheckpointError(f"--mtl trains the MTL net of one mode, got {cfg.mtl!r}")
+    return names
+
+
 def resolve(cfg, log=print) -> MultiNetRun:
     """The run's settings from the TrainConfig; the data read (and cached) and split."""
     roots = [r for r in str(cfg.data).split(",") if r]
     _, decl, labels = open_data(type(cfg)(**{**{f.name: getattr(cfg, f.name) for f in fields(cfg)},
                                              "data": roots[0]}))
-    if cfg.mtl and cfg.modes:
-        raise CheckpointError("--mtl MODE trains on one mode: leave out --modes")
-    names = [cfg.mtl] if cfg.mtl else [m.strip() for m in (cfg.modes or ",".join(decl.modes)).split(",") if m.strip()]
-    unknown = [m for m in names if m not in decl.modes]
-    if unknown:
-        raise CheckpointError(f"the {decl.name} world has no behavioural mode {', '.join(unknown)} "
-                              f"(modes: {', '.join(decl.modes)})")
+    names = run_modes(cfg, decl)
     defaults = family(cfg.model).defaults
     options: dict[str, Any] = {"modal": not cfg.mtl, "modes_trained": names} | ({"mtl": cfg.mtl} if cfg.mtl else {})
     spec = make_spec(cfg.model, decl, labels, **options)
@@ -406,6 +415,8 @@ def resume(run: MultiNetRun, log=print):
 # --- the loop ------------------------------------------------------------------------------------------------------
 def train_multinet(cfg, log=print) -> dict:
     """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
+    first = next((r for r in str(cfg.data).split(",") if r), cfg.data)
+    run_modes(cfg, open_data(replace(cfg, data=first))[1])   # before anything is read or written
     if Path(cfg.out).exists() and not Path(str(cfg.out) + ".state").exists():
         done = load_checkpoint(cfg.out, model=cfg.model)
         if done["spec"]["options"].get("mtl") != cfg.mtl:   # an MTL net is not MultiNet, nor another mode's net

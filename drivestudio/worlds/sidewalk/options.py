@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from core.worlds.sidewalk import MODES
+from core.declaration import DeclarationError
+from core.worlds.sidewalk import SIDEWALK
 from drivestudio.errors import UsageError
 from sim.sidewalk.errors import PathError
 
@@ -42,8 +43,8 @@ def obstacles_value(text):
 
 
 def mode_list(text: str | None) -> list[str]:
-    modes = [m.strip() for m in (text or ",".join(MODES)).split(",") if m.strip()]
-    unknown = [m for m in modes if m not in MODES]
-    if unknown or not modes:
-        raise UsageError(f"unknown behavioural mode {unknown[0] if unknown else text!r} (modes: {', '.join(MODES)})")
-    return modes
+    """--modes: the modes named (None: all); a list that names none or an unknown mode is a usage error."""
+    try:
+        return list(SIDEWALK.mode_list(text))
+    except DeclarationError as e:
+        raise UsageError(str(e)) from None
