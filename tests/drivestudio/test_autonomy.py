@@ -62,12 +62,11 @@ def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_p
     assert (tmp_path / "autonomy-0.mp4").stat().st_size > 10_000 and "| 0 | multinet.pt | safety |" in r.stdout
 
 
-def test_a_highway_model_is_refused_in_one_line(tmp_path):
+def test_a_highway_model_is_refused_in_one_line(run_cli, tmp_path):
     from core.worlds.highway import HIGHWAY
     model = Regressor(make_spec("gist", HIGHWAY))
     save_checkpoint(tmp_path / "gist.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "gist.pt"),
-                        "--out", str(tmp_path / "a")], cwd=REPO, capture_output=True, text=True, timeout=120)
+    r = run_cli("autonomy", "--model", tmp_path / "gist.pt", "--out", tmp_path / "a", cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert "a model of the highway world, not of the sidewalk world" in r.stderr
     assert not (tmp_path / "a").exists()
@@ -96,9 +95,8 @@ def test_rounds_merge_the_corrections_and_retrain(tmp_path):
     (["--rule", "lenient"], "argument --rule: invalid choice: 'lenient'"),
     (["--rounds", "0"], "argument --rounds: must be an integer from 1 to 20, got 0"),
 ])
-def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoint, tmp_path, argv, says):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint), *argv, "--out",
-                        str(tmp_path / "a")], cwd=REPO, capture_output=True, text=True, timeout=120)
+def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoint, run_cli, tmp_path, argv, says):
+    r = run_cli("autonomy", "--model", checkpoint, *argv, "--out", tmp_path / "a", cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and says in r.stderr, r.stderr
     assert not (tmp_path / "a").exists()
 
@@ -119,42 +117,45 @@ def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path):
     assert "| strict |" in (tmp_path / "autonomy.md").read_text()
 
 
-def _autonomy(checkpoint, *argv, timeout=120):
-    return subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint),
-                           *map(str, argv)], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+@pytest.fixture
+def autonomy(run_cli, checkpoint):
+    """`drivestudio autonomy --model CHECKPOINT ...` in this process: the refusals below come before any work."""
+    return lambda *argv: run_cli("autonomy", "--model", checkpoint, *argv, cwd=REPO)
 
 
-def test_rounds_without_data_are_refused_before_round_0(checkpoint, tmp_path):
-    r = _autonomy(checkpoint, "--rounds", "2", "--seconds", "3", "--out", tmp_path / "a")
+def _generate(*argv):
+    from drivestudio.cli import main
+    assert main(["generate", *map(str, argv), "--workers", "1", "--quiet"]) == 0
+
+
+def test_rounds_without_data_are_refused_before_round_0(autonomy, tmp_path):
+    r = autonomy( "--rounds", "2", "--seconds", "3", "--out", tmp_path / "a")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--rounds needs the training data" in r.stderr
     assert not (tmp_path / "a").exists()    # refused before anything was driven
 
 
-def test_merge_data_of_another_world_or_missing_is_refused_before_round_0(checkpoint, tmp_path):
+def test_merge_data_of_another_world_or_missing_is_refused_before_round_0(autonomy, tmp_path):
     highway = tmp_path / "hw"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(highway), "--frames", "20",
-                    "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True, timeout=300)
-    r = _autonomy(checkpoint, "--rounds", "2", "--data", highway, "--out", tmp_path / "a")
+    _generate("--out", highway, "--frames", "20", "--episode-frames", "20")
+    r = autonomy("--rounds", "2", "--data", highway, "--out", tmp_path / "a")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "dataset of the highway world" in r.stderr
-    r = _autonomy(checkpoint, "--data", tmp_path / "gone", "--out", tmp_path / "a")
+    r = autonomy("--data", tmp_path / "gone", "--out", tmp_path / "a")
     assert r.returncode == 2 and "no dataset folder" in r.stderr
     assert not (tmp_path / "a").exists()
 
 
-def test_merge_data_too_small_to_hold_an_episode_out_is_refused_before_round_0(checkpoint, tmp_path):
+def test_merge_data_too_small_to_hold_an_episode_out_is_refused_before_round_0(autonomy, tmp_path):
     data = tmp_path / "data"   # 3 episodes, one a mode: none to spare for validation
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
-                    "--frames", "60", "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True,
-                   timeout=300)
-    r = _autonomy(checkpoint, "--rounds", "2", "--data", data, "--out", tmp_path / "a")
+    _generate("--world", "sidewalk", "--out", data, "--frames", "60", "--episode-frames", "20")
+    r = autonomy("--rounds", "2", "--data", data, "--out", tmp_path / "a")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "fewer than 2 episodes of mode direct (1)" in r.stderr
     assert not (tmp_path / "a").exists()
 
 
-def test_a_folder_with_an_earlier_run_is_refused(checkpoint, tmp_path):
+def test_a_folder_with_an_earlier_run_is_refused(autonomy, tmp_path):
     """A rerun into a run's folder would take its round models as trained already."""
     (tmp_path / "model-round1.pt").write_bytes(b"an earlier run's model")
-    r = _autonomy(checkpoint, "--seconds", "3", "--out", tmp_path)
+    r = autonomy("--seconds", "3", "--out", tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "holds an earlier autonomy run" in r.stderr
     assert (tmp_path / "model-round1.pt").read_bytes() == b"an earlier run's model"    # untouched
 
@@ -165,9 +166,8 @@ def test_sigterm_ends_the_run_in_order_and_the_report_says_it_is_incomplete(tmp_
     import signal
     import time
     data = tmp_path / "data"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
-                    "--frames", "120", "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, check=True,
-                   timeout=300)   # 6 episodes: 2 a mode, one of which the retraining holds out
+    _generate("--world", "sidewalk", "--out", data, "--frames", "120", "--episode-frames", "20")
+    # 6 episodes: 2 a mode, one of which the retraining holds out
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", SIDEWALK, modal=True))
     save_checkpoint(tmp_path / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})

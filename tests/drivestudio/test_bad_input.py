@@ -25,9 +25,8 @@ def fixture(tmp_path_factory) -> Path:
     a symbolic link to /dev/null, a regular file called file.txt."""
     root = tmp_path_factory.mktemp("bad-input")
     shutil.copytree(V1, root / "data")
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "train", "--data", str(root / "data"), "--model", "gist",
-                        "--out", str(root / "model.pt")], cwd=REPO, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    from drivestudio.cli import main
+    assert main(["train", "--data", str(root / "data"), "--model", "gist", "--out", str(root / "model.pt")]) == 0
     shutil.copy(REPO / "docs" / "examples" / "three-lane.json", root / "scenario.json")
     shutil.copy(REPO / "assets" / "tracks" / "oval.json", root / "track.json")
     (root / "file.txt").write_text("keep me\n")
@@ -149,18 +148,31 @@ def _ids(case):
     return " ".join(case)[:60]
 
 
-@pytest.mark.parametrize("case", CASES, ids=[_ids(c) for c in CASES])
-def test_bad_input_gets_one_line_and_status_2(fixture, case):
-    before = snapshot(fixture)
-    argv = [a.format(root=fixture) for a in case]
-    r = subprocess.run([sys.executable, "-m", "drivestudio", *argv], cwd=fixture, capture_output=True, text=True,
-                       timeout=120)
+def _refused_with_one_line(fixture, before, r):
     assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("drivestudio"), r.stderr
     assert "Traceback" not in r.stderr
     assert snapshot(fixture) == before, "the command changed the fixture"
     assert os.path.exists("/dev/full") and not os.path.isfile("/dev/full")
     assert not (fixture / "runs").exists(), "a refused command made its output folder"
+
+
+# in this process, through the command line's entry point (tests/helpers.py): the same exit status and streams
+@pytest.mark.parametrize("case", CASES, ids=[_ids(c) for c in CASES])
+def test_bad_input_gets_one_line_and_status_2(fixture, run_cli, case):
+    before = snapshot(fixture)
+    r = run_cli(*[a.format(root=fixture) for a in case], cwd=fixture)
+    _refused_with_one_line(fixture, before, r)
+
+
+# and from a real interpreter, as a shell sees it: an option's number (argparse) and a file's content (the verb)
+@pytest.mark.parametrize("case", [("drive", "--seconds", "nan"), ("probe", "{root}/deep.json")], ids=_ids)
+def test_bad_input_from_a_real_process_gets_one_line_and_status_2(fixture, case):
+    before = snapshot(fixture)
+    argv = [a.format(root=fixture) for a in case]
+    r = subprocess.run([sys.executable, "-m", "drivestudio", *argv], cwd=fixture, capture_output=True, text=True,
+                       timeout=120)
+    _refused_with_one_line(fixture, before, r)
 
 
 def test_a_kill_during_a_save_leaves_nothing_behind_for_long(tmp_path):

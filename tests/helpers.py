@@ -1,0 +1,71 @@
+"""Running `drivestudio VERB ...` inside the test process: the command line's entry point with captured streams.
+
+A refusal or an option check needs no interpreter of its own: `drivestudio.cli.main(argv)` returns the exit status
+(argparse's errors leave by SystemExit, caught here) and the streams are read at the file-descriptor level, so what
+a library writes there counts as it would in a real run. Warnings a real run would print on stderr are put there
+too (pytest would otherwise keep them to itself), so "one line on stderr" means the same as from a shell.
+
+The contracts only a real process can show (exit statuses of signals and crashes, a killed peer, a second
+interpreter's state) keep their subprocess tests.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+# the categories Python's default filters keep quiet in a program's own run
+_QUIET = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
+_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGPIPE)
+
+
+@dataclass
+class Run:
+    """What subprocess.run would have given: the exit status and the two streams as text."""
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | None = None) -> Run:
+    """`drivestudio *argv` in this process, in `cwd`, with `env` added to the environment; everything it changed
+    (cwd, environment, signal handlers, torch's thread count) is put back afterwards."""
+    from drivestudio.cli import main
+    capfd.readouterr()                      # what came before is not this run's
+    old_cwd = os.getcwd()
+    old_env = dict(os.environ)
+    old_handlers = {s: signal.getsignal(s) for s in _SIGNALS}
+    torch = sys.modules.get("torch")
+    threads = torch.get_num_threads() if torch is not None else None
+    printed: list[str] = []
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        os.environ.update(env or {})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            try:
+                code = main([str(a) for a in argv])
+            except SystemExit as e:       # argparse: a usage error (2) or --help (0)
+                code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+                if isinstance(e.code, str):
+                    print(e.code, file=sys.stderr)
+        printed = [warnings.formatwarning(w.message, w.category, w.filename, w.lineno, w.line)
+                   for w in caught if not issubclass(w.category, _QUIET)]
+    finally:
+        os.chdir(old_cwd)
+        os.environ.clear()
+        os.environ.update(old_env)
+        for s, h in old_handlers.items():
+            if h is not None:
+                signal.signal(s, h)
+        torch = sys.modules.get("torch")
+        if torch is not None and threads is not None and torch.get_num_threads() != threads:
+            torch.set_num_threads(threads)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    out, err = capfd.readouterr()
+    return Run(code, out, err + "".join(printed))
