@@ -51,6 +51,7 @@ from perception.curves import write_curves
 from perception.models import Regressor, family, make_spec
 from perception.moment_cache import Moments
 from perception.optimizers import make_optimizer as optimizer
+from perception.train_outputs import state_path
 from perception.training import bf16_native, open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
@@ -174,7 +175,7 @@ class MultiNetRun:
 
     @property
     def state_path(self) -> Path:
-        return self.out.with_name(self.out.name + ".state")
+        return state_path(self.out)
 
     @property
     def steps(self) -> int:

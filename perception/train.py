@@ -7,6 +7,7 @@ from perception.distributed import distributed_env, join_distributed
 from perception.gist_fit import fit_gist
 from perception.models import family
 from perception.multinet import train_multinet
+from perception.train_outputs import check_train_outputs
 from perception.train_sgd import SGDRun
 from perception.training import TrainConfig, TrainingError, open_data, resolve_device
 
@@ -14,6 +15,7 @@ from perception.training import TrainConfig, TrainingError, open_data, resolve_d
 def train(cfg: TrainConfig, log=print) -> dict:
     """Train (or continue training) `cfg.model` on `cfg.data`; returns the final checkpoint's `train` record."""
     trainer = family(cfg.model).trainer
+    check_train_outputs(cfg.out, trainer)   # every file it writes, before the data is read
     if trainer != "sgd" and distributed_env() is not None:
         raise TrainingError(f"--model {cfg.model} trains in one process ({trainer}); torchrun runs the SGD families "
                             "(alexnet, vgg16, ...) on several")

@@ -24,6 +24,7 @@ from drivestudio import worlds
 from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
+from perception.train_outputs import side_outputs
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
 HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
@@ -225,6 +226,8 @@ def check_outputs(out: Path, rounds: int, video: bool) -> None:
             check_output(out / f"autonomy-{k}.mp4", (".mp4",), "video")
         if k:
             check_output(out / f"model-round{k}.pt", (".pt",), "round model")
+            for side, what in side_outputs(out / f"model-round{k}.pt", "multinet"):   # its retraining's curves, state
+                check_output(side, None, what)
 
 
 def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, roots: list[str] | None = None,

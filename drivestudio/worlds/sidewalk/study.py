@@ -37,6 +37,7 @@ from controller.sidewalk.correction import RULES
 from drivestudio.errors import RunError, UsageError
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
+from perception.train_outputs import check_train_outputs
 
 ROUND_LOOPS = ("park", "sidewalk", "forest")         # training loops the correction rounds drive
 MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one before the first, the ten after the last
@@ -186,6 +187,14 @@ class Study:
             raise UsageError(f"--out {self.out} holds a study made with {', '.join(differ)}; continue it with the "
                              "same settings or give another folder")
 
+    def check_outputs(self) -> None:
+        """Every network the study trains, with the files its training writes beside it, checked before the data
+        is recorded (OutputError): a folder in the place of a curve would otherwise end the study hours in."""
+        names = list(self.nets()) + [f"{name}-round{k}" for k in range(1, self.cfg.rounds + 1)
+                                     for name in ("multinet", "mtl-direct", "mtl-furtive")]
+        for name in names:
+            check_train_outputs(self.models / f"{name}.pt", "multinet")
+
     def jobs(self, stage: str, jobs: list[Job]) -> None:
         if jobs:
             self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs)
@@ -314,6 +323,7 @@ class Study:
     def run(self) -> Path:
         t0 = time.perf_counter()
         self.check_continuation()
+        self.check_outputs()
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "config.json").write_text(json.dumps(asdict(self.cfg), indent=1) + "\n")
         self.generate()
