@@ -19,10 +19,12 @@ SMALL = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,hairpins"
          "--cars", "6", "--width", "140", "--height", "105"]
 
 
-def generate(out, *extra, workers=1, check=True):
-    cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", str(workers),
-           "--quiet", *extra]
-    return subprocess.run(cmd, capture_output=True, text=True, check=check, timeout=300)
+def generate(run_cli, out, *extra, workers=1, check=True):
+    """`drivestudio generate` in this process (its workers are processes of their own all the same)."""
+    r = run_cli("generate", "--out", out, *SMALL, "--workers", workers, "--quiet", *extra)
+    if check:
+        assert r.returncode == 0, r.stderr[-3000:]
+    return r
 
 
 def content(root: Path) -> dict:
@@ -36,8 +38,9 @@ def content(root: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
+    from drivestudio.cli import main
     root = tmp_path_factory.mktemp("ref") / "ds"
-    generate(root, workers=2)
+    assert main(["generate", "--out", str(root), *SMALL, "--workers", "2", "--quiet"]) == 0
     return root
 
 
@@ -87,9 +90,9 @@ def test_three_lane_counts_keep_the_plain_cycle():
     assert [ep.params["lanes"] for ep in episodes] == [1, 2, 3] * 10
 
 
-def test_same_options_same_dataset(reference, tmp_path):
+def test_same_options_same_dataset(reference, run_cli, tmp_path):
     again = tmp_path / "again"
-    generate(again, workers=1)
+    generate(run_cli, again, workers=1)
     assert content(again) == content(reference)
 
 
@@ -108,7 +111,7 @@ def _children_of(pid: int) -> list[int]:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
-def test_killed_run_resumes_without_loss_or_duplicates(reference, tmp_path, sig):
+def test_killed_run_resumes_without_loss_or_duplicates(reference, run_cli, tmp_path, sig):
     out = tmp_path / "ds"
     cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", "2", "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -123,7 +126,7 @@ def test_killed_run_resumes_without_loss_or_duplicates(reference, tmp_path, sig)
     assert workers and _wait_for(lambda: not any(Path(f"/proc/{w}").exists() for w in workers), 10)
     assert not [n for n in set(os.listdir("/dev/shm")) - shm_before if n.startswith("sem.")]
     assert not [n for n in os.listdir("/dev/shm") if n.startswith("sem.mp-")]
-    r = generate(out, workers=2)
+    r = generate(run_cli, out, workers=2)
     assert "60 frames in 3 episodes" in r.stdout
     m = read_manifest(out)
     assert m["complete"] and sorted(s["episode"] for s in m["shards"]) == [0, 1, 2]
@@ -131,16 +134,15 @@ def test_killed_run_resumes_without_loss_or_duplicates(reference, tmp_path, sig)
     assert not list(out.glob(".*.tmp"))
 
 
-def test_other_options_refuse_to_continue(reference, tmp_path):
+def test_other_options_refuse_to_continue(reference, run_cli, tmp_path):
     out = tmp_path / "ds"
-    generate(out)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--seed", "5",
-                        "--quiet"], capture_output=True, text=True)
+    generate(run_cli, out)
+    r = run_cli("generate", "--out", out, *SMALL, "--seed", "5", "--quiet")
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "other options (seed differ)" in r.stderr
 
 
-def test_corrupt_shard_is_named(reference, tmp_path):
+def test_corrupt_shard_is_named(reference, run_cli, tmp_path):
     import shutil
     broken = tmp_path / "broken"
     shutil.copytree(reference, broken)
@@ -150,36 +152,35 @@ def test_corrupt_shard_is_named(reference, tmp_path):
         ShardReader(shard, Dataset(broken).declaration)
     with pytest.raises(DatasetError, match="shard-000001.parquet is damaged"):
         Dataset(broken).reader(Dataset(broken).shards[1])   # the manifest's size does not match
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(broken)], capture_output=True, text=True)
+    r = run_cli("stats", broken)
     assert r.returncode == 2 and "shard-000001.parquet" in r.stderr and "Traceback" not in r.stderr
 
 
-def test_resume_regenerates_a_damaged_shard(reference, tmp_path):
+def test_resume_regenerates_a_damaged_shard(reference, run_cli, tmp_path):
     import shutil
     out = tmp_path / "ds"
     shutil.copytree(reference, out)
     shard = out / "shard-000002.parquet"
     shard.write_bytes(shard.read_bytes()[:-100])                 # truncated after the manifest listed it
-    r = generate(out, workers=1)
+    r = generate(run_cli, out, workers=1)
     assert "recording episode 2 again" in r.stdout + r.stderr and "60 frames in 3 episodes" in r.stdout
     assert content(out) == content(reference)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(out), "--out", str(tmp_path / "s")],
-                       capture_output=True, text=True)
+    r = run_cli("stats", out, "--out", tmp_path / "s")
     assert r.returncode == 0, r.stderr
 
 
-def test_a_manifest_that_is_not_json_gets_one_line(reference, tmp_path):
+def test_a_manifest_that_is_not_json_gets_one_line(reference, run_cli, tmp_path):
     import shutil
     out = tmp_path / "ds"
     shutil.copytree(reference, out)
     (out / "manifest.json").write_bytes(b"\xff\xfe not utf-8 \x00")
     for verb in (["stats", str(out)], ["evaluate", "--data", str(out), "--model", str(out / "manifest.json")],
                  ["generate", "--out", str(out), *SMALL, "--quiet"]):
-        r = subprocess.run([sys.executable, "-m", "drivestudio", *verb], capture_output=True, text=True)
+        r = run_cli(*verb)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, verb
 
 
-def test_a_version_1_dataset_still_reads(tmp_path):
+def test_a_version_1_dataset_still_reads(run_cli, tmp_path):
     """A dataset written by the previous release (format 1: one `image` column, `ego` as a list) reads as
     version 2: the same images and labels, ego split into x, y, yaw, s, d."""
     import shutil
@@ -194,8 +195,7 @@ def test_a_version_1_dataset_still_reads(tmp_path):
     assert len(FrameDataset(v1, split="all")) == 10
     copy = tmp_path / "v1"
     shutil.copytree(v1, copy)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(copy), "--out", str(tmp_path / "s")],
-                       capture_output=True, text=True)
+    r = run_cli("stats", copy, "--out", tmp_path / "s")
     assert r.returncode == 0 and "| frames | 10 |" in r.stdout
 
 
@@ -205,15 +205,14 @@ def test_a_version_1_dataset_still_reads(tmp_path):
     (["--cars", "x"], "expected N or A-B"),
     (["--tracks", "nowhere"], "unknown track preset 'nowhere'"),
 ])
-def test_bad_options_get_one_line(tmp_path, args, message):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(tmp_path / "x"), *args],
-                       capture_output=True, text=True)
+def test_bad_options_get_one_line(run_cli, tmp_path, args, message):
+    r = run_cli("generate", "--out", tmp_path / "x", *args)
     assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1
 
 
-def test_stats_reports_coverage_and_writes_histograms(reference, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(reference), "--out", str(tmp_path)],
-                       capture_output=True, text=True, check=True)
+def test_stats_reports_coverage_and_writes_histograms(reference, run_cli, tmp_path):
+    r = run_cli("stats", reference, "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
     assert "| frames | 60 |" in r.stdout and "lane changes" in r.stdout
     summary = json.loads((tmp_path / "stats.json").read_text())
     assert summary["frames"] == 60 and summary["episodes"] == 3
@@ -222,24 +221,23 @@ def test_stats_reports_coverage_and_writes_histograms(reference, tmp_path):
     assert (tmp_path / "histograms.png").stat().st_size > 1000 and (tmp_path / "hist-dist_MM.png").exists()
 
 
-def test_ray_backend_produces_the_same_shards(reference, tmp_path):
+def test_ray_backend_produces_the_same_shards(reference, run_cli, tmp_path):
     pytest.importorskip("ray", reason="the Ray backend is optional: pip install 'drivestudio[cluster]'")
     out = tmp_path / "ray"
-    r = generate(out, "--backend", "ray", check=False)
+    r = generate(run_cli, out, "--backend", "ray", check=False)
     assert r.returncode == 0, r.stderr
     assert content(out) == content(reference)
 
 
-def test_resuming_over_a_shard_of_another_world_is_refused(tmp_path):
+def test_resuming_over_a_shard_of_another_world_is_refused(run_cli, tmp_path):
     """A manifest whose entry names a sidewalk shard with that shard's size and checksum: the shard is whole, so
     only its columns tell; continuing would report success and leave an unreadable dataset."""
     hw, sw = tmp_path / "hw", tmp_path / "sw"
-    gen = [sys.executable, "-m", "drivestudio", "generate", "--quiet", "--workers", "1"]
+    gen = ["generate", "--quiet", "--workers", "1"]
     hw_args = ["--out", str(hw), "--frames", "20", "--episode-frames", "10", "--tracks", "oval", "--cars", "0-0",
                "--width", "70", "--height", "52"]
-    subprocess.run(gen + hw_args, check=True, capture_output=True, timeout=300)
-    subprocess.run(gen + ["--world", "sidewalk", "--out", str(sw), "--frames", "10", "--episode-frames", "10"],
-                   check=True, capture_output=True, timeout=300)
+    assert run_cli(*gen, *hw_args).returncode == 0
+    assert run_cli(*gen, "--world", "sidewalk", "--out", sw, "--frames", "10", "--episode-frames", "10").returncode == 0
     manifest = json.loads((hw / "manifest.json").read_text())
     foreign = json.loads((sw / "manifest.json").read_text())["shards"][0]
     shutil.copy(sw / foreign["file"], hw / manifest["shards"][0]["file"])
@@ -247,7 +245,7 @@ def test_resuming_over_a_shard_of_another_world_is_refused(tmp_path):
     manifest["complete"] = False
     (hw / "manifest.json").write_text(json.dumps(manifest))
     before = {p.name: p.read_bytes() for p in hw.iterdir() if p.is_file()}
-    r = subprocess.run(gen + hw_args, capture_output=True, text=True, timeout=300)
+    r = run_cli(*gen, *hw_args)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "does not have the columns of a highway dataset" in r.stderr and "give a new --out" in r.stderr
     assert {p.name: p.read_bytes() for p in hw.iterdir() if p.is_file()} == before

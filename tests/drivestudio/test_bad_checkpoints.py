@@ -6,8 +6,6 @@ from __future__ import annotations
 import os
 import random
 import shutil
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,7 +19,6 @@ from perception.models import Regressor, make_spec
 
 REPO = Path(__file__).resolve().parents[2]
 V1 = REPO / "tests" / "dataset" / "fixtures" / "v1"
-DS = [sys.executable, "-m", "drivestudio"]
 
 
 def _save(path: Path, model: Regressor) -> None:
@@ -50,7 +47,7 @@ def bad(tmp_path_factory) -> dict[str, Path]:
     return {p.stem: p for p in root.iterdir()}
 
 
-def _refused(r: subprocess.CompletedProcess, *words: str) -> None:
+def _refused(r, *words: str) -> None:
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
     assert all(w in r.stderr for w in words), r.stderr
@@ -62,20 +59,18 @@ WHY = {"random": "not a drivestudio checkpoint", "truncated": "truncated or corr
 
 
 @pytest.mark.parametrize("kind", ["random", "truncated", "foreign"])
-def test_drive_refuses_a_bad_checkpoint_before_the_world_starts(bad, tmp_path, kind):
+def test_drive_refuses_a_bad_checkpoint_before_the_world_starts(bad, run_cli, tmp_path, kind):
     t0 = time.monotonic()
-    r = subprocess.run(DS + ["drive", "--model", str(bad[kind]), "--seconds", "1", "--out", str(tmp_path / "run")],
-                       capture_output=True, text=True, timeout=120)
+    r = run_cli("drive", "--model", bad[kind], "--seconds", "1", "--out", tmp_path / "run")
     _refused(r, WHY[kind])
     assert "waiting for a driver" not in r.stderr and not (tmp_path / "run").exists()
     assert time.monotonic() - t0 < 60
 
 
 @pytest.mark.parametrize("kind", ["nan"])
-def test_drive_shm_refuses_a_bad_checkpoint_before_attaching(bad, kind):
+def test_drive_shm_refuses_a_bad_checkpoint_before_attaching(bad, run_cli, kind):
     t0 = time.monotonic()   # no world serves this name: attaching would wait 30 s before failing
-    r = subprocess.run(DS + ["drive", "--shm", f"no-world-{os.getpid()}", "--model", str(bad[kind])],
-                       capture_output=True, text=True, timeout=120)
+    r = run_cli("drive", "--shm", f"no-world-{os.getpid()}", "--model", bad[kind])
     _refused(r, WHY[kind])
     assert time.monotonic() - t0 < 25
 
@@ -95,11 +90,11 @@ def _verbs(ckpt: str, out: Path) -> dict[str, list[str]]:
 # each verb with one of the two kinds of damaged weights (both kinds, verb by verb, would double a slow test)
 @pytest.mark.parametrize("verb, kind", [(verb, ("nan", "flipped")[i % 2])
                                         for i, verb in enumerate(_verbs("x", Path()))])
-def test_every_verb_refuses_damaged_weights(bad, tmp_path, verb, kind):
+def test_every_verb_refuses_damaged_weights(bad, run_cli, tmp_path, verb, kind):
     work = tmp_path / "work"
     work.mkdir()
     shutil.copy(bad[kind], work / "model.pt")
     before = sorted(p.name for p in work.iterdir())
-    r = subprocess.run(DS + _verbs(str(work / "model.pt"), work)[verb], capture_output=True, text=True, timeout=180)
+    r = run_cli(*_verbs(str(work / "model.pt"), work)[verb])
     _refused(r, WHY[kind])
     assert sorted(p.name for p in work.iterdir()) == before   # nothing written beside it
