@@ -50,6 +50,34 @@ def check_side(env: str, option: str, value) -> int:
     return check_int(env, option, value, MIN_SIDE, MAX_SIDE)
 
 
+class EnvActionError(ValueError):
+    """An action given to step() that is not the environment's: of another length, not numbers, or not finite."""
+
+
+def check_action(env: str, action, decl: WorldDeclaration) -> np.ndarray:
+    """The action as float64 numbers in the declaration's order; EnvActionError naming the expected action and
+    what was given otherwise. A NaN or an infinity is refused: the world would read it as a neutral command or
+    carry it into the car's state, and the policy that produced it would go on unaware."""
+    names = decl.action_names
+    expected = f"{len(names)} numbers ({', '.join(names)})"
+    try:
+        raw = np.asarray(action)
+    except ValueError:   # a ragged nesting of lists
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "biuf":   # None, strings, objects: not numbers (numpy would read None as NaN)
+        raise EnvActionError(f"{env}: step() takes an action of {expected}, got {action!r}")
+    values = raw.astype(np.float64)
+    if values.size != len(names):
+        shown = np.array2string(values.ravel()[:8], separator=", ") + (" ..." if values.size > 8 else "")
+        raise EnvActionError(f"{env}: step() takes an action of {expected}, got {values.size} "
+                             f"number{'' if values.size == 1 else 's'}: {shown}")
+    values = values.reshape(len(names))
+    bad = [f"{n}={v}" for n, v in zip(names, values.tolist()) if not math.isfinite(v)]
+    if bad:
+        raise EnvActionError(f"{env}: step() takes finite numbers ({', '.join(names)}), got {', '.join(bad)}")
+    return values
+
+
 # --- observations ----------------------------------------------------------------------------------------------
 class Affordances:
     """The affordance observation of a world: the exact values of the fields its declaration marks observable, in

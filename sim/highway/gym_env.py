@@ -125,7 +125,7 @@ class HighwayEnv(gym.Env):
         if self._world is None:
             raise RuntimeError(f"{ENV}: call reset() before step()")
         s_before = self._world.ego.s
-        obs = self._world.step(Action.from_array(action))
+        obs = self._world.step(Action.from_array(opt.check_action(ENV, action, HIGHWAY)))
         self._last = obs
         self._steps += 1
         terms = {"progress": float(self._world.track.gap(s_before, self._world.ego.s)),

@@ -115,7 +115,7 @@ class SidewalkEnv(gym.Env):
         if self._world is None or self._last is None:
             raise RuntimeError(f"{ENV}: call reset() before step()")
         before = self._last.record
-        obs = self._world.step(np.asarray(action, dtype=np.float64), self._render)
+        obs = self._world.step(opt.check_action(ENV, action, SIDEWALK), self._render)
         self._steps += 1
         track = self._world.path.track
         started = bool(obs.record[self._i["collision"]]) and not before[self._i["collision"]]
