@@ -19,8 +19,8 @@ def run(*argv, timeout=120):
     return subprocess.run(DS + [str(a) for a in argv], capture_output=True, text=True, timeout=timeout)
 
 
-def test_render_writes_both_cameras(tmp_path):
-    r = run("render", "--world", "sidewalk", "--path", "sidewalk", "--seed", "4", "-o", tmp_path / "f.png",
+def test_render_writes_both_cameras(run_cli, tmp_path):
+    r = run_cli("render", "--world", "sidewalk", "--path", "sidewalk", "--seed", "4", "-o", tmp_path / "f.png",
             "--truth", tmp_path / "f.json")
     assert r.returncode == 0, r.stderr
     left, right = (cv2.imread(str(tmp_path / f"f-{c}.png")) for c in ("left", "right"))
@@ -84,7 +84,7 @@ def write(tmp_path, name, text):
     (["generate", "--perturbed", "nan", "--out", "OUT"], "--perturbed: must be a finite number"),
     (["render", "--world", "highway", "--path", "park"], "--path belongs to the sidewalk world"),
 ])
-def test_bad_input_is_one_line_and_status_2(tmp_path, argv, message):
+def test_bad_input_is_one_line_and_status_2(run_cli, tmp_path, argv, message):
     files = {"open.json": json.dumps({"name": "open", "width": 2.0, "segments": [
                  {"type": "straight", "length": 50}, {"type": "arc", "radius": 5, "angle_deg": 90, "turn": "left"}]}),
              "nan.json": '{"name": "n", "width": NaN, "segments": []}',
@@ -96,6 +96,6 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, argv, message):
         argv[1:1] = ["--world", "sidewalk"]
     if argv[0] == "render":
         argv += ["-o", str(tmp_path / "x.png")]
-    r = run(*argv)
+    r = run_cli(*argv)   # in this process (tests/helpers.py)
     assert r.returncode == 2, r.stderr
     assert message in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
