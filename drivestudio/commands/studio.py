@@ -56,10 +56,13 @@ def _checkpoints(args, plugin) -> dict[str, str]:
             if not found:
                 raise UsageError(f"--checkpoint {given}: the folder holds no *.pt checkpoint")
             files += found
+        elif path.is_file():
+            files.append(path)
         else:
-            files.append(check_checkpoint_path(given))
+            raise UsageError(f"--checkpoint must be a checkpoint file or a folder of them; no such file or folder: "
+                             f"{given}")
     if args.model is not None and args.model != "human" and args.model not in plugin.expert_names:
-        files.append(check_checkpoint_path(args.model))
+        files.append(check_checkpoint_path(args.model, ("human",) + tuple(plugin.expert_names)))
     out: dict[str, str] = {}
     for f in files:
         if out.get(f.name, str(f)) != str(f):
@@ -104,6 +107,8 @@ def run(args) -> int:
             session.tell = server.broadcast
             server.start()
             print(f"drivestudio studio ({plugin.name}): open {server.url(args.host or LOCALHOST)}", flush=True)
+            if Server.where(args.host or LOCALHOST):
+                print(Server.where(args.host or LOCALHOST), flush=True)
             print(f"recordings go to {out / 'recordings'}; Ctrl-C stops", flush=True)
             try:
                 session.run()

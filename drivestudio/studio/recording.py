@@ -4,7 +4,9 @@
 Steps are cut into episodes of `shard_steps` steps (and at every reset, which starts a new scene); each episode is
 one shard, written atomically by perception/shards.py's ShardWriter, and the manifest is replaced after each
 shard. So a recording killed at any moment (even by SIGKILL) is a dataset up to its last whole shard; stopped in
-order, the last, shorter episode is written too. The split rule is the generator's: episode % 10 decides.
+order, the last, shorter episode is written too, unless it is shorter than MIN_EPISODE_STEPS (a stop or a reset
+right after an episode's end): steps that few make no episode a model learns from, so they are left out and said
+to be. The split rule is the generator's: episode % 10 decides.
 
 Shards are written by a background thread, so that the loop does not stall while one is saved.
 """
@@ -21,6 +23,7 @@ from drivestudio.loop import StepRecord
 from perception.shards import MANIFEST, SPLIT_RULE, ShardInfo, ShardWriter, shard_name, split_of, write_manifest
 
 DEFAULT_SHARD_STEPS = 300     # 10 s of the sidewalk, 30 s of the highway
+MIN_EPISODE_STEPS = 10        # a shorter last episode (cut by a stop or a reset) is left out
 
 
 class DatasetRecorder:
@@ -39,6 +42,7 @@ class DatasetRecorder:
         self._params: dict = {}
         self._episode = 0
         self.steps = 0
+        self.left_out = 0         # steps of episodes too short to keep
         self._saver = ThreadPoolExecutor(max_workers=1, thread_name_prefix="studio-shards")
         self._pending: list[Future] = []
         write_manifest(self.root, self.manifest)
@@ -62,8 +66,14 @@ class DatasetRecorder:
             self.cut()
 
     def cut(self) -> None:
-        """End the episode here (a full shard, a reset): its shard is saved in the background."""
+        """End the episode here (a full shard, a reset, the end): its shard is saved in the background, or, when it
+        is shorter than MIN_EPISODE_STEPS, left out."""
         if self._writer is None or not len(self._writer):
+            return
+        if len(self._writer) < MIN_EPISODE_STEPS:
+            self.steps -= len(self._writer)
+            self.left_out += len(self._writer)
+            self._writer = None
             return
         writer, episode, params = self._writer, self._episode, self._params
         self._writer, self._episode = None, self._episode + 1

@@ -35,6 +35,7 @@ STATIC = {"studio.js": "text/javascript", "studio.css": "text/css"}
 COOKIE = "drivestudio-token"
 WS_LIMIT = 64 * 1024          # [bytes] a larger WebSocket message closes the socket (protocol.MAX_MESSAGE is refused)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+GOING_AWAY = 1001             # the WebSocket close code of a server that stops
 
 
 def is_loopback(host: str) -> bool:
@@ -107,12 +108,23 @@ class Server:
         self._encoding = False
         self._started = threading.Event()
         self._error: BaseException | None = None
+        self._reason = "the studio stopped"
 
     # --- lifecycle -------------------------------------------------------------------------------------------
     def url(self, host: str) -> str:
-        shown = socket.gethostname() if host in ("0.0.0.0", "::", "") else host
+        """The URL a browser on this machine opens: a wildcard address (listening on every interface) is no address
+        to open, so its loopback stands for it (the note of `where` says the rest)."""
+        shown = {"0.0.0.0": "127.0.0.1", "::": "::1", "": "127.0.0.1"}.get(host, host)
         shown = f"[{shown}]" if ":" in shown else shown
         return f"http://{shown}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+
+    @staticmethod
+    def where(host: str) -> str | None:
+        """A line for a server that listens on every interface (--host 0.0.0.0 or ::), or None."""
+        if host not in ("0.0.0.0", "::", ""):
+            return None
+        return ("it listens on all interfaces: from another machine, open the same URL with this machine's "
+                "address in place of " + ("[::1]" if host == "::" else "127.0.0.1"))
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._serve, name="studio-server", daemon=True)
@@ -134,7 +146,7 @@ class Server:
         self.publisher.notify = lambda: loop.call_soon_threadsafe(self._publish)
         self._started.set()
         loop.run_forever()
-        loop.run_until_complete(self._teardown())
+        loop.run_until_complete(self._teardown(self._reason))
         loop.close()
 
     async def _setup(self) -> None:
@@ -146,13 +158,15 @@ class Server:
         await self._runner.setup()
         await web.SockSite(self._runner, self.sock, shutdown_timeout=1.0).start()
 
-    async def _teardown(self) -> None:
-        for c in list(self.clients):
-            await c.ws.close()
+    async def _teardown(self, reason: str) -> None:
+        for c in list(self.clients):     # the pages say why they lost the connection
+            await c.ws.close(code=GOING_AWAY, message=reason.encode()[:120])
         if self._runner is not None:
             await self._runner.cleanup()
 
-    def stop(self) -> None:
+    def stop(self, reason: str = "the studio stopped") -> None:
+        """Close every page's socket with `reason` (the page shows it) and stop serving."""
+        self._reason = reason
         if self._loop is not None and self._thread is not None and self._thread.is_alive():
             self._loop.call_soon_threadsafe(self._loop.stop)
             self._thread.join(timeout=10)

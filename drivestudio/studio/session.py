@@ -21,9 +21,9 @@ import numpy as np
 
 from drivestudio.loop import Observation, StepRecord, run_loop
 from drivestudio.studio.controls import Controls, Pacer
-from drivestudio.studio.human import HumanDriver, HumanInput, Keys, Pad
+from drivestudio.studio.human import TAKEOVER_HOLD, HumanDriver, HumanInput, Keys, Pad
 from drivestudio.studio.protocol import Message
-from drivestudio.studio.recording import DEFAULT_SHARD_STEPS, DatasetRecorder
+from drivestudio.studio.recording import DEFAULT_SHARD_STEPS, MIN_EPISODE_STEPS, DatasetRecorder
 from drivestudio.studio.watch import Watch
 
 HUMAN = "human"
@@ -71,7 +71,7 @@ class Session:
                 "drivers": self.drivers, "modes": list(decl.modes),
                 "operations": ["expert", "autonomous", "correctional"] if decl.modes else [],
                 "scene_key": self.scene_key, "scenes": self.scenes(), "out": str(self.out),
-                "labels_note": self.kit.note}
+                "labels_note": self.kit.note, "takeover_hold": TAKEOVER_HOLD}
 
     # --- the run -----------------------------------------------------------------------------------------------
     def open(self) -> None:
@@ -154,6 +154,7 @@ class Session:
         self.watch.step(rec, self.driver, self.supervisor, self._extra(), self.driver_name)
         if self.controls.hold(self.handle, idle=self._idle):
             self.pacer.restart()
+            self.watch.rate.restart()     # a pause is not the loop falling behind
 
     def _idle(self) -> None:
         if self.watch.republish(self.driver, self.supervisor, self._extra(), self.driver_name, self.controls.changed):
@@ -243,6 +244,8 @@ class Session:
         rec, self.recorder = self.recorder, None
         manifest = rec.close()
         line = f"recorded {manifest['frames']} steps in {len(manifest['shards'])} shard(s) at {rec.root}"
+        if rec.left_out:
+            line += f" ({rec.left_out} step(s) left out, in episodes of fewer than {MIN_EPISODE_STEPS} steps)"
         print(line, flush=True)
         self.tell("info", message=line, recording_done=str(rec.root))
 

@@ -37,6 +37,8 @@ class RunView:
                              drives=False, controls=bool(args.view_control))
         self.server.start()
         print(f"watch the run at {self.server.url(host)}", file=sys.stderr, flush=True)
+        if Server.where(host):
+            print(Server.where(host), file=sys.stderr, flush=True)
 
     def _handle(self, msg, client) -> str | None:
         if self.controls is None:   # the server lets nothing through without --view-control; kept for safety
@@ -51,8 +53,8 @@ class RunView:
     def __call__(self, rec: StepRecord) -> None:
         paused = self.controls is not None and self.controls.paused
         self.watch.step(rec, None, None, {**self.extra, "paused": paused}, self.label)
-        if self.controls is not None:
-            self.controls.hold(lambda msg: None, idle=self._idle)
+        if self.controls is not None and self.controls.hold(lambda msg: None, idle=self._idle):
+            self.watch.rate.restart()     # a pause is not the loop falling behind
 
     def _idle(self) -> None:
         assert self.controls is not None
@@ -61,4 +63,4 @@ class RunView:
             self.controls.changed = False
 
     def close(self) -> None:
-        self.server.stop()
+        self.server.stop("the run ended")

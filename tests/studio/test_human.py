@@ -158,7 +158,41 @@ def test_the_human_driver_reads_the_speed_from_the_record_and_has_no_estimate():
         frames = (None,)
         t = 0.0
     P.record = record
-    for _ in range(10):
+    for _ in range(25):            # at 25 m/s a held key takes 2 s to full steering
         action, est = drv.act(P)
     assert action[0] == pytest.approx(-MAPS["highway"].steer_limit(25.0))
     assert np.isnan(est).all() and est.shape == (15,)
+
+
+def test_the_steering_limit_and_the_keys_ramp_fall_with_speed_as_the_geometry_gives():
+    """Full steering turns the car at lateral_accel (full lock when slow); a held key builds that turn at most at
+    lateral_jerk, so that fast, full steering takes lateral_accel / lateral_jerk seconds at any speed; slow, the
+    key's own rate."""
+    for name, lock, wheelbase in (("highway", hw.STEER_LOCK_RAD, VehicleParams().wheelbase),
+                                  ("sidewalk", sw.STEER_LOCK_RAD, sw.WHEELBASE)):
+        m = MAPS[name]
+        speeds = np.linspace(0.0, 40.0 if name == "highway" else 9.0, 200)
+        limits = [m.steer_limit(v) for v in speeds]
+        rates = [m.steer_rate(v, KEY_STEER_RATE) for v in speeds]
+        assert limits[0] == 1.0 and rates[0] == KEY_STEER_RATE            # standing: full lock at the key's rate
+        assert all(b <= a + 1e-12 for a, b in zip(limits, limits[1:]))    # both only fall with speed
+        assert all(b <= a + 1e-12 for a, b in zip(rates, rates[1:]))
+        for v, limit, rate in zip(speeds, limits, rates):
+            turn = v * v * math.tan(limit * lock) / wheelbase            # full steering's lateral acceleration
+            assert turn == pytest.approx(m.full_lateral_accel(v), abs=1e-9)
+            assert turn <= m.lateral_accel + 1e-9
+            assert rate * turn <= max(m.lateral_jerk, KEY_STEER_RATE * turn) + 1e-9
+            if limit < 1.0:                                               # fast: the turn is the declared one
+                assert turn == pytest.approx(m.lateral_accel)
+                assert rate == pytest.approx(min(KEY_STEER_RATE, m.lateral_jerk / m.lateral_accel))
+    highway = MAPS["highway"]
+    assert highway.steer_rate(20.0, KEY_STEER_RATE) == pytest.approx(0.5)     # 2 s to full steering at speed
+    assert highway.steer_limit(20.0) == pytest.approx(0.075, abs=0.001)
+
+
+def test_a_held_arrow_ramps_at_the_rate_it_is_given():
+    h = HumanInput()
+    h.set(Keys(left=True), None)
+    assert h.advance(0.1, steer_rate=0.5)[0] == pytest.approx(-0.05)
+    h.set(Keys(), None)
+    assert h.advance(0.1, steer_rate=0.5)[0] == 0.0                    # centring at its own rate, fast

@@ -281,3 +281,40 @@ def test_every_control_works_over_the_socket(sidewalk):
             await c.receive(lambda c: last(c)["driver"] == "expert" and not last(c)["realtime"], timeout=60)
             await c.ws.close()
     run(go())
+
+
+def test_a_missing_checkpoint_is_refused_naming_the_checkpoint_option(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "studio", "--port", "0", "--checkpoint",
+                        str(tmp_path / "nonexistent.pt"), "--out", str(tmp_path / "run")], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--checkpoint" in lines[0] and "--model" not in lines[0], lines
+    assert str(tmp_path / "nonexistent.pt") in lines[0]
+
+
+def test_a_studio_on_all_interfaces_prints_a_url_a_browser_here_opens(tmp_path):
+    s = Studio(["studio", "--world", "sidewalk", "--host", "0.0.0.0", "--port", "0", "--model", "expert", "--fast",
+                "--out", str(tmp_path)], tmp_path)
+    try:
+        assert s.url.startswith("http://127.0.0.1:") and "?token=" in s.url, s.url
+        assert socket.gethostname() not in s.url or socket.gethostname() == "127.0.0.1"
+        note = s._wait_for("all interfaces", 30)
+        assert "this machine's address" in note
+        status, body, _ = get(s.url)
+        assert status == 200 and "drivestudio studio" in body
+    finally:
+        s.stop()
+
+
+def test_the_state_carries_the_live_speed_and_one_simulated_time(sidewalk):
+    async def go():
+        async with aiohttp.ClientSession() as http:
+            c = await connect(http, sidewalk)
+            await c.receive(lambda c: len(c.states) >= 2 and c.states[-1]["metrics"] and c.states[-1]["t"] > 1.0)
+            await c.ws.close()
+            return c.states[-1]
+    state = run(go())
+    assert 0.5 < state["speed"] < 9.0          # the expert drives 0.9-4.5 m/s
+    assert state["off_road"] is False and state["behind"] is None       # on its path; as fast as it can
+    assert "simulated_time_s" not in state["metrics"] and "mean_speed_mps" in state["metrics"]

@@ -128,3 +128,54 @@ def test_a_reset_that_cannot_be_built_is_refused_and_the_scene_goes_on(tmp_path)
     s._reset({"path": "procedural:1", "path_width": 99.0})     # a width no path may have
     assert any(kind == "error" and "reset refused" in f["message"] for kind, f in told)
     assert s.world is not None and s.args.path is None
+
+
+def _lateral_after(tmp_path, tap_steps: int, seconds: float) -> tuple[list[float], list[float], float]:
+    """The highway at 20 m/s, nobody else on it, the person's right arrow held for the first `tap_steps` steps;
+    returns the car's lateral offset d [m] (+ left) and speed at every step, and the lane width."""
+    s = session("highway", "human", tmp_path, cars=0, start_speed=20.0)
+    d: list[float] = []
+    speed: list[float] = []
+    step = s.on_step
+
+    def on_step(rec) -> None:
+        d.append(float(rec.obs.truth.ego[4]))
+        speed.append(float(rec.obs.truth.speed))
+        step(rec)
+    s.on_step = on_step     # type: ignore[method-assign]
+    if tap_steps:
+        s.human.set(Keys(right=True), None)
+        press(s, Keys(right=True), range(1, tap_steps))
+    width = float(s.world.track.lane_width)
+    s.run(seconds=seconds)
+    return d, speed, width
+
+
+def test_a_tap_at_highway_speed_moves_the_car_well_under_a_lane(tmp_path):
+    """A 0.6 s tap of an arrow at 20 m/s, then hands off for a second: the car is nudged toward the next lane, not
+    sent across it (the steering's ramp and limit fall with speed, drivestudio/studio/kit.py)."""
+    tap, seconds = 6, 1.7          # 6 steps of 0.1 s; the offset at 1.6 s, a second after letting go
+    base, speed, width = _lateral_after(tmp_path / "base", 0, seconds)
+    tapped, _, _ = _lateral_after(tmp_path / "tap", tap, seconds)
+    assert speed[0] == pytest.approx(20.0, abs=0.5)
+    moved = base[-1] - tapped[-1]      # toward the right: d falls
+    assert 0.05 < moved < width / 4, (moved, width)
+
+
+def test_a_recording_stopped_just_after_an_episode_ends_writes_no_one_step_episode(tmp_path):
+    told = []
+    s = session("sidewalk", "expert", tmp_path, obstacles="none")        # 40-step episodes
+    s.tell = lambda kind, **f: told.append((kind, f))
+    s.handle(Message("record", {"on": True, "name": "tail"}))
+    step = s.on_step
+
+    def on_step(rec) -> None:
+        step(rec)
+        if s.recorder is not None and s.recorder.steps == 41:            # one step into the second episode
+            s.handle(Message("record", {"on": False}))
+    s.on_step = on_step     # type: ignore[method-assign]
+    s.run(seconds=2.0)
+    data = Dataset(tmp_path / "recordings" / "tail")
+    assert [sh.frames for sh in data.shards] == [40] and data.manifest["complete"]
+    done = [f["message"] for kind, f in told if kind == "info" and "recording_done" in f]
+    assert done and "recorded 40 steps in 1 shard(s)" in done[0] and "1 step(s) left out" in done[0]

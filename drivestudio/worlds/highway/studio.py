@@ -9,7 +9,7 @@ import numpy as np
 
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, STEER_LOCK_RAD
 from drivestudio.loop import StepRecord
-from drivestudio.studio.kit import HumanMap, StudioKit, label_row
+from drivestudio.studio.kit import HumanMap, StudioKit, finite, label_row
 from drivestudio.worlds.highway.overlays import car_gaps
 from perception.highway.overlay import ERROR_SCALE, draw_topdown, estimate_host
 from sim.highway.vehicle import VehicleParams
@@ -30,6 +30,7 @@ class HighwayView:
 
     cameras: tuple[str, ...] = ("front",)
     units = {q.name: q.unit for q in HIGHWAY.truth}
+    _speed, _off_road = HIGHWAY.index("speed"), HIGHWAY.index("off_road")
 
     def __init__(self, world, track_ref: str):
         self.world, self.track_ref = world, track_ref
@@ -78,11 +79,18 @@ class HighwayView:
     def metrics(self, report: dict) -> dict:
         return {"distance_m": report["distance_m"], "collisions": report["collisions"],
                 "off_road_events": report["off_road_events"], "lane_changes": report["lane_changes"],
-                "mean_speed_mps": report["mean_speed_mps"], "simulated_time_s": report["simulated_time_s"]}
+                "mean_speed_mps": report["mean_speed_mps"]}
+
+    def live(self, rec: StepRecord) -> dict:
+        r = rec.obs.record
+        return {"speed": finite(r[self._speed]), "off_road": bool(r[self._off_road])}
 
 
 
-# full steering turns the car at most 6 m/s^2; steer + left, accel and brake pedals
-HUMAN = HumanMap(6.0, VehicleParams().wheelbase, STEER_LOCK_RAD, lambda s, t, b: np.array([-s, t, b], dtype=np.float64))
+# Full steering turns the car at most 6 m/s^2 (two thirds of its grip), built at most 3 m/s^3 by a held key: at
+# speed, 2 s to full steering, and a 0.6 s tap leaves the car drifting sideways at about 0.6 m/s, a sixth of a lane
+# a second, where a person has time to correct it. steer + left, accel and brake pedals.
+HUMAN = HumanMap(6.0, 3.0, VehicleParams().wheelbase, STEER_LOCK_RAD,
+                 lambda s, t, b: np.array([-s, t, b], dtype=np.float64))
 
 KIT = StudioKit("track", "oval", preset_names, HighwayView, HighwayView.note, HUMAN)

@@ -8,7 +8,7 @@ from controller.sidewalk import SidewalkExpert
 from controller.sidewalk.correction import CorrectionParams
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEER_LOCK_RAD, TOP_SPEED, WHEELBASE
 from drivestudio.loop import StepRecord
-from drivestudio.studio.kit import HumanMap, StudioKit, label_row
+from drivestudio.studio.kit import HumanMap, StudioKit, finite, label_row
 from sim.sidewalk.paths import preset_names
 from sim.sidewalk.topdown import TopDown
 
@@ -31,6 +31,7 @@ class SidewalkView:
         self.expert = SidewalkExpert()
         self._first = [SIDEWALK.estimate_names.index(f"{n}+1") for n in ("steer", "motor")]
         self._x, self._y, self._yaw = (SIDEWALK.index(n) for n in ("x", "y", "yaw"))
+        self._speed, self._off_path = SIDEWALK.index("speed"), SIDEWALK.index("off_path")
 
     def capture(self, rec: StepRecord, driver_name: str) -> dict:
         lead = self.world.lead
@@ -65,16 +66,20 @@ class SidewalkView:
     def metrics(self, report: dict) -> dict:
         return {"distance_m": report["distance_m"], "collisions": report["collisions"],
                 "off_path_time_s": report["off_path_time_s"], "autonomy_percent": report["autonomy_percent"],
-                "corrections": report["corrections"], "mean_speed_mps": report["mean_speed_mps"],
-                "simulated_time_s": report["simulated_time_s"]}
+                "corrections": report["corrections"], "mean_speed_mps": report["mean_speed_mps"]}
+
+    def live(self, rec: StepRecord) -> dict:
+        r = rec.obs.record
+        return {"speed": finite(r[self._speed]), "off_road": bool(r[self._off_path])}
 
 
 
 FORWARD = 4.5 / TOP_SPEED   # full throttle asks 4.5 m/s (the experts drive 0.9-4.5)
 REVERSE = 3.0 / TOP_SPEED   # full brake asks 3 m/s backwards, as an RC car's brake turns to reverse
 
-# steer 0.5 straight, 1 full right; motor 0.5 stop
-HUMAN = HumanMap(4.0, WHEELBASE, STEER_LOCK_RAD,
+# Full steering turns the car at most 4 m/s^2, built at most 10 m/s^3 by a held key: at an RC car's speeds the key's
+# own 0.4 s to full steering, as nimble as a transmitter's stick. steer 0.5 straight, 1 full right; motor 0.5 stop.
+HUMAN = HumanMap(4.0, 10.0, WHEELBASE, STEER_LOCK_RAD,
                  lambda s, t, b: np.array([0.5 + 0.5 * s, 0.5 + 0.5 * (FORWARD * t - REVERSE * b)], dtype=np.float64))
 
 KIT = StudioKit("path", "park", preset_names, SidewalkView, SidewalkView.note, HUMAN)
