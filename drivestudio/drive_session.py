@@ -47,7 +47,7 @@ def _wait_for_driver(ep: WorldEndpoint, timeout: float, proc: subprocess.Popen |
 
 
 def _label(args) -> str:
-    return getattr(args, "model", None) or "driver"
+    return str(getattr(args, "driver", None) or "driver")
 
 
 def _open_view(args, plugin, world, metrics):
@@ -131,10 +131,11 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
     return 0
 
 
-def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
-    """The driver over the bridge: the world's declaration comes from the header; the model must fit it."""
-    wait = getattr(args, "attach_wait", None) or DRIVER_ATTACH
-    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=wait) as ep:
+def run_driver_side(name: str, model: str | None, device: str = "cpu", seed: int = 0,
+                    attach_wait: float | None = None, stats_out: str | None = None) -> int:
+    """The driver over the bridge: the world's declaration comes from the header; the driver spec `model` (default:
+    the world's own driver) must fit it."""
+    with exit_on_sigterm(), DriverEndpoint(name, attach_timeout=attach_wait or DRIVER_ATTACH) as ep:
         decl = ep.declaration
         try:
             plugin = worlds.get(decl.name)
@@ -142,7 +143,8 @@ def run_driver_side(name: str, model: str, args, stats_out: str | None) -> int:
             declared.register(decl)   # a world this installation does not know: drive it from its header
             plugin = worlds.Plugin.__new__(worlds.Plugin)
             plugin.declaration = decl
-        driver = plugin.driver(model or plugin.expert_names[0], args, decl)
+        spec = plugin.parse_driver(model or plugin.expert_names[0])
+        driver = plugin.driver(spec, device, decl, seed)
         ep.require(world=decl.name, action=decl.action_names)
         n = serve_driver(ep, driver)
         print(f"drove {n} frames; the world ended the run: {ep.end_reason}", file=sys.stderr)
@@ -155,9 +157,9 @@ def run_both_sides(args, plugin, out: Path) -> int:
     reclaim(SHM_PREFIX)   # segments of earlier runs killed with SIGKILL (world and driver both dead)
     args.shm = f"{SHM_PREFIX}{os.getpid()}"
     stats = out / "driver-timings.json"
-    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", args.shm, "--model", args.model,
-           "--device", args.device, "--stats-out", str(stats)] + plugin.driver_args(args)
-    proc = subprocess.Popen(cmd)
+    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", args.shm, "--model", str(args.driver),
+           "--device", args.device, "--seed", str(args.seed), "--stats-out", str(stats)]
+    proc = popen(cmd)   # dies with this process, however it ends
     try:
         return run_world_side(args, plugin, out, driver_proc=proc, driver_stats=stats)
     finally:
@@ -169,9 +171,9 @@ def run_both_sides(args, plugin, out: Path) -> int:
 
 
 def run_in_process(args, plugin, out: Path) -> int:
-    render = plugin.needs_frames(args) or getattr(args, "view_socket", None) is not None
+    render = plugin.needs_frames(args.driver, bool(args.record)) or getattr(args, "view_socket", None) is not None
     with exit_on_sigterm(), plugin.world(args, render=render) as world:
-        driver = plugin.driver(args.model, args, world.declaration)
+        driver = plugin.driver(args.driver, args.device, world.declaration, args.seed)
         metrics = plugin.metrics(world)
         recorder = plugin.recorder(world, args.record, _label(args))
         view = _open_view(args, plugin, world, metrics)

@@ -17,6 +17,7 @@ from drivestudio import worlds
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
 from drivestudio.commands.studio import add_view_options, bind_view
+from drivestudio.driver_spec import parse_driver
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
 
@@ -24,8 +25,10 @@ from drivestudio.numbers import positive
 def register(sub) -> None:
     p = sub.add_parser("drive", help="drive closed loop with a world's own driver or a trained model",
                        description=__doc__.split("\n", 1)[1], formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--model", default=None, help="'oracle' or 'oracle-extended' (highway), 'expert' (sidewalk) or a "
-                                                 "checkpoint (default: the world's own driver)")
+    p.add_argument("--model", default=None, help="the driver: 'oracle' or 'oracle-extended' (highway), 'expert' "
+                                                 "(sidewalk) or a checkpoint, with the world's estimate filters as "
+                                                 "CKPT@smoothing=0.5,pass_memory=15 (default: the world's own "
+                                                 "driver; docs/driving.md)")
     add_device_option(p)
     p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
                                  "world and its options come from there")
@@ -56,17 +59,20 @@ def run(args) -> int:
             raise UsageError(f"with --shm the world runs elsewhere: {', '.join(given)} do not apply")
         from shm_bridge.segment import validate_name  # lazy: the bridge, only when it runs (not for --help)
         validate_name(args.shm)
-        if args.model is not None and Path(args.model).is_file() and \
-                not any(p.own_model(args.model) for p in worlds.all_plugins()):   # a checkpoint: checked now
-            check_checkpoint(args.model, None)
-        return drive_session.run_driver_side(args.shm, args.model, args, args.stats_out)
+        if args.model is not None:   # the syntax now; the filters once the world's header names the world
+            source = parse_driver(args.model).source
+            if Path(source).is_file() and not any(p.own_model(source) for p in worlds.all_plugins()):
+                check_checkpoint(source, None)   # a checkpoint: checked now
+        return drive_session.run_driver_side(args.shm, args.model, args.device, args.seed, args.attach_wait,
+                                             args.stats_out)
     if args.attach_wait is not None:
         raise UsageError("--attach-wait goes with --shm (a driver attaching to a running world)")
     plugin = plugin_for(args)
-    args.model = args.model or plugin.expert_names[0]
+    args.driver = plugin.parse_driver(args.model or plugin.expert_names[0])
+    args.model = args.driver.source
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    plugin.check_model(args.model)   # before the world starts: one line, exit 2
+    plugin.check_driver(args.driver)   # before the world starts: one line, exit 2
     plugin.resolve_args(args)        # what the model decides about its world (the highway's mirror)
     bind_view(args)
     out = run_dir(args.out, "drive")

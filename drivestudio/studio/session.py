@@ -180,7 +180,7 @@ class Session:
             driver = self.human_driver
         else:
             model = self.checkpoints.get(name, name)
-            driver = self.plugin.driver(model, self.args, decl)
+            driver = self.plugin.driver(self.plugin.parse_driver(model), self.args.device, decl, self.args.seed)
         self.driver, self.driver_name = driver, name
         self.args.model = self.checkpoints.get(name, name)
         self._supervise()

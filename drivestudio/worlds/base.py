@@ -8,12 +8,14 @@ the bridge, datasets, models, training, the verbs) talks to a world only through
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Protocol
 
 from core.declaration import WorldDeclaration
 from drivestudio.checkpoints import check_checkpoint, load_predictor_for
+from drivestudio.driver_spec import DriverSpec, EstimateFilter, parse_driver
 from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Metrics, StepRecord, Supervisor, World
@@ -66,6 +68,8 @@ class Plugin:
 
     declaration: WorldDeclaration
     expert_names: tuple[str, ...] = ("expert",)   # --model values that name the world's own drivers
+    # the estimate filters a driver spec may name (`CKPT@name=value`, drivestudio/driver_spec.py)
+    filters: Mapping[str, EstimateFilter] = MappingProxyType({})
 
     @property
     def name(self) -> str:
@@ -89,20 +93,26 @@ class Plugin:
         policy, drivestudio/worlds/highway/policy.py); the generic checkpoint checks then leave it to check_model."""
         return False
 
-    def check_model(self, model: str) -> None:
-        """Check --model MODEL before any world starts: one of expert_names, a driver of own_model, or a checkpoint
-        of this world; else one line and exit status 2."""
-        if model not in self.expert_names:
-            check_checkpoint(model, self.name)
+    def parse_driver(self, text: str, option: str = "--model") -> DriverSpec:
+        """The driver spec `text` (drivestudio/driver_spec.py), its filters checked against this world's."""
+        return parse_driver(text, self.filters, self.expert_names, option)
+
+    def check_driver(self, spec: DriverSpec) -> None:
+        """Check a driver before any world starts: one of expert_names, a driver of own_model, or a checkpoint of
+        this world; else one line and exit status 2."""
+        if spec.source not in self.expert_names:
+            check_checkpoint(spec.source, self.name)
 
     def resolve_args(self, args) -> None:
         """Before any work: check this world's options of a verb against --model (one line and exit status 2,
         UsageError) and settle those the model decides. By default there is nothing to do."""
 
-    def driver(self, model: str, args, declaration: WorldDeclaration | None = None) -> Driver:
-        """The driver for --model MODEL: one of expert_names or a checkpoint of this world. By default a
-        checkpoint whose outputs are the world's action drives directly (drivestudio/drivers.py)."""
-        return direct_driver(model, args, declaration or self.declaration)
+    def driver(self, spec: DriverSpec, device: str = "cpu", declaration: WorldDeclaration | None = None,
+               seed: int = 0) -> Driver:
+        """The driver of `spec`: one of expert_names or a checkpoint of this world (on torch `device`), for a world
+        of `declaration` (default: this world's); `seed` seeds a driver that draws. By default a checkpoint whose
+        outputs are the world's action drives directly (drivestudio/drivers.py)."""
+        return direct_driver(spec.source, device, declaration or self.declaration)
 
     def supervisor(self, world: World, args) -> Supervisor | None:
         """What the world side does with the driver's command in `manual` mode or under correction: a function
@@ -127,17 +137,13 @@ class Plugin:
         """How wrong an estimate is, for --select worst (larger: worse)."""
         return 0.0
 
-    def needs_frames(self, args) -> bool:
-        """Whether an in-process run must render (a model reads frames; a video shows them)."""
-        return True
+    def needs_frames(self, spec: DriverSpec, record: bool) -> bool:
+        """Whether an in-process run must render: a model reads frames, a video (`record`) shows them."""
+        return spec.source not in self.expert_names or record
 
     def describe_run(self, world, args) -> dict:
         """What a run's metrics.json records about the world (track, lanes, cars, ...)."""
         return {}
-
-    def driver_args(self, args) -> list[str]:
-        """Options the driver process of `drive` needs besides --shm, --model and --device."""
-        return []
 
     def studio(self) -> StudioKit:
         """How the studio shows this world and how a person drives it (drivestudio/studio/kit.py)."""
@@ -186,7 +192,7 @@ class NoRecorder:
         pass
 
 
-def direct_driver(model: str, args, declaration: WorldDeclaration) -> Driver:
+def direct_driver(model: str, device: str, declaration: WorldDeclaration) -> Driver:
     """A checkpoint of world `declaration` whose outputs are its action values, as a driver."""
-    predictor = load_predictor_for(model, declaration.name, getattr(args, "device", "cpu"))
+    predictor = load_predictor_for(model, declaration.name, device)
     return DirectDriver(predictor, declaration)

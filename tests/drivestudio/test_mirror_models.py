@@ -84,17 +84,17 @@ def test_a_running_world_unlike_the_models_frames_is_refused(models):
     """Over the bridge or in the studio the world runs before the driver is made: its declaration decides."""
     plugin = Plugin()
     args = drive_args(models["plain"])
-    assert plugin.driver(str(models["mirror"]), args, MIRRORED) is not None
-    assert plugin.driver(str(models["plain"]), args, HIGHWAY) is not None
+    assert plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", MIRRORED) is not None
+    assert plugin.driver(plugin.parse_driver(str(models["plain"])), "cpu", HIGHWAY) is not None
     with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world's are without the "
                                          "rear-view mirror: start the world with --mirror$"):
-        plugin.driver(str(models["mirror"]), args, HIGHWAY)
+        plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", HIGHWAY)
     with pytest.raises(UsageError, match="learned frames without the rear-view mirror and this world's are with the "
                                          "rear-view mirror: start the world without --mirror"):
-        plugin.driver(str(models["plain"]), args, MIRRORED)
+        plugin.driver(plugin.parse_driver(str(models["plain"])), "cpu", MIRRORED)
     with pytest.raises(UsageError, match="with the rear-view mirror and the side views and this world's are with the "
                                          "rear-view mirror: start the world with --mirror --side-views"):
-        plugin.driver(str(models["sides"]), args, MIRRORED)
+        plugin.driver(plugin.parse_driver(str(models["sides"])), "cpu", MIRRORED)
 
 
 def test_the_benchmark_renders_the_mirror_for_that_row(models):
@@ -188,10 +188,8 @@ def test_aggregation_drives_the_learner_as_the_benchmark_does(models, extended_m
 
 
 def test_the_rear_memory_is_refused_for_a_model_that_reads_nothing_behind(models):
-    """--rear-memory holds the rear labels: a model of the paper's 13 has none, and is refused in one line."""
-    args = drive_args(models["mirror"])
-    args.rear_memory = 10.0
-    with pytest.raises(UsageError, match="--rear-memory holds the rear labels .* which .*mirror.pt does not"):
-        Plugin().driver(str(models["mirror"]), args, MIRRORED)
-    args.rear_memory = 0.0
-    assert Plugin().driver(str(models["mirror"]), args, MIRRORED).rear_memory == []
+    """rear_memory holds the rear labels: a model of the paper's 13 has none, and is refused in one line."""
+    plugin = Plugin()
+    with pytest.raises(UsageError, match="rear_memory holds the rear labels .* which .*mirror.pt does not"):
+        plugin.driver(plugin.parse_driver(f"{models['mirror']}@rear_memory=10"), "cpu", MIRRORED)
+    assert plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", MIRRORED).filters == []

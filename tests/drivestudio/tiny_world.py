@@ -143,8 +143,8 @@ class Plugin(BasePlugin):
     def world(self, args, render: bool):
         return Corridor(getattr(args, "start_offset", None) or 0.0, getattr(args, "seed", 0))
 
-    def driver(self, model, args, declaration=None):
-        return Expert(0) if model == "expert" else super().driver(model, args, declaration)
+    def driver(self, spec, device="cpu", declaration=None, seed=0):
+        return Expert(0) if spec.source == "expert" else super().driver(spec, device, declaration, seed)
 
     def metrics(self, world):
         return Metrics()

@@ -9,12 +9,14 @@ import numpy as np
 
 from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
+from drivestudio.driver_spec import DriverSpec
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
 from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode, WorldOptions
-from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, reads_behind
+from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, chen_driver
+from drivestudio.worlds.highway.filters import FILTERS
 from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.overlays import overlay_record
 from drivestudio.worlds.highway.policy import PolicyDriver, is_policy, load_policy
@@ -38,6 +40,7 @@ START_SPEED = 15.0          # [m/s]
 class Plugin(base.Plugin):
     declaration = HIGHWAY
     expert_names = ("oracle", "oracle-extended", "expert")
+    filters = FILTERS
 
     def add_options(self, options: WorldOptions) -> None:
         verb = options.verb
@@ -58,21 +61,6 @@ class Plugin(base.Plugin):
                         help="with the mirror (implied): paste the views out of both side windows below it, where a "
                         "car level with the host shows (docs/rendering.md); drive turns them on for a model that "
                         "learned them")
-        if verb == "drive":
-            options.add(self.name, g, "--smoothing", type=finite(0.0, 0.95),
-                        help="exponential smoothing of a model's estimates before the controller, 0-0.95 (default 0: "
-                        "none; docs/controller.md)")
-            options.add(self.name, g, "--gap-hold", type=finite(0.0, 0.95),
-                        help="hold a model's gap estimates (dist_*): a shorter gap at once, a longer one smoothed "
-                        "with this factor, 0-0.95 (default 0: none; docs/controller.md)")
-            options.add(self.name, g, "--pass-memory", type=finite(0.0, 60.0), metavar="S",
-                        help="carry a car being passed in a neighbour lane on at its closing rate once the camera "
-                        "loses it, until it is 10 m behind the host or for at most S seconds, 0-60 (default 0: "
-                        "none; docs/controller.md)")
-            options.add(self.name, g, "--rear-memory", type=finite(0.0, 60.0), metavar="S",
-                        help="hold a car that the mirror loses while it closes in alongside, for as long as it takes "
-                        "to pass the host or at most S seconds, and keep a car being passed until the mirror has it, "
-                        "0-60 (default 0: none; a model of the rear labels only; docs/controller.md)")
         if verb in ("render", "generate"):
             options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
             options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
@@ -140,31 +128,27 @@ class Plugin(base.Plugin):
     def own_model(self, model: str) -> bool:
         return is_policy(model)
 
-    def check_model(self, model: str) -> None:
-        if is_policy(model):
-            load_policy(model)   # opened and checked now: one line, exit 2
+    def check_driver(self, spec: DriverSpec) -> None:
+        if is_policy(spec.source):
+            if spec.filters:
+                raise UsageError(f"{spec}: a policy reads the exact affordances; filters apply to checkpoints")
+            load_policy(spec.source)   # opened and checked now: one line, exit 2
         else:
-            super().check_model(model)
+            super().check_driver(spec)
 
-    def driver(self, model: str, args, declaration=None) -> Driver:
+    def driver(self, spec: DriverSpec, device: str = "cpu", declaration=None, seed: int = 0) -> Driver:
+        model = spec.source
         if is_policy(model):
-            return PolicyDriver(model, getattr(args, "device", "cpu"))
+            return PolicyDriver(model, device)
         if model in ORACLES or model == "expert":
             return ChenDriver(None, lookout=ORACLES.get(model, False))
-        predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
+        predictor = load_predictor_for(model, self.name, device)
         if declaration is not None and predictor.inset != declaration.cameras[0].inset:
             # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
             want = f"with {_inset_options(predictor.inset)}" if predictor.inset else "without --mirror"
             raise UsageError(f"{model} learned frames {_inset_words(predictor.inset)} and this world's are "
                              f"{_inset_words(declaration.cameras[0].inset)}: start the world {want}")
-        lookout = reads_behind(predictor.outputs)
-        rear_memory = getattr(args, "rear_memory", None) or 0.0
-        if rear_memory and not lookout:
-            raise UsageError(f"--rear-memory holds the rear labels (dist_LB, dist_RB, closing_LB, closing_RB), "
-                             f"which {model} does not estimate")
-        return ChenDriver(predictor, smoothing=getattr(args, "smoothing", None) or 0.0,
-                          gap_hold=getattr(args, "gap_hold", None) or 0.0, lookout=lookout,
-                          pass_memory=getattr(args, "pass_memory", None) or 0.0, rear_memory=rear_memory)
+        return chen_driver(spec, predictor)
 
     def supervisor(self, world, args) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
@@ -204,9 +188,6 @@ class Plugin(base.Plugin):
     def coverage(self) -> HighwayCoverage:
         return HighwayCoverage()
 
-    def needs_frames(self, args) -> bool:
-        return args.model not in self.expert_names or bool(getattr(args, "record", None))
-
     def describe_run(self, world, args) -> dict:
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars,
                 "mirror": world.config.mirror, "side_views": world.config.side_views}
@@ -214,12 +195,6 @@ class Plugin(base.Plugin):
     def studio(self) -> StudioKit:
         from drivestudio.worlds.highway.studio import KIT  # lazy: the overlays and presets only for the studio
         return KIT
-
-    def driver_args(self, args) -> list[str]:
-        out = ["--smoothing", str(args.smoothing)] if getattr(args, "smoothing", None) else []
-        out += ["--gap-hold", str(args.gap_hold)] if getattr(args, "gap_hold", None) else []
-        out += ["--pass-memory", str(args.pass_memory)] if getattr(args, "pass_memory", None) else []
-        return out + (["--rear-memory", str(args.rear_memory)] if getattr(args, "rear_memory", None) else [])
 
     def recorder(self, world, path, label: str):
         return OverlayRecorder(path, world, label)

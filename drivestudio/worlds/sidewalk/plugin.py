@@ -11,6 +11,7 @@ import numpy as np
 from controller.sidewalk.correction import RULES
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
 from drivestudio.checkpoints import load_predictor_for
+from drivestudio.driver_spec import DriverSpec
 from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
@@ -111,12 +112,13 @@ class Plugin(base.Plugin):
                      "time_of_day": world.renderer.look.time, "stereo": world.config.stereo.describe()}
             return {"left": obs.frames[0], "right": obs.frames[1]}, truth
 
-    def driver(self, model: str, args, declaration=None):
+    def driver(self, spec: DriverSpec, device: str = "cpu", declaration=None, seed: int = 0):
+        model = spec.source
         if model in ("expert", "oracle"):
             return ExpertDriver()
         if model == "poor":
-            return PoorDriver(getattr(args, "seed", None) or 0)
-        predictor = load_predictor_for(model, self.name, getattr(args, "device", "cpu"))
+            return PoorDriver(seed)
+        predictor = load_predictor_for(model, self.name, device)
         return DirectDriver(predictor, declaration or self.declaration, smooth=True)
 
     def operation(self, args) -> str:
@@ -134,9 +136,6 @@ class Plugin(base.Plugin):
             return super().recorder(world, path, label)
         return Recorder(path, world, label)
 
-    def needs_frames(self, args) -> bool:
-        return args.model not in self.expert_names or bool(getattr(args, "record", None))
-
     def describe_run(self, world, args) -> dict:
         return {"path": world.path.ref, "path_length_m": round(world.path.length, 1),
                 "path_width_m": world.path.width, "style": world.path.style, "mode": world.mode,
@@ -146,9 +145,6 @@ class Plugin(base.Plugin):
     def studio(self) -> StudioKit:
         from drivestudio.worlds.sidewalk.studio import KIT  # lazy: the overlays and presets only for the studio
         return KIT
-
-    def driver_args(self, args) -> list[str]:
-        return ["--seed", str(args.seed)]
 
     # --- overlays ----------------------------------------------------------------------------------------------------
     def overlay(self, images, record: dict, estimate: dict | None, label: str):

@@ -1,7 +1,8 @@
 """The models a benchmark compares: `oracle` (the Chen controller on the exact indicators, the upper bound),
 `oracle-extended` (the lookout controller, controller/highway/lookout.py, on the exact extended labels: it also
 sees the cars beside and behind) or a checkpoint of the highway world, optionally with the controller-side filters
-of its estimates, or a trained policy on the exact affordances (drivestudio/worlds/highway/policy.py).
+of its estimates in the driver spec's syntax (drivestudio/driver_spec.py), or a trained policy on the exact
+affordances (drivestudio/worlds/highway/policy.py).
 
     --model oracle
     --model oracle-extended
@@ -19,54 +20,45 @@ or a model of another world (a sidewalk Z2Color) is refused in one line (exit st
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from drivestudio.checkpoints import check_checkpoint_path
+from drivestudio.driver_spec import DriverSpec, parse_driver
 from drivestudio.errors import UsageError
+from drivestudio.worlds.highway.filters import FILTERS, make_filters
 from drivestudio.worlds.highway.policy import CALLABLE, is_policy
 
 ORACLE = "oracle"
 EXTENDED = "oracle-extended"
 EXACT = (ORACLE, EXTENDED)   # the drivers on exact labels; the plain oracle's row is the upper bound
-MAX_SMOOTHING = 0.95     # as drive --smoothing and --gap-hold
-MAX_PASS_MEMORY = 60.0   # [s] as drive --pass-memory
-FILTERS = ("smoothing", "gap_hold", "pass_memory", "rear_memory")
-LIMIT = {"smoothing": MAX_SMOOTHING, "gap_hold": MAX_SMOOTHING, "pass_memory": MAX_PASS_MEMORY,
-         "rear_memory": MAX_PASS_MEMORY}
-OPTION = re.compile(r"([a-z_]+)=(.*)")
 
 
 @dataclass(frozen=True)
 class ModelSpec:
+    """A row of the benchmark: its driver spec and what the checkpoint behind it is."""
+
     text: str                  # as given on the command line
     path: str | None           # the checkpoint; None: an oracle (exact labels)
-    smoothing: float = 0.0
     label: str = ORACLE        # the row's name in the leaderboard
     family: str = ORACLE       # "oracle", "oracle-extended", "alexnet", "gist", "vgg16", ...
     outputs: tuple = ()
-    gap_hold: float = 0.0
     lookout: bool = False      # the lookout controller (rules L1-L3, docs/controller.md) instead of Chen's
     policy: bool = False       # a policy on the exact affordances (path: its .zip or policy:MODULE:NAME)
     inset: str = ""            # what the checkpoint's frames held besides the scene (the mirror): its routes render it
-    pass_memory: float = 0.0   # [s] the longest a car being passed is carried on unseen (0: not at all)
-    rear_memory: float = 0.0   # [s] the longest a car lost from the mirror is held alongside (0: not at all)
+    filters: tuple = ()        # the driver spec's estimate filters, (name, value) in FILTERS' order
+
+    @property
+    def driver(self) -> DriverSpec:
+        return DriverSpec(self.path or self.family, tuple(self.filters))
 
     @property
     def key(self) -> str:
         """What identifies the row: the same checkpoint with other filters is another row."""
         if self.policy and self.path is not None:
             return self.path if self.path.startswith(CALLABLE) else f"policy:{Path(self.path).resolve()}"
-        return self.family if self.path is None else \
-            f"{Path(self.path).resolve()}@{self.smoothing:g},{self.gap_hold:g}" + \
-            (f",{self.pass_memory:g}" if self.pass_memory else "") + \
-            (f",rear {self.rear_memory:g}" if self.rear_memory else "")
-
-    def filters(self) -> dict[str, float]:
-        """The controller-side filters in use, by name."""
-        return {f: getattr(self, f) for f in FILTERS if getattr(self, f)}
+        return self.family if self.path is None else str(replace(self.driver, source=str(Path(self.path).resolve())))
 
     @property
     def is_oracle(self) -> bool:
@@ -80,46 +72,13 @@ class ModelSpec:
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        d["outputs"] = list(self.outputs)
+        d["outputs"], d["filters"] = list(self.outputs), [list(f) for f in self.filters]
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> ModelSpec:
-        return cls(**{**d, "outputs": tuple(d.get("outputs", ()))})
-
-
-def _factor(name: str, value: str, text: str) -> float:
-    try:
-        a = float(value)
-    except ValueError:
-        a = math.nan
-    if not math.isfinite(a) or not 0.0 <= a <= LIMIT[name]:
-        raise UsageError(f"--model {text}: {name} must be a number from 0 to {LIMIT[name]:g}, got {value!r}")
-    return a
-
-
-def parse_model(text: str) -> tuple[str, dict[str, float]]:
-    """(checkpoint, 'oracle' or 'oracle-extended', {filter: factor}) of a --model value: a name, PATH or
-    PATH@smoothing=A,gap_hold=B,pass_memory=S,rear_memory=S."""
-    if not text.strip():
-        raise UsageError("--model: empty; give 'oracle', 'oracle-extended' or a checkpoint file")
-    path, filters = text, {}
-    head, at, tail = text.rpartition("@")
-    if at and not Path(text).is_file():   # a file whose name holds '@' is still a file
-        path = head
-        for part in tail.split(","):
-            m = OPTION.fullmatch(part.strip())
-            if m is None or m[1] not in FILTERS:
-                raise UsageError(f"--model {text}: after '@' the options are smoothing=A and gap_hold=B (0 to "
-                                 f"{MAX_SMOOTHING}), pass_memory=S and rear_memory=S (0 to {MAX_PASS_MEMORY:g} s), "
-                                 f"got {part!r}")
-            value = _factor(m[1], m[2], text)
-            if value:
-                filters[m[1]] = value
-    if path in EXACT and filters:
-        raise UsageError(f"--model {text}: {path} reads the exact labels; {', '.join(filters)} applies to "
-                         "checkpoints")
-    return path, filters
+        return cls(**{**d, "outputs": tuple(d.get("outputs", ())),
+                      "filters": tuple(tuple(f) for f in d.get("filters", ()))})
 
 
 def check_model(text: str) -> ModelSpec:
@@ -129,7 +88,8 @@ def check_model(text: str) -> ModelSpec:
             PolicyDriver,  # lazy: Stable-Baselines3 and torch, only for a policy row
         )
         return ModelSpec(text, text, label=PolicyDriver(text).name, family="policy", policy=True)
-    path, filters = parse_model(text)
+    spec = parse_driver(text, FILTERS, EXACT)
+    path = spec.source
     if path in EXACT:
         return ModelSpec(text, None, label=path, family=path, lookout=path == EXTENDED)
     from drivestudio.worlds.highway.drivers import reads_behind  # lazy: the controllers, only for a checkpoint
@@ -137,19 +97,13 @@ def check_model(text: str) -> ModelSpec:
     from perception.models import check_spec, describe, frame_inset  # lazy: torch
     check_checkpoint_path(path, EXACT)
     ckpt = load_checkpoint(path, world="highway")     # CheckpointError (exit 2): not ours, or another world's
-    spec = ckpt["spec"]
-    check_spec(spec, path)
-    lookout = reads_behind(spec["outputs"])
-    if filters.get("rear_memory") and not lookout:
-        raise UsageError(f"--model {text}: rear_memory holds the rear labels (dist_LB, dist_RB, closing_LB, "
-                         f"closing_RB), which {Path(path).name} does not estimate")
-    label = f"{describe(spec)} ({Path(path).name})" + "".join(f", {f.replace('_', ' ')} {a:g}"
-                                                               for f, a in filters.items()) \
-        + (", lookout" if lookout else "")
-    return ModelSpec(text, str(path), label=label, family=spec["name"], outputs=tuple(spec["outputs"]),
-                     smoothing=filters.get("smoothing", 0.0), gap_hold=filters.get("gap_hold", 0.0), lookout=lookout,
-                     inset=frame_inset(spec), pass_memory=filters.get("pass_memory", 0.0),
-                     rear_memory=filters.get("rear_memory", 0.0))
+    check_spec(ckpt["spec"], path)
+    lookout = reads_behind(ckpt["spec"]["outputs"])
+    make_filters(spec, lookout)   # a filter the model cannot take is refused now
+    label = f"{describe(ckpt['spec'])} ({Path(path).name})" + \
+        "".join(f", {f.replace('_', ' ')} {a:g}" for f, a in spec.filters) + (", lookout" if lookout else "")
+    return ModelSpec(text, str(path), label=label, family=ckpt["spec"]["name"], outputs=tuple(ckpt["spec"]["outputs"]),
+                     lookout=lookout, inset=frame_inset(ckpt["spec"]), filters=spec.filters)
 
 
 def check_models(texts: list[str] | None) -> list[ModelSpec]:
@@ -181,7 +135,7 @@ def slug(model: ModelSpec, taken: set[str]) -> str:
         base = model.family
     else:
         base = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(str(model.path)).stem).strip("-.") or "model"
-        for f, a in model.filters().items():
+        for f, a in model.filters:
             base += f"-{f.replace('_', '')}{a:g}"
     name, i = base, 2
     while name in taken:

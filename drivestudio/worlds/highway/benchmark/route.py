@@ -171,31 +171,23 @@ _PREDICTORS: dict = {}
 
 
 def driver_for(model: ModelSpec, device: str):
-    """The driver `drive --model` makes: the Chen controller on the truth (oracle), the lookout controller on the
-    truth (oracle-extended), the Chen controller on a checkpoint's estimates, smoothed as the model asks, or a policy
-    on the exact affordances. A worker keeps each checkpoint's predictor for its next routes."""
-    from drivestudio.worlds.highway.drivers import ChenDriver  # lazy: the controller, only in a route's process
-    if model.policy:
-        from drivestudio.worlds.highway.policy import (
-            PolicyDriver,  # lazy: Stable-Baselines3 and torch, only for a policy row
-        )
-        return PolicyDriver(str(model.path), device)
-    if model.path is None:
-        return ChenDriver(None, lookout=model.lookout)
+    """The driver `drive --model` makes (the highway plugin's); a worker keeps each checkpoint's predictor for its
+    next routes."""
+    from drivestudio import worlds  # lazy: the plugin registry loads the worlds, only in a route's process
+    from drivestudio.worlds.highway.drivers import chen_driver  # lazy: the controllers, only in a route's process
+    plugin: Any = worlds.get("highway")
+    if model.path is None or model.policy:
+        return plugin.driver(model.driver, device)
     key = (model.path, device)
     if key not in _PREDICTORS:
         from drivestudio.checkpoints import load_predictor_for  # lazy: as the drivers, only in a route's process
         _PREDICTORS[key] = load_predictor_for(model.path, "highway", device)
-    return ChenDriver(_PREDICTORS[key], smoothing=model.smoothing, gap_hold=model.gap_hold, lookout=model.lookout,
-                      pass_memory=model.pass_memory, rear_memory=model.rear_memory)
+    return chen_driver(model.driver, _PREDICTORS[key])
 
 
 def _driver_command(name: str, model: ModelSpec, device: str) -> list[str]:
-    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", model.path or model.family,
-           "--device", device]
-    for f, a in model.filters().items():
-        cmd += [f"--{f.replace('_', '-')}", repr(a)]
-    return cmd
+    return [sys.executable, "-m", "drivestudio", "drive", "--shm", name, "--model", str(model.driver),
+            "--device", device]
 
 
 # --- one route --------------------------------------------------------------------------------------------------
@@ -261,7 +253,7 @@ def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, sec
     cmd = _driver_command(name, model, opts.device) + ["--stats-out", str(stats)]
     reason = "error"
     with WorldEndpoint(name, world.declaration, lockstep=True) as ep:
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log)
+        proc = popen(cmd, stdout=subprocess.DEVNULL, stderr=log)   # dies with this worker, however it ends
         try:
             _wait_for_driver(ep, 120.0, proc)
             exchange = ShmExchange(ep)

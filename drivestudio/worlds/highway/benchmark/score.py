@@ -16,6 +16,7 @@ import io
 import math
 
 from drivestudio.worlds.highway.benchmark.route import completion
+from drivestudio.worlds.highway.filters import FILTERS
 
 PENALTY = {"collisions": 0.60, "off_road_events": 0.65}   # CARLA: collision with a vehicle 0.60, static 0.65
 
@@ -119,9 +120,7 @@ def leaderboard(suite, models, results: list[dict]) -> dict:
     entries = []
     for m in models:
         rows = [route_row(by[(m.key, r.name)], by.get((oracle.key, r.name))) for r in suite.routes]
-        entries.append({"model": m.label, "spec": m.text, "family": m.family, "smoothing": m.smoothing,
-                        "gap_hold": m.gap_hold, "pass_memory": m.pass_memory,
-                        "rear_memory": m.rear_memory,
+        entries.append({"model": m.label, "spec": m.text, "family": m.family, **{f: m.driver.get(f) for f in FILTERS},
                         "checkpoint": m.path, "overall": overall(rows), "routes": rows})
     top = entries[0]["overall"]["driving_score"]
     for e in entries:
