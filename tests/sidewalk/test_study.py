@@ -31,9 +31,9 @@ def merged(tmp_path_factory):
     """A small expert data set, an untrained MultiNet and one correction run of it (4 s, the expert correcting)."""
     root = tmp_path_factory.mktemp("rounds")
     data = root / "data"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
-                    "--frames", "240", "--episode-frames", "40", "--paths", "park", "--workers", "1", "--quiet"],
-                   cwd=REPO, check=True, timeout=300)
+    from drivestudio.cli import main
+    assert main(["generate", "--world", "sidewalk", "--out", str(data), "--frames", "240", "--episode-frames", "40",
+                 "--paths", "park", "--workers", "1", "--quiet"]) == 0
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", SIDEWALK, modal=True, modes_trained=list(SIDEWALK.modes)))
     save_checkpoint(root / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {},
@@ -174,20 +174,18 @@ def test_the_data_plan_holds_the_moments_asked_for():
     (["--loops", "nowhere.json"], "--loops"),
     (["--perturbed", "1.5"], "--perturbed"),
 ])
-def test_bad_input_is_one_line_and_status_2(argv, says, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(tmp_path / "s"), *argv], cwd=REPO,
-                       capture_output=True, text=True, timeout=120)
+def test_bad_input_is_one_line_and_status_2(run_cli, argv, says, tmp_path):
+    r = run_cli("study", "--out", tmp_path / "s", *argv, cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and says in r.stderr, r.stderr
     assert not (tmp_path / "s").exists()
 
 
-def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
+def test_a_study_continues_only_with_the_settings_that_made_it(run_cli, tmp_path):
     out = tmp_path / "s"
     out.mkdir()
     made = json.dumps({**asdict(StudyConfig(out=str(out))), "epochs": 12}, indent=1)
     (out / "config.json").write_text(made)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), "--rounds", "3"], cwd=REPO,
-                       capture_output=True, text=True, timeout=120)
+    r = run_cli("study", "--out", out, "--rounds", "3", cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "epochs=12 (asked 10)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
@@ -198,26 +196,24 @@ def test_a_study_continues_only_with_the_settings_that_made_it(tmp_path):
     ("perturbed", ["--perturbed", "0.5"], "perturbed=0.0 (asked 0.5)"),               # expert data only
     ("steer_share", ["--steer-share", "0.5"], "steer_share=0.0 (asked 0.5)"),         # modes balanced only
 ])
-def test_a_study_made_before_a_setting_existed_continues_as_it_was_made(tmp_path, setting, option, made_as):
+def test_a_study_made_before_a_setting_existed_continues_as_it_was_made(run_cli, tmp_path, setting, option, made_as):
     """A config.json without a setting was made with the value the setting has for it (MADE_BEFORE): asking for
     another is a different study, refused before any work."""
     out = tmp_path / "s"
     out.mkdir()
     made = json.dumps({k: v for k, v in asdict(StudyConfig(out=str(out))).items() if k != setting})
     (out / "config.json").write_text(made)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out), *option],
-                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    r = run_cli("study", "--out", out, *option, cwd=REPO)
     assert r.returncode == 2 and made_as in r.stderr, r.stderr
     assert (out / "config.json").read_text() == made                  # untouched
 
 
 @pytest.mark.parametrize("text", ["[1, 2]", "{not json"])
-def test_a_study_folder_with_a_broken_config_is_refused(tmp_path, text):
+def test_a_study_folder_with_a_broken_config_is_refused(run_cli, tmp_path, text):
     out = tmp_path / "s"
     out.mkdir()
     (out / "config.json").write_text(text)
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "study", "--out", str(out)], cwd=REPO,
-                       capture_output=True, text=True, timeout=120)
+    r = run_cli("study", "--out", out, cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "config.json" in r.stderr, r.stderr
     assert (out / "config.json").read_text() == text
 
