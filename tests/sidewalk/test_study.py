@@ -94,13 +94,19 @@ def test_a_capped_epoch_draws_at_most_mode_moments_of_each_mode(merged):
     assert roomy.steps == full.steps                                  # a cap above the data is one whole pass
 
 
-# a stand-in verb for the scheduler: records its start, fails (3) if a job it needs has not ended, then sleeps
+# a stand-in verb for the scheduler: records its start, fails (3) if a job it needs has not ended, then sleeps, or
+# (a name for seconds) runs until that job has started, 30 s at most
 STAND_IN = """import pathlib, sys, time
-name, seconds, needs, d = sys.argv[1], float(sys.argv[2]), sys.argv[3], pathlib.Path(sys.argv[4])
+name, seconds, needs, d = sys.argv[1], sys.argv[2], sys.argv[3], pathlib.Path(sys.argv[4])
 (d / (name + ".start")).write_text(repr(time.time()))
 if needs != "-" and not (d / (needs + ".end")).exists():
     sys.exit(3)
-time.sleep(seconds)
+t0 = time.time()
+if seconds[0].isalpha():
+    while not (d / (seconds + ".start")).exists() and time.time() - t0 < 30:
+        time.sleep(0.02)
+else:
+    time.sleep(float(seconds))
 (d / (name + ".end")).write_text(repr(time.time()))
 """
 
@@ -110,7 +116,8 @@ def _stamp(d: Path, name: str) -> float:
 
 
 def test_a_free_slot_takes_the_first_job_whose_jobs_before_it_are_done(tmp_path):
-    jobs = [Job("a", ["a", 2.5, "-", tmp_path]), Job("b", ["b", 0.1, "a", tmp_path], after=("a",)),
+    # a runs until c has started (beside it, not behind b)
+    jobs = [Job("a", ["a", "c", "-", tmp_path]), Job("b", ["b", 0.1, "a", tmp_path], after=("a",)),
             Job("c", ["c", 0.1, "-", tmp_path]), Job("d", ["d", 0.1, "-", tmp_path], after=("done-before",))]
     run_jobs(jobs, 2, tmp_path / "logs", command=(sys.executable, "-c", STAND_IN))
     assert _stamp(tmp_path, "c.start") < _stamp(tmp_path, "a.end")     # c did not wait behind b
