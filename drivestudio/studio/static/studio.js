@@ -7,14 +7,21 @@ const $ = (id) => document.getElementById(id);
 // What the page measured, for people (the status line) and for tests and the benchmark (window.studio).
 const studio = window.studio = {
   hello: null, role: null, state: null, frames: 0, drawn: 0, bytes: 0,
-  latencies: [], errors: [], infos: [], drawTimes: [], connected: false, closed: null,
+  latencies: [], errors: [], infos: [], drawTimes: [], connected: false, closed: null, closeReason: "",
+  behindSeen: [],
 };
 
 let ws = null;
 let keys = { left: false, right: false, up: false, down: false };
 let pad = null;                 // the gamepad's axes, or null
 let pendingPress = null;        // a key press whose effect on the command is awaited
+let pendingDriver = null;       // the driver chosen in the menu until the server drives with it or refuses it
 let lastPadSent = "";
+let behindUntil = 0;            // the "behind real time" note stays this long after the last step behind
+
+const BEHIND_HOLD_MS = 3000;    // a note that flickers for one frame is no note: it stays for 3 s
+// the input a key moves: index in state.input (steer, throttle, brake) and the direction it moves it
+const KEY_INPUT = { left: [0, -1], right: [0, 1], up: [1, 1], down: [2, 1] };
 
 const KEYMAP = { ArrowLeft: "left", a: "left", A: "left", ArrowRight: "right", d: "right", D: "right",
                  ArrowUp: "up", w: "up", W: "up", ArrowDown: "down", s: "down", S: "down" };
@@ -43,7 +50,18 @@ function connect() {
   ws.onclose = (e) => {
     studio.connected = false;
     studio.closed = e.code;
-    $("world").textContent = "disconnected: the studio stopped or refused this page (reload to try again)";
+    studio.closeReason = e.reason || "";
+    const world = studio.hello ? `${studio.hello.world}: ` : "";
+    // the server says why when it stops (the run ended, the studio stopped); without a reason the page was
+    // refused or the connection lost
+    $("world").textContent = world + (e.reason ? `${e.reason}; the last frame stays shown`
+      : studio.hello ? "disconnected: the connection to the studio was lost (reload to try again)"
+        : "not connected: the studio refused this page or is not running (reload to try again)");
+    $("role").textContent = "disconnected";
+    $("role").className = "badge";
+    $("claim").hidden = true;
+    $("behind").hidden = true;
+    status();
     setControls(false);
   };
   ws.onmessage = (e) => {
@@ -55,7 +73,13 @@ function connect() {
 function onText(msg) {
   if (msg.type === "hello") onHello(msg);
   else if (msg.type === "role") setRole(msg.role, msg.wheel_free);
-  else if (msg.type === "error") message("error", msg.message);
+  else if (msg.type === "error") {
+    message("error", msg.message);
+    if (msg.about === "driver") {       // refused: the menu names who drives
+      pendingDriver = null;
+      if (studio.state) $("driver").value = studio.state.driver;
+    }
+  }
   else if (msg.type === "info") message("info", msg.message);
 }
 
@@ -63,6 +87,8 @@ function onHello(h) {
   studio.hello = h;
   $("world").textContent = `${h.world}: ${h.title}` + (h.studio ? "" : " (watching a running job)");
   for (const el of document.querySelectorAll(".studio-only")) el.hidden = !h.studio;
+  $("help-watch").hidden = h.studio;
+  if (!h.studio && h.controls) $("help-watch").textContent += " Space pauses or resumes it, N steps it once.";
   $("run-controls").hidden = !h.studio && !h.controls;
   fill($("driver"), h.drivers);
   fill($("mode"), h.modes);
@@ -149,22 +175,45 @@ function draw(canvas, bmp) {
 function onState(s) {
   const before = studio.state;
   studio.state = s;
+  if (s.paused) pendingPress = null;         // a paused run changes no command: nothing to time
   if (pendingPress && JSON.stringify(s.command) !== pendingPress.command) {
     studio.latencies.push(performance.now() - pendingPress.t0);
     pendingPress = null;
   }
   document.body.classList.toggle("paused", !!s.paused);
   document.body.classList.toggle("takeover", !!s.takeover);
-  if (!before || before.driver !== s.driver) $("driver").value = s.driver;
+  if (pendingDriver === s.driver) pendingDriver = null;
+  if (pendingDriver === null && (!before || $("driver").value !== s.driver)) $("driver").value = s.driver;
+  renderLive(s);
   renderLabels(s.labels);
   renderCommand(s);
   renderPairs($("controller"), s.controller);
-  renderPairs($("metrics"), Object.assign({ "t [s]": s.t.toFixed(1), "loop [Hz]": s.loop_hz.toFixed(0) },
-                                          s.metrics || {}));
+  renderPairs($("metrics"), Object.assign({ "t [s]": s.t.toFixed(1), "loop [Hz]": s.loop_hz.toFixed(0),
+                                            "speed [m/s]": s.speed }, s.metrics || {}));
   const rec = $("record");
   rec.classList.toggle("on", !!s.recording);
   rec.textContent = s.recording ? `■ Stop (${s.recording.steps} steps, ${s.recording.shards} shards)` : "● Record";
   $("realtime").checked = !!s.realtime;
+}
+
+// the speed now, off the road, and a loop that falls behind real time
+function renderLive(s) {
+  $("speed").textContent = s.speed === null || s.speed === undefined ? "-"
+    : `${s.speed.toFixed(1)} m/s  ${(s.speed * 3.6).toFixed(0)} km/h`;
+  $("offroad").hidden = !s.off_road;
+  $("offroad").textContent = studio.hello && studio.hello.scene_key === "path" ? "off the path" : "off road";
+  const now = performance.now();
+  if (s.behind !== null && s.behind !== undefined) {
+    studio.behindSeen.push(s.behind);
+    behindUntil = now + BEHIND_HOLD_MS;
+    const hold = studio.hello && studio.hello.takeover_hold;
+    const el = $("behind");
+    el.textContent = `behind real time: ${s.behind.toFixed(2)} simulated s per s` +
+      (hold ? ` (a take-over lasts ${(hold / Math.max(s.behind, 0.01)).toFixed(1)} s)` : "");
+    el.title = "the loop cannot keep up with real time (a busy CPU, a slow driver): the world, the ramps of " +
+               "the keys and a take-over run in simulated time, so they take longer on the wall clock";
+  }
+  $("behind").hidden = !s.realtime || !!s.paused || now > behindUntil;
 }
 
 function fmt(v) {
@@ -250,6 +299,16 @@ function sendInput() {
   send({ type: "input", keys: keys, gamepad: pad });
 }
 
+// whether pressing key k changes the command: not while paused, not under a gamepad (its axes rule), not when
+// the input it moves is already at its end (the throttle full: up changes nothing)
+function moves(k) {
+  const s = studio.state;
+  if (!s || s.paused || !s.input) return false;
+  if (pad && Math.max(Math.abs(pad.steer), pad.throttle, pad.brake) > 0.08) return false;
+  const [i, dir] = KEY_INPUT[k];
+  return dir > 0 ? s.input[i] < 1 : s.input[i] > -1;
+}
+
 document.addEventListener("keydown", (e) => {
   if (typing(e) || studio.role !== "driver") return;
   const k = KEYMAP[e.key];
@@ -257,8 +316,8 @@ document.addEventListener("keydown", (e) => {
     e.preventDefault();
     if (!keys[k]) {
       keys = Object.assign({}, keys, { [k]: true });
-      if (!pendingPress && studio.state) {
-        pendingPress = { t0: performance.now(), command: JSON.stringify(studio.state.command) };
+      if (!pendingPress && moves(k)) {
+        pendingPress = { t0: performance.now(), key: k, command: JSON.stringify(studio.state.command) };
       }
       sendInput();
     }
@@ -274,6 +333,7 @@ document.addEventListener("keyup", (e) => {
   const k = KEYMAP[e.key];
   if (k && keys[k]) {
     keys = Object.assign({}, keys, { [k]: false });
+    if (pendingPress && pendingPress.key === k) pendingPress = null;   // let go before any step took it
     sendInput();
   }
 });
@@ -322,7 +382,10 @@ function wire() {
   $("resume").onclick = () => send({ type: "resume" });
   $("step").onclick = () => send({ type: "step" });
   $("realtime").onchange = (e) => send({ type: "pace", realtime: e.target.checked });
-  $("driver").onchange = (e) => send({ type: "driver", name: e.target.value });
+  $("driver").onchange = (e) => {
+    pendingDriver = e.target.value;
+    send({ type: "driver", name: e.target.value });
+  };
   $("mode").onchange = (e) => send({ type: "mode", mode: e.target.value });
   $("operation").onchange = (e) => { if (e.target.value) send({ type: "operation", operation: e.target.value }); };
   $("claim").onclick = () => send({ type: "claim" });
@@ -340,13 +403,17 @@ function wire() {
       send(name ? { type: "record", on: true, name: name } : { type: "record", on: true });
     }
   };
-  setInterval(() => {
-    const s = studio.state;
-    const lat = studio.latencies;
-    const last = lat.length ? ` | key to command ${lat[lat.length - 1].toFixed(0)} ms` : "";
-    $("status").textContent = s ? `page ${studio.drawTimes.length} frames/s | loop ${s.loop_hz.toFixed(0)} Hz${last}`
-                                : "";
-  }, 500);
+  setInterval(status, 500);
+}
+
+// the status line: the page's frame rate, the loop rate and the last key-to-command latency, while connected
+function status() {
+  const s = studio.state;
+  const lat = studio.latencies;
+  const last = lat.length ? ` | key to command ${lat[lat.length - 1].toFixed(0)} ms` : "";
+  if (!studio.connected) $("status").textContent = studio.closed === null ? "" : "disconnected";
+  else $("status").textContent = s ? `page ${studio.drawTimes.length} frames/s | loop ${s.loop_hz.toFixed(0)} Hz${last}`
+                                   : "";
 }
 
 wire();
