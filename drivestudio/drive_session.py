@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from core import worlds as declared
+from core.children import forward, popen
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio import worlds
 from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
@@ -118,6 +119,8 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                  "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
     driver_time = 0.0
     if driver_proc is not None:
+        if stopped is not None:   # a driver still starting would wait for a world that is gone
+            forward(driver_proc, stopped)
         driver_proc.wait(timeout=15)
         if driver_stats is not None and driver_stats.exists():
             stats = json.loads(driver_stats.read_text())

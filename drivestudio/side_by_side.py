@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from core.children import popen
 from core.signals import exit_on_sigterm
 from drivestudio.errors import RunError
 
@@ -59,8 +60,8 @@ def run_side_by_side(commands: list[list[str]], logs: list[Path], every: float =
 
     def start(i: int) -> subprocess.Popen:
         with open(logs[i], "ab") as out:
-            return subprocess.Popen([sys.executable, "-m", "drivestudio", *commands[i]], stdout=out,
-                                    stderr=subprocess.STDOUT, env=env)
+            return popen([sys.executable, "-m", "drivestudio", *commands[i]], stdout=out, stderr=subprocess.STDOUT,
+                         env=env)
 
     try:
         with exit_on_sigterm():   # a recipe stopped by SIGTERM stops its children (the finally below)

@@ -11,7 +11,6 @@ worker dies with its parent (PR_SET_PDEATHSIG).
 """
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 import selectors
@@ -20,20 +19,14 @@ import subprocess
 import sys
 from collections.abc import Callable
 
+from core.children import die_with_parent, popen
 from drivestudio.errors import RunError
-
-
-def _die_with_parent() -> None:
-    try:  # PR_SET_PDEATHSIG: a SIGKILLed parent takes its workers with it rather than leave them running
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass
 
 
 def serve(run_one: Callable[[dict, Callable], dict], what: Callable[[dict], str]) -> int:
     """The worker's side: run_one(job, progress) for every job read from stdin; `what(job)` names a job in an
     error line. Returns the exit status."""
-    _die_with_parent()
+    die_with_parent()   # also when started by another program than run_pool
     if os.getppid() == 1:
         return 1
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole group: the parent stops us
@@ -59,8 +52,8 @@ def run_pool(module: str, jobs: list[dict], workers: int, on_progress: Callable,
     job named by `what`). On the way out, workers still running get SIGTERM and `stop_wait` seconds to unwind
     (0: they are killed at once)."""
     env = dict(os.environ, PYTHONUNBUFFERED="1", **(env or {}))
-    procs = [subprocess.Popen([sys.executable, "-m", module, "worker"], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, env=env, cwd=os.getcwd())
+    procs = [popen([sys.executable, "-m", module, "worker"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env,
+                   cwd=os.getcwd())
              for _ in range(max(1, min(workers, len(jobs))))]
     pool = _Pool(procs, jobs, on_progress, on_done, what)
     try:

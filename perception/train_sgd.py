@@ -24,6 +24,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from core.children import worker_initializer
 from core.declaration import WorldDeclaration
 from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
@@ -216,7 +217,8 @@ def frame_cache(data: Dataset, dist: Distributed, log) -> FrameCache:
     return FrameCache(data)
 
 
-def _one_thread(_worker_id: int) -> None:  # decoding workers leave the cores to the training process
+def _one_thread(worker_id: int) -> None:  # decoding workers leave the cores to the training process
+    worker_initializer(worker_id)   # and die with it
     torch.set_num_threads(1)
 
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from core.children import popen
 from sim.highway.errors import TrafficError
 
 TRANSPORTS = ("auto", "libsumo", "traci")
@@ -122,8 +123,8 @@ class SumoConnection:
         for _ in range(PORT_TRIES):
             port = _free_port()
             with tempfile.TemporaryFile() as err:
-                proc = subprocess.Popen([exe, *args[1:], "--remote-port", str(port)], stdin=subprocess.DEVNULL,
-                                        stdout=subprocess.DEVNULL, stderr=err)
+                proc = popen([exe, *args[1:], "--remote-port", str(port)], stdin=subprocess.DEVNULL,
+                             stdout=subprocess.DEVNULL, stderr=err)
                 deadline = time.monotonic() + CONNECT_TIMEOUT
                 while True:
                     try:

@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
+from core.children import popen
 from drivestudio.errors import RunError, UsageError
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
@@ -123,8 +124,8 @@ def run_jobs(jobs: list[Job], parallel: int, logs: Path, command: tuple = (sys.e
                 waiting.remove(job)
                 print("$ drivestudio " + " ".join(map(str, job.argv)) + f"   (log: {logs / job.name}.log)", flush=True)
                 with open(logs / f"{job.name}.log", "ab") as log:
-                    running.append((job, subprocess.Popen([*command, *map(str, job.argv)], stdout=log,
-                                                          stderr=subprocess.STDOUT, env=env)))
+                    running.append((job, popen([*command, *map(str, job.argv)], stdout=log,
+                                               stderr=subprocess.STDOUT, env=env)))
             if not running and waiting:
                 raise RunError(f"{waiting[0].name} waits for jobs that never run: {', '.join(waiting[0].after)}")
             time.sleep(1.0)

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from core.children import popen
 from core.worlds.highway import lane_centres
 from drivestudio.errors import RunError
 from drivestudio.loop import in_process, run_loop
