@@ -2,6 +2,7 @@
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -17,8 +18,18 @@ DRIVE = [sys.executable, "-m", "drivestudio", "drive"]
 WORLD = ["--track", "oval", "--lanes", "3", "--cars", "6"]
 
 
-def shm_entries(prefix="drivestudio-"):
-    return [n for n in os.listdir("/dev/shm") if n.startswith(prefix)]
+def shm_entries(*pids):
+    """The segments of the runs of these processes (drivestudio-PID, and their names with suffixes) still in /dev/shm:
+    other runs on the machine (another test, a user's) are not this test's."""
+    return [n for n in os.listdir("/dev/shm") for pid in pids
+            if n == f"drivestudio-{pid}" or n.startswith(f"drivestudio-{pid}-")]
+
+
+def run(argv):
+    """subprocess.run with the process id kept (the name of its segment)."""
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(argv, proc.returncode, out, err), proc.pid
 
 
 def metrics_of(out):
@@ -26,11 +37,9 @@ def metrics_of(out):
 
 
 def test_oracle_over_shared_memory_and_in_process_drive_the_same(tmp_path):
-    shm = subprocess.run(DRIVE + WORLD + ["--seconds", "20", "--out", str(tmp_path / "shm")], capture_output=True,
-                         text=True, timeout=120)
+    shm, shm_pid = run(DRIVE + WORLD + ["--seconds", "20", "--out", str(tmp_path / "shm")])
     assert shm.returncode == 0, shm.stderr
-    one = subprocess.run(DRIVE + WORLD + ["--seconds", "20", "--in-process", "--out", str(tmp_path / "one")],
-                         capture_output=True, text=True, timeout=120)
+    one, one_pid = run(DRIVE + WORLD + ["--seconds", "20", "--in-process", "--out", str(tmp_path / "one")])
     assert one.returncode == 0, one.stderr
     a, b = metrics_of(tmp_path / "shm"), metrics_of(tmp_path / "one")
     assert a["transport"] == "shared memory" and b["transport"] == "in process"
@@ -39,7 +48,7 @@ def test_oracle_over_shared_memory_and_in_process_drive_the_same(tmp_path):
     assert a["simulated_time_s"] == 20.0 and a["collisions"] == 0 and a["off_road_events"] == 0
     assert a["stage_ms_per_step"]["render"] > 0 and a["stage_ms_per_step"]["transfer"] > 0
     assert "| mean_speed_mps |" in shm.stdout and (tmp_path / "shm" / "metrics.md").exists()
-    assert shm_entries() == []
+    assert shm_entries(shm_pid, one_pid) == []
 
 
 def test_serve_and_drive_as_two_commands(tmp_path):
@@ -56,17 +65,27 @@ def test_serve_and_drive_as_two_commands(tmp_path):
     assert not os.path.exists(f"/dev/shm/{name}")
 
 
+def driven_frames(name: str) -> int:
+    """driver_seen_seq of the segment /dev/shm/NAME (shm_bridge/layout.py: the newest frame the driver has taken);
+    0 while the segment is not ready or gone."""
+    try:
+        with open(f"/dev/shm/{name}", "rb") as f:
+            head = f.read(224)
+    except FileNotFoundError:
+        return 0
+    return struct.unpack_from("=Q", head, 216)[0] if len(head) == 224 and head[:8] == b"DSBRIDGE" else 0
+
+
 def _start_both(tmp_path):
     proc = subprocess.Popen(DRIVE + WORLD + ["--seconds", "600", "--out", str(tmp_path)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    # running once the world has published frames: the driver child exists and the segment is there
+    # running once the driver child exists and has taken 20 frames of the world's (its segment says so)
     t0 = time.time()
     while time.time() - t0 < 60:
         kids = subprocess.run(["ps", "-o", "pid=", "--ppid", str(proc.pid)], capture_output=True, text=True)
-        if kids.stdout.split() and shm_entries():
-            time.sleep(2.0)
+        if kids.stdout.split() and driven_frames(f"drivestudio-{proc.pid}") >= 20:
             return proc, int(kids.stdout.split()[0])
-        time.sleep(0.1)
+        time.sleep(0.05)
     proc.kill()
     raise AssertionError("the run did not start")
 
@@ -94,7 +113,7 @@ def test_killing_the_driver_ends_the_world_within_two_seconds(tmp_path):
     err = proc.stderr.read()
     assert proc.returncode == 1
     assert f"the driver process (pid {child}) died" in err and "Traceback" not in err
-    assert shm_entries() == []
+    assert shm_entries(proc.pid) == []
 
 
 def test_killing_the_world_ends_the_driver_within_two_seconds(tmp_path):
@@ -102,7 +121,7 @@ def test_killing_the_world_ends_the_driver_within_two_seconds(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert _time_to_exit(child) < 2.0
-    assert shm_entries() == []
+    assert shm_entries(proc.pid) == []
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
@@ -111,7 +130,7 @@ def test_stopping_the_run_cleans_up(tmp_path, sig):
     proc.send_signal(sig)
     assert _time_to_exit(proc.pid, proc) < 5.0
     assert _time_to_exit(child) < 5.0
-    assert shm_entries() == []
+    assert shm_entries(proc.pid) == []
 
 
 def test_bad_model_is_one_line(tmp_path):

@@ -134,23 +134,22 @@ def test_compose_draws_truth_and_estimate():
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
+    from drivestudio.cli import main
     root = tmp_path_factory.mktemp("ov") / "ds"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(root), "--frames", "40",
-                    "--episode-frames", "20", "--tracks", "hairpins", "--lanes", "2", "--cars", "6", "--workers", "1",
-                    "--quiet"], check=True, capture_output=True, timeout=300)
+    assert main(["generate", "--out", str(root), "--frames", "40", "--episode-frames", "20", "--tracks", "hairpins",
+                 "--lanes", "2", "--cars", "6", "--workers", "1", "--quiet"]) == 0
     return root
 
 
-def test_overlay_pngs_and_video_from_a_dataset(data, tmp_path):
-    subprocess.run([sys.executable, "-m", "drivestudio", "overlay", "--data", str(data), "--model", "oracle",
-                    "--split", "all", "--select", "random", "-n", "3", "--out", str(tmp_path / "png")],
-                   capture_output=True, text=True, check=True)
+def test_overlay_pngs_and_video_from_a_dataset(data, run_cli, tmp_path):
+    r = run_cli("overlay", "--data", data, "--model", "oracle", "--split", "all", "--select", "random", "-n", "3",
+                "--out", tmp_path / "png")
+    assert r.returncode == 0, r.stderr
     pngs = sorted((tmp_path / "png").glob("overlay-*.png"))
     assert len(pngs) == 3 and cv2.imread(str(pngs[0])).shape == (660, 880, 3)
     video = tmp_path / "ep.mp4"
-    subprocess.run([sys.executable, "-m", "drivestudio", "overlay", "--data", str(data), "--model", "oracle",
-                    "--split", "all", "--video", str(video), "--episode", "1"],
-                   capture_output=True, text=True, check=True)
+    r = run_cli("overlay", "--data", data, "--model", "oracle", "--split", "all", "--video", video, "--episode", "1")
+    assert r.returncode == 0, r.stderr
     cap = cv2.VideoCapture(str(video))
     assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == 20
     assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (880, 660)
