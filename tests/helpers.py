@@ -69,3 +69,11 @@ def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | 
     sys.stderr.flush()
     out, err = capfd.readouterr()
     return Run(code, out, err + "".join(printed))
+
+
+def make(*argv) -> None:
+    """`drivestudio *argv` in this process for a fixture's data or model (a session's or a module's: no capfd
+    there); it must succeed."""
+    from drivestudio.cli import main
+    code = main([str(a) for a in argv])
+    assert code == 0, f"drivestudio {' '.join(map(str, argv))} exited with {code}"

@@ -2,13 +2,12 @@
 worlds were declared (digests taken with the version-1 code on a 60-frame set). A change that alters a pixel or a
 label of the highway fails here."""
 import hashlib
-import subprocess
-import sys
 
 import numpy as np
 
 from core.worlds.highway import INDICATORS
 from perception.shards import Dataset
+from tests.helpers import make
 
 IMAGES = "d5262fd20cc70ecee9d35ccb6eba99cd5d6693e1c9608774220799b62f949a5a"
 LABELS = "ae58514b58a12c42ffd2828ab3d9671a905ab6b6bd58880b4155b1378152fce7"
@@ -37,8 +36,7 @@ def digests(root) -> tuple[str, str]:
 
 def test_the_highway_gives_the_same_pixels_and_labels(tmp_path):
     out = tmp_path / "ds"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *COMMAND], check=True,
-                   capture_output=True, timeout=300)
+    make("generate", "--out", out, *COMMAND)
     images, labels = digests(out)
     assert labels == LABELS, "a highway label, action or car pose changed"
     assert images == IMAGES, "a highway pixel changed"

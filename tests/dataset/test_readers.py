@@ -1,7 +1,5 @@
 """The PyTorch readers on a real generated highway dataset (the moments of a stereo world: tests/drivestudio/
 test_second_world.py and tests/sidewalk)."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -15,9 +13,9 @@ from perception.shards import DatasetError
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("readers") / "ds"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(root), "--frames", "200",
-                    "--episode-frames", "20", "--tracks", "oval", "--lanes", "3", "--cars", "6", "--workers", "2",
-                    "--quiet"], check=True, capture_output=True, timeout=300)
+    from tests.helpers import make
+    make("generate", "--out", root, "--frames", "200", "--episode-frames", "20", "--tracks", "oval", "--lanes", "3",
+         "--cars", "6", "--workers", "2", "--quiet")
     return root
 
 

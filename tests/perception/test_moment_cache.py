@@ -1,7 +1,5 @@
 """The moment cache (perception/moment_cache.py): a cached moment is the one the readers assemble from the shards,
 downsampled to the network's 94 x 168; the cache is written once and read back without decoding."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -20,10 +18,9 @@ SIZE = (94, 168)
 def data(tmp_path_factory):
     """Three full-size (336 x 188) episodes of 40 steps, one per behavioural mode."""
     out = tmp_path_factory.mktemp("cache") / "data"
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "120",
-                        "--episode-frames", "40", "--paths", "park", "--workers", "1", "--quiet", "--seed", "3",
-                        "--out", str(out)], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    from tests.helpers import make
+    make("generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "40", "--paths", "park",
+         "--workers", "1", "--quiet", "--seed", "3", "--out", out)
     return out
 
 

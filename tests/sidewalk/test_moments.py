@@ -2,8 +2,6 @@
 with steering, motor, behavioural and operation mode; the readers assemble MultiNet's data moment (left and right
 at t - 33 ms and t, the next 10 steering and 10 motor values) without storing any image twice."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -11,8 +9,9 @@ import pytest
 from core.worlds.sidewalk import MODES
 from perception.datasets import FrameDataset
 from perception.shards import Dataset, image_column
+from tests.helpers import make
 
-GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "90",
+GENERATE = ["generate", "--world", "sidewalk", "--frames", "90",
             "--episode-frames", "30", "--width", "168", "--height", "94", "--paths", "park,procedural:3",
             "--workers", "2", "--quiet", "--seed", "5"]
 
@@ -20,8 +19,7 @@ GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewal
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     out = tmp_path_factory.mktemp("moments") / "data"
-    r = subprocess.run(GENERATE + ["--out", str(out)], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    make(*GENERATE, "--out", out)
     return out
 
 
@@ -64,18 +62,17 @@ def test_images_are_stored_once(data):
     assert sum(s.frames for s in ds.shards) == 90
 
 
-def test_same_seed_same_frames_and_labels(data, tmp_path):
+def test_same_seed_same_frames_and_labels(data, run_cli, tmp_path):
     again = tmp_path / "again"
-    r = subprocess.run(GENERATE + ["--out", str(again)], capture_output=True, text=True, timeout=300)
+    r = run_cli(*GENERATE, "--out", again)
     assert r.returncode == 0, r.stderr
     first = json.loads((data / "manifest.json").read_text())["shards"]
     second = json.loads((again / "manifest.json").read_text())["shards"]
     assert [s["sha256"] for s in first] == [s["sha256"] for s in second]
 
 
-def test_stats_reports_the_balance(data, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "stats", str(data), "--out", str(tmp_path / "st")],
-                       capture_output=True, text=True, timeout=120)
+def test_stats_reports_the_balance(data, run_cli, tmp_path):
+    r = run_cli("stats", data, "--out", tmp_path / "st")
     assert r.returncode == 0, r.stderr
     assert "direct 33.3%, follow 33.3%, furtive 33.3%" in r.stdout and "| correcting | 0.0% of frames" in r.stdout
     summary = json.loads((tmp_path / "st" / "stats.json").read_text())

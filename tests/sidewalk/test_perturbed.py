@@ -2,8 +2,6 @@
 episodes"): now and then a triangular impulse is added to the steering the car receives; every step's label (the
 record's steer and motor) is the expert's own command for the state the car is in, the impulse only in the command
 applied (the dataset's action column)."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -70,7 +68,7 @@ def test_the_same_seed_perturbs_the_same_way():
     assert not np.array_equal(run(3, 600)[1], run(4, 600)[1])
 
 
-GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "400",
+GENERATE = ["generate", "--world", "sidewalk", "--frames", "400",
             "--episode-frames", "200", "--width", "168", "--height", "94", "--paths", "park", "--modes",
             "direct,furtive", "--workers", "1", "--quiet", "--seed", "5"]
 
@@ -78,8 +76,8 @@ GENERATE = [sys.executable, "-m", "drivestudio", "generate", "--world", "sidewal
 @pytest.fixture(scope="module")
 def perturbed_data(tmp_path_factory):
     out = tmp_path_factory.mktemp("perturbed") / "data"
-    r = subprocess.run(GENERATE + ["--perturbed", "1", "--out", str(out)], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    from tests.helpers import make
+    make(*GENERATE, "--perturbed", "1", "--out", out)
     return out
 
 
