@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,9 +31,24 @@ class Run:
     stderr: str
 
 
+@contextmanager
+def _worlds_kept():
+    """The worlds a run learnt from DRIVESTUDIO_WORLDS are forgotten afterwards: the next run in this process sees
+    the worlds a fresh interpreter would."""
+    from core import worlds as declarations
+    from drivestudio import worlds
+    kept = [(registry, set(registry._REGISTERED), set(registry._modules())) for registry in (worlds, declarations)]
+    try:
+        yield
+    finally:
+        for registry, before, built_in in kept:
+            for name in set(registry._REGISTERED) - before - built_in:
+                del registry._REGISTERED[name]
+
+
 def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | None = None) -> Run:
     """`drivestudio *argv` in this process, in `cwd`, with `env` added to the environment; everything it changed
-    (cwd, environment, signal handlers, torch's thread count) is put back afterwards."""
+    (cwd, environment, the worlds it learnt, signal handlers, torch's thread count) is put back afterwards."""
     from drivestudio.cli import main
     capfd.readouterr()                      # what came before is not this run's
     old_cwd = os.getcwd()
@@ -45,7 +61,7 @@ def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | 
         if cwd is not None:
             os.chdir(cwd)
         os.environ.update(env or {})
-        with warnings.catch_warnings(record=True) as caught:
+        with _worlds_kept(), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             try:
                 code = main([str(a) for a in argv])
@@ -71,9 +87,16 @@ def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | 
     return Run(code, out, err + "".join(printed))
 
 
-def make(*argv) -> None:
+def make(*argv, env: dict[str, str] | None = None) -> None:
     """`drivestudio *argv` in this process for a fixture's data or model (a session's or a module's: no capfd
-    there); it must succeed."""
+    there), with `env` added to the environment meanwhile; it must succeed."""
     from drivestudio.cli import main
-    code = main([str(a) for a in argv])
+    old_env = dict(os.environ)
+    try:
+        os.environ.update(env or {})
+        with _worlds_kept():
+            code = main([str(a) for a in argv])
+    finally:
+        os.environ.clear()
+        os.environ.update(old_env)
     assert code == 0, f"drivestudio {' '.join(map(str, argv))} exited with {code}"

@@ -12,9 +12,11 @@ import pytest
 
 from perception.datasets import FrameDataset
 from perception.shards import Dataset
+from tests.helpers import make
 from tests.shm_bridge.processes import REPO
 
-ENV = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}
+WORLDS = {"DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}
+ENV = {**os.environ, **WORLDS}
 STEPS = 30   # per episode
 
 
@@ -29,16 +31,16 @@ def cli(*args, check=True):
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("corridor") / "ds"
-    cli("generate", "--world", "corridor", "--out", root, "--frames", 10 * STEPS, "--episode-frames", STEPS,
-        "--workers", 2, "--quiet")
+    make("generate", "--world", "corridor", "--out", root, "--frames", 10 * STEPS, "--episode-frames", STEPS,
+         "--workers", 2, "--quiet", env=WORLDS)
     return root
 
 
 @pytest.fixture(scope="module")
 def checkpoint(data, tmp_path_factory):
     out = tmp_path_factory.mktemp("corridor-model") / "tiny.pt"
-    cli("train", "--data", data, "--model", "tinyconv", "--out", out, "--iterations", 150, "--batch-size", 16,
-        "--val-every", 50, "--optimizer", "adam", "--lr", "3e-3", "--device", "cpu")
+    make("train", "--data", data, "--model", "tinyconv", "--out", out, "--iterations", 150, "--batch-size", 16,
+         "--val-every", 50, "--optimizer", "adam", "--lr", "3e-3", "--device", "cpu", env=WORLDS)
     return out
 
 
@@ -92,10 +94,10 @@ def test_it_drives_over_the_bridge_in_two_processes(checkpoint, tmp_path):
     assert "the world ended the run: finished" in r.stderr
 
 
-def test_its_options_and_models_stay_in_their_world(checkpoint, tmp_path):
-    r = cli("drive", "--world", "highway", "--start-offset", 1.0, "--seconds", 1, check=False)
+def test_its_options_and_models_stay_in_their_world(checkpoint, run_cli, tmp_path):
+    r = run_cli("drive", "--world", "highway", "--start-offset", 1.0, "--seconds", 1, env=WORLDS, cwd=REPO)
     assert r.returncode == 2 and "--start-offset belongs to the corridor world" in r.stderr
-    r = cli("drive", "--world", "highway", "--model", checkpoint, "--seconds", 1, "--in-process", "--out",
-            tmp_path, check=False)
+    r = run_cli("drive", "--world", "highway", "--model", checkpoint, "--seconds", 1, "--in-process", "--out",
+                tmp_path, env=WORLDS, cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert "a model of the corridor world, not of the highway world" in r.stderr
