@@ -3,8 +3,6 @@ pixel or one label changes the images' or the labels' fingerprint alone, the fra
 network's fingerprint is the digest of its tensors."""
 import json
 import shutil
-import subprocess
-import sys
 
 import cv2
 import numpy as np
@@ -129,12 +127,13 @@ def test_a_networks_fingerprint_is_the_digest_of_its_tensors():
     assert tensor_digest(state) != network_fingerprint(path)
 
 
-def test_stats_prints_the_fingerprint_only_when_asked(tmp_path, original):
-    cmd = [sys.executable, "-m", "drivestudio", "stats", str(dataset())]
-    r = subprocess.run([*cmd, "--fingerprint", "--out", str(tmp_path / "a")], capture_output=True, text=True,
-                       check=True)
+def test_stats_prints_the_fingerprint_only_when_asked(run_cli, tmp_path, original):
+    cmd = ["stats", dataset()]
+    r = run_cli(*cmd, "--fingerprint", "--out", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
     assert f"labels {original['labels']}, images {original['images']}" in r.stdout
     assert json.loads((tmp_path / "a" / "stats.json").read_text())["fingerprint"] == original
-    r = subprocess.run([*cmd, "--out", str(tmp_path / "b")], capture_output=True, text=True, check=True)
+    r = run_cli(*cmd, "--out", tmp_path / "b")
+    assert r.returncode == 0, r.stderr
     assert "fingerprint" not in r.stdout
     assert "fingerprint" not in json.loads((tmp_path / "b" / "stats.json").read_text())

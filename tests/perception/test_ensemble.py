@@ -2,8 +2,6 @@
 input statistics, the closest gap any member reads is believed, every other output is the members' mean, each
 output over the members that estimate it; members that read something else are refused in one line, exit status 2,
 nothing written."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -81,16 +79,15 @@ def test_members_that_read_otherwise_are_refused(members, tmp_path):
         make([str(members[0])])
 
 
-def test_the_command_refuses_in_one_line_and_writes_nothing(members, tmp_path):
+def test_the_command_refuses_in_one_line_and_writes_nothing(members, run_cli, tmp_path):
+    from drivestudio.ensemble import main
     out = tmp_path / "e.pt"
     for args in ([str(members[0])], [str(members[0]), str(tmp_path / "missing.pt")],
                  [str(members[0]), str(members[0])]):
-        r = subprocess.run([sys.executable, "-m", "drivestudio.ensemble", "--out", str(out), *args],
-                           capture_output=True, text=True, timeout=120)
+        r = run_cli("--out", out, *args, entry=main)    # `python -m drivestudio.ensemble`, in this process
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "error" in r.stderr, r.stderr
         assert not out.exists()
-    r = subprocess.run([sys.executable, "-m", "drivestudio.ensemble", "--out", str(out), *map(str, members)],
-                       capture_output=True, text=True, timeout=120)
+    r = run_cli("--out", out, *members, entry=main)
     assert r.returncode == 0 and out.exists() and "Ensemble of 2" in r.stdout, r.stderr
 
 

@@ -1,8 +1,5 @@
 """Named label sets (`train --labels paper|extended`): the extended labels reach datasets and models through the
 declaration alone."""
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -37,9 +34,8 @@ def test_a_generated_dataset_carries_the_rear_labels_and_a_model_learns_the_exte
     assert spec["normalisation"]["dist_LB"] == [pytest.approx(0.8 / 100), 0.1]
 
 
-def test_an_unknown_label_set_is_refused_in_one_line_before_any_work(tmp_path):
+def test_an_unknown_label_set_is_refused_in_one_line_before_any_work(run_cli, tmp_path):
     out = tmp_path / "m.pt"
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "train", "--data", str(dataset()), "--model", "gist",
-                        "--out", str(out), "--labels", "wide"], capture_output=True, text=True, timeout=300)
+    r = run_cli("train", "--data", dataset(), "--model", "gist", "--out", out, "--labels", "wide")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no label set 'wide'" in r.stderr
     assert not out.exists()
