@@ -81,13 +81,19 @@ def test_sigterm_to_the_runner_stops_its_children(tmp_path):
     code = ("from pathlib import Path\nfrom drivestudio.side_by_side import run_side_by_side\n"
             f"run_side_by_side([['generate', '--out', {str(out)!r}, '--frames', '1000000', '--workers', '1', "
             f"'--quiet']], [Path({str(tmp_path / 'g.log')!r})])\n")
+    def running() -> set[int]:
+        """The processes whose command line names the output folder: the runner and its child."""
+        found = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout
+        return set(map(int, found.split()))
+
     runner = subprocess.Popen([sys.executable, "-c", code])
     deadline = time.monotonic() + 60
-    while not (tmp_path / "g.log").exists() and time.monotonic() < deadline:
-        time.sleep(0.2)
-    time.sleep(3)                                                   # the child is running
-    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 0
+    while not running() - {runner.pid} and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert running() - {runner.pid}                                 # the child is running
     runner.send_signal(signal.SIGTERM)
     assert runner.wait(timeout=60) != 0
-    time.sleep(1)
-    assert subprocess.run(["pgrep", "-f", str(out)], capture_output=True).returncode == 1   # none left
+    deadline = time.monotonic() + 10
+    while running() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not running()                                            # none left
