@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -117,12 +118,10 @@ with DriverEndpoint(sys.argv[1], attach_timeout=60) as ep:
 def _serve_until(name: str, out: Path, driver: bool) -> tuple[subprocess.Popen, subprocess.Popen | None]:
     serve = subprocess.Popen(SERVE + ["--shm", name, "--out", str(out)], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
-    t0 = time.time()
-    while not os.path.exists(f"/dev/shm/{name}"):
-        assert serve.poll() is None and time.time() - t0 < 60, serve.stderr.read() if serve.stderr else ""
-        time.sleep(0.05)
+    assert serve.stderr is not None and select.select([serve.stderr], [], [], 60)[0], "serve said nothing in 60 s"
+    ready = serve.stderr.readline()     # its readiness line: the segment is there and the world waits for a driver
+    assert "waiting for a driver" in ready and os.path.exists(f"/dev/shm/{name}"), ready + serve.stderr.read()
     if not driver:
-        time.sleep(0.5)
         return serve, None
     proc = subprocess.Popen([sys.executable, "-c", DRIVER, name], stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None and proc.stdout.readline() == "driving\n"
