@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import signal
+import struct
 import sys
 import warnings
 from contextlib import contextmanager
@@ -102,3 +103,14 @@ def make(*argv, env: dict[str, str] | None = None) -> None:
         os.environ.clear()
         os.environ.update(old_env)
     assert code == 0, f"drivestudio {' '.join(map(str, argv))} exited with {code}"
+
+
+def driven_frames(name: str) -> int:
+    """driver_seen_seq of the bridge segment /dev/shm/NAME (shm_bridge/layout.py: the newest frame its driver has
+    taken), read from outside; 0 while the segment is not ready or gone. A run that shows frames here is driving."""
+    try:
+        with open(f"/dev/shm/{name}", "rb") as f:
+            head = f.read(224)
+    except FileNotFoundError:
+        return 0
+    return struct.unpack_from("=Q", head, 216)[0] if len(head) == 224 and head[:8] == b"DSBRIDGE" else 0

@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+from tests.helpers import driven_frames
+
 BENCH = [sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle", "--shm", "--workers", "1",
          "--quiet", "--clips", "0"]
 
@@ -38,8 +40,7 @@ def _start(suite: Path, out: Path, tmp: Path) -> tuple[subprocess.Popen, list[st
     t0 = time.time()
     while time.time() - t0 < 120:
         names = _segments_of(_descendants(proc.pid))
-        if names:
-            time.sleep(1.0)   # the route is being driven
+        if names and any(driven_frames(n) >= 10 for n in names):   # the route is being driven
             return proc, names
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.1)

@@ -2,7 +2,6 @@
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -13,6 +12,7 @@ import pytest
 
 import sim  # noqa: F401  registers drivestudio/Highway-v0
 from controller.highway import ChenController
+from tests.helpers import driven_frames
 
 DRIVE = [sys.executable, "-m", "drivestudio", "drive"]
 WORLD = ["--track", "oval", "--lanes", "3", "--cars", "6"]
@@ -63,17 +63,6 @@ def test_serve_and_drive_as_two_commands(tmp_path):
     m = metrics_of(tmp_path)
     assert m["simulated_time_s"] == 10.0 and m["lockstep"] is False
     assert not os.path.exists(f"/dev/shm/{name}")
-
-
-def driven_frames(name: str) -> int:
-    """driver_seen_seq of the segment /dev/shm/NAME (shm_bridge/layout.py: the newest frame the driver has taken);
-    0 while the segment is not ready or gone."""
-    try:
-        with open(f"/dev/shm/{name}", "rb") as f:
-            head = f.read(224)
-    except FileNotFoundError:
-        return 0
-    return struct.unpack_from("=Q", head, 216)[0] if len(head) == 224 and head[:8] == b"DSBRIDGE" else 0
 
 
 def _start_both(tmp_path):
