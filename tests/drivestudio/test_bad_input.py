@@ -211,11 +211,13 @@ def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
     import time
 
     import torch
-    env = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}
+
+    from tests.helpers import make
+    worlds = {"DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO)}
+    env = {**os.environ, **worlds}
     data = tmp_path / "data"
-    subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "corridor", "--out", str(data),
-                    "--frames", "200", "--episode-frames", "20", "--workers", "1", "--quiet"], cwd=REPO, env=env,
-                   check=True, capture_output=True, timeout=120)
+    make("generate", "--world", "corridor", "--out", data, "--frames", "200", "--episode-frames", "20", "--workers",
+         "1", "--quiet", env=worlds)
     out = tmp_path / "tiny.pt"
     cmd = [sys.executable, "-m", "drivestudio", "train", "--data", str(data), "--model", "tinyconv", "--out", str(out),
            "--iterations", "10000000", "--batch-size", "4", "--val-every", "10000000", "--checkpoint-every", "0.5",
