@@ -59,14 +59,15 @@ def worker_initializer(*_args) -> None:
     die_with_parent(parent.pid if parent is not None else os.getppid())
 
 
-def popen(args, **kwargs) -> subprocess.Popen:
-    """subprocess.Popen whose child dies with this process (from the main thread; see the module's note). The
-    same arguments as Popen, but for preexec_fn, which this sets."""
+def popen(args, signum: int = signal.SIGKILL, **kwargs) -> subprocess.Popen:
+    """subprocess.Popen whose child is sent `signum` when this process ends (from the main thread; see the
+    module's note): SIGKILL by default, SIGTERM for a child that cleans up after itself (a bridge's driver removes
+    the segment of a world that died). The same arguments as Popen, but for preexec_fn, which this sets."""
     if "preexec_fn" in kwargs:
         raise TypeError("popen sets preexec_fn itself")
     if threading.current_thread() is threading.main_thread() and _libc_prctl() is not None:
         parent = os.getpid()
-        kwargs["preexec_fn"] = lambda: die_with_parent(parent)   # between fork and exec, in the child
+        kwargs["preexec_fn"] = lambda: die_with_parent(parent, signum)   # between fork and exec, in the child
     return subprocess.Popen(args, **kwargs)
 
 

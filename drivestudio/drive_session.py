@@ -1,20 +1,26 @@
 """Closed-loop driving sessions for any world: the world side, the driver side, both at once over the bridge, or in
-one process. Each ends with the world's metrics table printed and saved as JSON."""
+one process. A `Run` holds what a session needs: the world's configuration, the driver spec and how the run goes.
+Each ends with the world's metrics table printed and saved as JSON, beside the run's resolved configuration."""
 from __future__ import annotations
 
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from core import worlds as declared
 from core.children import forward, popen
+from core.settings import as_json
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio import worlds
 from drivestudio.bridge_loop import ShmExchange, serve_driver, supervised
+from drivestudio.driver_spec import DriverSpec
 from drivestudio.errors import RunError, UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
@@ -25,8 +31,47 @@ DRIVER_ATTACH = 30.0      # [s] `drive --shm` waits this long for the world's se
 SHM_PREFIX = "drivestudio-"
 
 
-def _finish(metrics, out: Path, extra: dict) -> None:
+@dataclass(frozen=True)
+class View:
+    """drive/serve --view: the run published to a web page (docs/studio.md)."""
+
+    socket: Any                  # the bound listening socket
+    host: str | None = None      # None: the loopback interface, no token
+    control: bool = False        # the page may pause, resume and single-step
+    fps: float = 10.0            # frames a second the page gets at most
+
+
+@dataclass(frozen=True)
+class Run:
+    """A closed-loop run: the world (its Plugin and configuration), the driver (None: one that attaches over the
+    bridge) and how the run goes."""
+
+    plugin: Any
+    config: Any
+    driver: DriverSpec | None
+    seconds: float | None = 60.0     # simulated seconds (None: until stopped)
+    realtime: bool = False           # paced to wall-clock time
+    free_running: bool = False       # the world never waits for the driver
+    record: str | None = None        # a video of the run (.mp4)
+    wait: float = 120.0              # [s] the world side waits this long for a driver
+    device: str = "cpu"              # torch device of the driver
+    shm: str | None = None           # the bridge's segment
+    view: View | None = None
+
+    @property
+    def label(self) -> str:
+        return str(self.driver) if self.driver is not None else "driver"
+
+    def as_json(self) -> dict:
+        """The resolved configuration, as `--config` reads it back."""
+        return {"world": self.plugin.name, "settings": as_json(self.config),
+                "model": None if self.driver is None else str(self.driver), "seconds": self.seconds,
+                "realtime": self.realtime, "free_running": self.free_running, "device": self.device}
+
+
+def _finish(metrics, out: Path, extra: dict, run: Run) -> None:
     report = {**metrics.report(), **extra}
+    write_json(out / "config.json", run.as_json())
     write_json(out / "metrics.json", report)
     table = metrics.table()
     write_text(out / "metrics.md", table + "\n")
@@ -47,16 +92,12 @@ def _wait_for_driver(ep: WorldEndpoint, timeout: float, proc: subprocess.Popen |
                 raise BridgeTimeout(f"no driver attached to '{ep.name}' within {timeout:.0f} s") from None
 
 
-def _label(args) -> str:
-    return str(getattr(args, "driver", None) or "driver")
-
-
-def _open_view(args, plugin, world, metrics):
+def _open_view(run: Run, world, metrics):
     """drive/serve --view: the run's steps published to a web page (docs/studio.md), or None."""
-    if getattr(args, "view_socket", None) is None:
+    if run.view is None:
         return None
     from drivestudio.studio.view import RunView  # lazy: the web server only when asked for
-    return RunView(args, plugin, world, metrics, _label(args))
+    return RunView(run, world, metrics)
 
 
 def _steps(*callbacks):
@@ -69,15 +110,16 @@ def _steps(*callbacks):
     return on_step
 
 
-def _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds: float, view, driver_proc):
+def _run_over_bridge(run: Run, world, metrics, ep, exchange, view, driver_proc):
     """The loop over the bridge, from waiting for the driver on; returns why the run ended (which the driver is
     told) and the signal that stopped it (None: none)."""
     reason, stopped = "finished", None
-    recorder = plugin.recorder(world, getattr(args, "record", None), _label(args))
+    recorder = run.plugin.recorder(world, run.record, run.label)
+    seconds = run.seconds if run.seconds is not None else math.inf
     ok = False
     try:
-        _wait_for_driver(ep, getattr(args, "wait", None) or 120.0, driver_proc)
-        last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=args.realtime,
+        _wait_for_driver(ep, run.wait, driver_proc)
+        last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=run.realtime,
                         on_step=_steps(recorder, view))
         reason = "host lost" if last.end is not None else "finished"
         ok = True
@@ -94,29 +136,29 @@ def _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds: float,
     return reason, stopped
 
 
-def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None = None,
+def run_world_side(run: Run, out: Path, driver_proc: subprocess.Popen | None = None,
                    driver_stats: Path | None = None) -> int:
     """The world over the bridge: publish, wait for the driver's action, step; the run's end is told to the driver
     (finished, host lost, interrupted, driver finished). Ctrl-C or SIGTERM, also while waiting for a driver, ends
     the run in order: metrics.json records "interrupted" and the signal is raised again afterwards (exit 128 + N)."""
-    seconds = args.seconds if args.seconds is not None else math.inf
+    plugin = run.plugin
     exchange, reason, stopped = None, "finished", None
-    with exit_on_sigterm(), plugin.world(args, render=True) as world:
+    with exit_on_sigterm(), plugin.world(replace(run.config, render=True)) as world:
         metrics = plugin.metrics(world)
-        with WorldEndpoint(args.shm, world.declaration, lockstep=not args.free_running) as ep:
-            print(f"world '{world.declaration.name}' on shared memory '{args.shm}' "
-                  f"({'free-running' if args.free_running else 'lock-step'}); waiting for a driver",
+        with WorldEndpoint(str(run.shm), world.declaration, lockstep=not run.free_running) as ep:
+            print(f"world '{world.declaration.name}' on shared memory '{run.shm}' "
+                  f"({'free-running' if run.free_running else 'lock-step'}); waiting for a driver",
                   file=sys.stderr, flush=True)
-            exchange = ShmExchange(ep, plugin.supervisor(world, args), world)
-            view = _open_view(args, plugin, world, metrics)     # the page is there while the driver comes
+            exchange = ShmExchange(ep, plugin.supervisor(world, run.config, run.driver), world)
+            view = _open_view(run, world, metrics)     # the page is there while the driver comes
             try:
-                reason, stopped = _run_over_bridge(args, plugin, world, metrics, ep, exchange, seconds, view,
-                                                   driver_proc)
+                reason, stopped = _run_over_bridge(run, world, metrics, ep, exchange, view, driver_proc)
             finally:
                 if view is not None:
                     view.close()
-        extra = {"transport": "shared memory", "lockstep": not args.free_running, "driver": _label(args),
-                 "world": world.declaration.name, "end": reason, **plugin.describe_run(world, args)}
+        extra = {"transport": "shared memory", "lockstep": not run.free_running, "driver": run.label,
+                 "world": world.declaration.name, "end": reason,
+                 **plugin.describe_run(world, run.config, run.driver)}
     driver_time = 0.0
     if driver_proc is not None:
         if stopped is not None:   # a driver still starting would wait for a world that is gone
@@ -128,7 +170,7 @@ def run_world_side(args, plugin, out: Path, driver_proc: subprocess.Popen | None
                 metrics.add_time(stage, value)
                 driver_time += value
     metrics.add_time("transfer", max(0.0, exchange.round_trip - driver_time))
-    _finish(metrics, out, extra)
+    _finish(metrics, out, extra, run)
     if stopped is not None:
         raise stopped   # the CLI says how the run ended, in one line, with status 128 + N
     return 0
@@ -156,15 +198,15 @@ def run_driver_side(name: str, model: str | None, device: str = "cpu", seed: int
     return 0
 
 
-def run_both_sides(args, plugin, out: Path) -> int:
+def run_both_sides(run: Run, out: Path) -> int:
     reclaim(SHM_PREFIX)   # segments of earlier runs killed with SIGKILL (world and driver both dead)
-    args.shm = f"{SHM_PREFIX}{os.getpid()}"
+    run = replace(run, shm=f"{SHM_PREFIX}{os.getpid()}")
     stats = out / "driver-timings.json"
-    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", args.shm, "--model", str(args.driver),
-           "--device", args.device, "--seed", str(args.seed), "--stats-out", str(stats)]
-    proc = popen(cmd)   # dies with this process, however it ends
+    cmd = [sys.executable, "-m", "drivestudio", "drive", "--shm", str(run.shm), "--model", str(run.driver),
+           "--device", run.device, "--seed", str(run.config.seed), "--stats-out", str(stats)]
+    proc = popen(cmd, signal.SIGTERM)   # ends with this process, however it ends, removing the segment then
     try:
-        return run_world_side(args, plugin, out, driver_proc=proc, driver_stats=stats)
+        return run_world_side(run, out, driver_proc=proc, driver_stats=stats)
     finally:
         try:
             proc.wait(timeout=5)
@@ -173,17 +215,21 @@ def run_both_sides(args, plugin, out: Path) -> int:
             proc.wait()
 
 
-def run_in_process(args, plugin, out: Path) -> int:
-    render = plugin.needs_frames(args.driver, bool(args.record)) or getattr(args, "view_socket", None) is not None
-    with exit_on_sigterm(), plugin.world(args, render=render) as world:
-        driver = plugin.driver(args.driver, args.device, world.declaration, args.seed)
+def run_in_process(run: Run, out: Path) -> int:
+    plugin, spec = run.plugin, run.driver
+    assert spec is not None
+    render = plugin.needs_frames(spec, bool(run.record)) or run.view is not None
+    seconds = run.seconds if run.seconds is not None else math.inf
+    with exit_on_sigterm(), plugin.world(replace(run.config, render=render)) as world:
+        driver = plugin.driver(spec, run.device, world.declaration, run.config.seed)
         metrics = plugin.metrics(world)
-        recorder = plugin.recorder(world, args.record, _label(args))
-        view = _open_view(args, plugin, world, metrics)
+        recorder = plugin.recorder(world, run.record, run.label)
+        view = _open_view(run, world, metrics)
         ok, end, stopped = False, "finished", None
         try:
-            last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, args)), args.seconds,
-                            render=render, metrics=metrics, realtime=args.realtime, on_step=_steps(recorder, view))
+            last = run_loop(world, supervised(in_process(driver), plugin.supervisor(world, run.config, spec)),
+                            seconds, render=render, metrics=metrics, realtime=run.realtime,
+                            on_step=_steps(recorder, view))
             end, ok = "host lost" if last.end is not None else "finished", True
         except (KeyboardInterrupt, Terminated) as signal_:   # as over the bridge: metrics of what was driven
             end, stopped, ok = "interrupted", signal_, True
@@ -191,11 +237,11 @@ def run_in_process(args, plugin, out: Path) -> int:
             recorder.close(ok)
             if view is not None:
                 view.close()
-        extra = {"transport": "in process", "driver": _label(args), "world": world.declaration.name,
-                 "end": end, **plugin.describe_run(world, args)}
-    for stage, seconds in getattr(driver, "timings", {}).items():
-        metrics.add_time(stage, seconds)
-    _finish(metrics, out, extra)
+        extra = {"transport": "in process", "driver": run.label, "world": world.declaration.name,
+                 "end": end, **plugin.describe_run(world, run.config, spec)}
+    for stage, spent in getattr(driver, "timings", {}).items():
+        metrics.add_time(stage, spent)
+    _finish(metrics, out, extra, run)
     if stopped is not None:
         raise stopped
     return 0

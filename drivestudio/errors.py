@@ -21,7 +21,8 @@ _INPUT = (("core.inputs", "InputError"), ("sim.highway.errors", "RendererError")
           ("perception.checkpoint", "CheckpointError"), ("perception.training", "TrainingError"),
           ("core.files", "OutputError"), ("core.declaration", "DeclarationError"),
           ("shm_bridge.errors", "ProtocolMismatch"), ("shm_bridge.errors", "BadName"),
-          ("shm_bridge.errors", "Refused"), ("perception.memory", "BatchTooLarge"))
+          ("shm_bridge.errors", "Refused"), ("perception.memory", "BatchTooLarge"),
+          ("core.settings", "SettingError"))
 _RUNTIME = (("shm_bridge.errors", "BridgeError"),)
 
 

@@ -662,6 +662,7 @@ class DriverEndpoint(_Endpoint):
             seg.close()
             raise
         self.declaration = declaration
+        self._parent = os.getppid()   # the world, when it started this driver
         self._peer_heartbeat = _U64["world_heartbeat_ns"]
         self._last_seq = 0
         self._n_estimate = len(lay.estimate)
@@ -676,7 +677,11 @@ class DriverEndpoint(_Endpoint):
 
     def _before_close(self) -> None:
         self._end_reason = self._stored_end_reason()   # what end_reason answers once the views are gone
-        if self._u32[_U32["world_state"]] != WORLD_CLOSED and not pid_alive(self._i32[_U32["world_pid"]]):
+        world = int(self._i32[_U32["world_pid"]])
+        # a world that started this driver and died is gone once this process has another parent, even while its
+        # exit is still under way (a parent-death signal arrives then)
+        orphaned = world == self._parent and os.getppid() != world
+        if self._u32[_U32["world_state"]] != WORLD_CLOSED and (orphaned or not pid_alive(world)):
             self._link.unlink = True   # the world died unnoticed: its segment would be left behind
 
     @property

@@ -6,15 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.settings import setting
 from core.worlds.highway import FRAME
 
 RENDERERS = ("tiny", "egl")   # how sim/highway/bullet_scene.py draws: TinyRenderer or the EGL plugin
 
 @dataclass(frozen=True)
 class CameraConfig:
-    width: int = FRAME[1]       # [px] the highway declaration's camera
-    height: int = FRAME[0]      # [px]
-    fov_deg: float = 60.0       # vertical field of view [deg]
+    width: int = setting(FRAME[1], "frame width", unit="px", low=16, high=4096)   # the highway declaration's camera
+    height: int = setting(FRAME[0], "frame height", unit="px", low=16, high=4096)
+    fov_deg: float = setting(60.0, "vertical field of view", unit="deg", low=10.0, high=150.0, flag="--fov")
     eye_height: float = 1.2     # [m] driver's eye above the road
     eye_forward: float = 0.3    # [m] ahead of the car's centre
     pitch_deg: float = -2.0     # [deg] negative looks down

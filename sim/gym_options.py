@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 from core.declaration import WorldDeclaration
+from core.settings import SettingError, check_value, entries, with_values
 
 OBSERVATIONS = ("camera", "affordances", "both")
 AFFORDANCES = "affordances"   # the key of the affordance vector in a "both" observation
@@ -25,6 +26,20 @@ class EnvOptionError(ValueError):
 
 def fail(env: str, option: str, message: str) -> EnvOptionError:
     return EnvOptionError(f"{env}: option {option}: {message}")
+
+
+def check_settings(env: str, config, values: dict):
+    """`config` (a world's configuration, core/settings.py) with `values`, {keyword: (setting path, value)}, each
+    held to its setting: the keyword arguments of gymnasium.make take their defaults, units and ranges from the
+    world's configuration."""
+    table = entries(type(config))
+    out = {}
+    for keyword, (path, value) in values.items():
+        try:
+            out[path] = check_value(table[path], value, "")
+        except SettingError as e:
+            raise fail(env, keyword, str(e).lstrip(": ")) from None
+    return with_values(config, out)
 
 
 def check_choice(env: str, option: str, value, choices: tuple[str, ...]) -> str:

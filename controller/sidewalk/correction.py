@@ -49,9 +49,8 @@ from dataclasses import dataclass, field
 
 from controller.sidewalk.experts import BORDER_CAP, GAP_CAP, swerve_needed
 from controller.sidewalk.experts import field as value
-from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, STEER_LOCK_RAD, STEP, TOP_SPEED, WHEELBASE
+from core.worlds.sidewalk import CAR_LENGTH, CAR_WIDTH, REAR_TO_CG, RULES, STEER_LOCK_RAD, STEP, TOP_SPEED, WHEELBASE
 
-RULES = ("safety", "strict")
 LEAVING, COLLISION, STALLED, DEVIATING = ("leaving the path", "imminent collision", "stalled",
                                           "deviating from the expert")
 CLAUSES = {"safety": (LEAVING, COLLISION, STALLED), "strict": (LEAVING, COLLISION, STALLED, DEVIATING)}

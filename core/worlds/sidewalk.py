@@ -15,6 +15,7 @@ from core.declaration import Camera, Column, Control, Label, Moment, Quantity, W
 
 MODES = ("direct", "follow", "furtive")                 # behavioural modes
 OPERATIONS = ("expert", "autonomous", "correctional")   # operation modes
+RULES = ("safety", "strict")                            # correction rules (controller/sidewalk/correction.py)
 STEP = 1 / 30                                          # [s] the ZED camera's 30 Hz
 CAMERA = (188, 336)      # (rows, columns) each camera renders: 2x2-averaged to the network's 94 x 168
 HORIZON = 10             # future steps a data moment's targets cover (330 ms ahead at the 10th)

@@ -7,7 +7,10 @@ import time
 from pathlib import Path
 
 from core.files import make_dir
+from core.inputs import check_keys, read_json
+from core.settings import check, entries, from_json
 from drivestudio import worlds
+from drivestudio.commands.world_options import WorldOptions, refuse_other_worlds
 from drivestudio.errors import UsageError
 from drivestudio.numbers import seed as seed_type
 
@@ -15,36 +18,90 @@ DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 
 
 def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = True) -> None:
-    """--world, --seed, --renderer, and every world's own options for `verb` (each in its own group)."""
+    """--world and every world's options for `verb`: the settings of its configuration that the verb shows
+    (drivestudio/commands/world_options.py) and its own options, each world in its own group. --seed and
+    --renderer are added here for the verbs whose worlds are built otherwise (generate's plans)."""
     g = p.add_argument_group("world")
-    g.add_argument("--world", default="highway", choices=worlds.names(), help="which world (default highway)")
-    if seed_default is not None:
+    g.add_argument("--world", default=None, choices=worlds.names(), help="which world (default highway, or the "
+                   "--config file's)")
+    plugins = worlds.all_plugins()
+    settings = {pl.name: pl.verb_settings.get(verb, ()) for pl in plugins}
+    shown = {path for paths in settings.values() for path in paths}
+    if seed_default is not None and "seed" not in shown:
         g.add_argument("--seed", type=seed_type(), default=seed_default,
                        help=f"seed of the scene and the traffic (default {seed_default})")
-    if renderer:
+    if renderer and "renderer" not in shown:
         g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
-    options = worlds.WorldOptions(p, verb)
-    for plugin in worlds.all_plugins():
-        plugin.add_options(options)
+    options = WorldOptions(p, verb)
+    defaults: dict[str, dict] = {}
+    for pl in plugins:
+        for path in settings[pl.name]:
+            e = entries(pl.config_type)[path]
+            defaults.setdefault(e.flag, {})[pl.name] = e.default
+    for pl in plugins:
+        group = options.group(f"{pl.name} world (--world {pl.name})")
+        if settings[pl.name]:
+            options.add_settings(pl.name, pl.config_type, settings[pl.name], group, defaults)
+        pl.add_options(options)
     p.set_defaults(world_options=options)
 
 
 def plugin_for(args) -> worlds.Plugin:
-    """The selected world's plugin; options that only another world has are refused in one line."""
+    """The selected world's plugin (--world, the --config file's, or the highway); options that only another world
+    has are refused in one line."""
+    args.world = args.world or (run_config(args) or {}).get("world") or "highway"
     plugin = worlds.get(args.world)
-    options: worlds.WorldOptions = args.world_options
-    for other in worlds.all_plugins():
-        if other.name != plugin.name:
-            given = [f for f in options.given(other.name, args) if not options.owns(plugin.name, f)]
-            if given:
-                raise UsageError(f"{', '.join(given)} belong{'s' if len(given) == 1 else ''} to the {other.name} "
-                                 f"world, not to --world {plugin.name}")
+    refuse_other_worlds(args.world_options, plugin, worlds.all_plugins(), args)
     return plugin
 
 
-def add_device_option(p, default: str = "cpu") -> None:
+def world_config(plugin: worlds.Plugin, args):
+    """The world's configuration: its defaults, then the --config file's settings, then those given on the command
+    line, checked, with what they imply."""
+    base = plugin.config_type()
+    given = run_config(args)
+    if given is not None:
+        base = from_json(base, given.get("settings", {}), f"{args.config}: settings")
+    return plugin.settle(check(args.world_options.config(plugin.name, base, args)))
+
+
+RUN_KEYS = ("world", "settings", "model", "seconds", "realtime", "free_running", "device")
+
+
+def add_config_option(p) -> None:
+    p.add_argument("--config", metavar="RUN.json", help="run again as a run's config.json says (the run's folder "
+                   "holds it); the options given here override it")
+
+
+def run_config(args) -> dict | None:
+    """The --config file (a run's config.json), read and checked once; None without --config."""
+    path = getattr(args, "config", None)
+    if path is None:
+        return None
+    if not hasattr(args, "_run_config"):
+        data = read_json(path, "run configuration")
+        if not isinstance(data, dict):
+            raise UsageError(f"{path}: a run configuration is a JSON object")
+        check_keys(data, RUN_KEYS, str(path), UsageError)
+        if data.get("world") is not None and args.world is not None and data["world"] != args.world:
+            raise UsageError(f"--world {args.world}: {path} configures the {data['world']} world")
+        args._run_config = data
+    return args._run_config
+
+
+def from_run(args, name: str, default):
+    """An option of the run: as given on the command line, else the --config file's, else `default`."""
+    value = getattr(args, name)
+    if value not in (None, False):
+        return value
+    saved = (run_config(args) or {}).get(name)
+    return default if saved is None else saved
+
+
+def add_device_option(p, default: str | None = "cpu") -> None:
+    """--device; with default None a run's --config file may name it (cpu otherwise)."""
     p.add_argument("--device", default=default, type=device_type,
-                   help=f"torch device: cpu, cuda, cuda:N or auto (default {default})")
+                   help=f"torch device: cpu, cuda, cuda:N or auto (default {default or 'cpu'})")
 
 
 def device_type(text: str) -> str:

@@ -15,11 +15,22 @@ from pathlib import Path
 from core.files import check_output
 from drivestudio import worlds
 from drivestudio.checkpoints import check_checkpoint, check_device
-from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
+from drivestudio.commands.common import (
+    add_config_option,
+    add_device_option,
+    add_world_options,
+    from_run,
+    plugin_for,
+    run_dir,
+    world_config,
+)
 from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.driver_spec import parse_driver
 from drivestudio.errors import UsageError
 from drivestudio.numbers import positive
+
+DEFAULT_SECONDS = 60.0
+MAX_SECONDS = 10 * 24 * 3600.0
 
 
 def register(sub) -> None:
@@ -29,14 +40,15 @@ def register(sub) -> None:
                                                  "(sidewalk) or a checkpoint, with the world's estimate filters as "
                                                  "CKPT@smoothing=0.5,pass_memory=15 (default: the world's own "
                                                  "driver; docs/driving.md)")
-    add_device_option(p)
+    add_device_option(p, default=None)
     p.add_argument("--shm", help="attach to this running world (`drivestudio serve --shm NAME`) as its driver; the "
                                  "world and its options come from there")
     p.add_argument("--attach-wait", type=positive(24 * 3600.0), metavar="SECONDS",
                    help="with --shm: seconds to wait for the world's segment to appear (default 30)")
     add_world_options(p, "drive")
-    p.add_argument("--seconds", type=positive(10 * 24 * 3600.0), default=60.0,
-                   help="simulated seconds (default 60)")
+    add_config_option(p)
+    p.add_argument("--seconds", type=positive(MAX_SECONDS), default=None,
+                   help=f"simulated seconds (default {DEFAULT_SECONDS:g})")
     p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",
                    help="the world never waits for the driver (default: lock-step)")
@@ -51,8 +63,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from drivestudio import drive_session  # lazy: the bridge, only when it runs (not for --help)
 
-    check_device(args.device)
     if args.shm is not None:
+        check_device(args.device or "cpu")
         given = [f for f in ("--record", "--in-process", "--free-running", "--view")
                  if getattr(args, f[2:].replace("-", "_"))]
         if given:
@@ -63,19 +75,24 @@ def run(args) -> int:
             source = parse_driver(args.model).source
             if Path(source).is_file() and not any(p.own_model(source) for p in worlds.all_plugins()):
                 check_checkpoint(source, None)   # a checkpoint: checked now
-        return drive_session.run_driver_side(args.shm, args.model, args.device, args.seed, args.attach_wait,
-                                             args.stats_out)
+        return drive_session.run_driver_side(args.shm, args.model, args.device or "cpu", args.seed or 0,
+                                             args.attach_wait, args.stats_out)
     if args.attach_wait is not None:
         raise UsageError("--attach-wait goes with --shm (a driver attaching to a running world)")
     plugin = plugin_for(args)
-    args.driver = plugin.parse_driver(args.model or plugin.expert_names[0])
-    args.model = args.driver.source
+    spec = plugin.parse_driver(from_run(args, "model", plugin.expert_names[0]))
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    plugin.check_driver(args.driver)   # before the world starts: one line, exit 2
-    plugin.resolve_args(args)        # what the model decides about its world (the highway's mirror)
-    bind_view(args)
+    plugin.check_driver(spec)   # before the world starts: one line, exit 2
+    config = plugin.fit_driver(world_config(plugin, args), spec)   # what the driver decides (the mirror)
+    seconds = from_run(args, "seconds", DEFAULT_SECONDS)
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds <= MAX_SECONDS:
+        raise UsageError(f"{args.config}: seconds must be a number above 0 and at most {MAX_SECONDS:g}")
+    run = drive_session.Run(plugin, config, spec, seconds=float(seconds), realtime=bool(from_run(args, "realtime",
+                            False)), free_running=bool(from_run(args, "free_running", False)), record=args.record,
+                            device=str(from_run(args, "device", "cpu")), view=bind_view(args))
+    check_device(run.device)
     out = run_dir(args.out, "drive")
     if args.in_process:
-        return drive_session.run_in_process(args, plugin, out)
-    return drive_session.run_both_sides(args, plugin, out)
+        return drive_session.run_in_process(run, out)
+    return drive_session.run_both_sides(run, out)

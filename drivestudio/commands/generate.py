@@ -6,7 +6,7 @@ import sys
 import time
 
 from core.files import check_output_dir
-from drivestudio.commands.common import add_world_options, plugin_for
+from drivestudio.commands.common import add_world_options, plugin_for, world_config
 from drivestudio.numbers import count, non_negative
 
 
@@ -39,7 +39,9 @@ def run(args) -> int:
 
     plugin = plugin_for(args)
     check_output_dir(args.out, "dataset folder")
-    options = plugin.generate_options(args)   # a bad track or mode fails here, in one line, before any work
+    plan = {**args.world_options.values(plugin.name, args), "renderer": args.renderer}
+    # a bad track or mode fails here, in one line, before any work
+    options = plugin.generate_options(world_config(plugin, args), plan)
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=args.renderer,
                          encoding=args.encoding, quality=args.quality,
                          episode_frames=episode_length(args.frames, args.episode_frames),

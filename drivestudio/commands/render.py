@@ -4,8 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from core.files import check_output
-from drivestudio.commands.common import add_world_options, plugin_for
+from drivestudio.commands.common import add_world_options, plugin_for, world_config
 from drivestudio.errors import UsageError
+from drivestudio.numbers import non_negative
 from drivestudio.outputs import write_json, write_png
 
 
@@ -17,6 +18,8 @@ def register(sub) -> None:
     p.add_argument("scenario", nargs="?", help="highway scenario JSON file (docs/scenarios.md)")
     p.add_argument("-o", "--out", required=True, help="PNG file to write")
     p.add_argument("--truth", help="also write the ground truth of the frame to this JSON file")
+    p.add_argument("--warmup", type=non_negative(3600.0), default=0.0,
+                   help="simulated seconds the world's own driver drives before the frame is taken (default 0)")
     add_world_options(p, "render")
     p.set_defaults(func=run)
 
@@ -35,7 +38,9 @@ def run(args) -> int:
         check_output(args.truth, (".json",), "truth file")
     if args.scenario and args.world != "highway":
         raise UsageError("a scenario file describes a highway scene (--world highway)")
-    frames, truth = plugin.render(args)
+    if args.scenario and (args.track or args.warmup):
+        raise UsageError("--track and --warmup go without a scenario file (a scenario places its own cars)")
+    frames, truth = plugin.render(world_config(plugin, args), args.warmup, args.scenario)
     paths = camera_paths(out, list(frames))
     for path in paths.values():
         check_output(path, (".png",), "frame")

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from core.files import check_output
-from drivestudio.commands.common import add_world_options, plugin_for, run_dir
+from drivestudio.commands.common import add_world_options, plugin_for, run_dir, world_config
 from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.numbers import positive
 
@@ -28,11 +28,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from drivestudio.drive_session import run_world_side  # lazy: the bridge, only when it runs (not for --help)
+    from drivestudio.drive_session import Run, run_world_side  # lazy: the bridge, only when it runs (not --help)
     from shm_bridge.segment import validate_name  # lazy: the bridge, only when it runs (not for --help)
     validate_name(args.shm)
     plugin = plugin_for(args)
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    bind_view(args)
-    return run_world_side(args, plugin, run_dir(args.out, "serve"))
+    run = Run(plugin, world_config(plugin, args), None, seconds=args.seconds, realtime=args.realtime,
+              free_running=args.free_running, record=args.record, wait=args.wait, shm=args.shm, view=bind_view(args))
+    return run_world_side(run, run_dir(args.out, "serve"))

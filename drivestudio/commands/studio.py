@@ -17,7 +17,7 @@ from pathlib import Path
 
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio.checkpoints import check_checkpoint_path, check_device
-from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir
+from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir, world_config
 from drivestudio.errors import UsageError
 from drivestudio.numbers import count, positive
 
@@ -98,8 +98,8 @@ def run(args) -> int:
         out = run_dir(args.out, "studio")
         publisher = Publisher()
         controls = Controls(realtime=not args.fast)
-        session = Session(args, plugin, out, checkpoints, Watch(publisher, None), controls,
-                          shard_steps=args.shard_steps)
+        session = Session(plugin, world_config(plugin, args), out, checkpoints, Watch(publisher, None), controls,
+                          shard_steps=args.shard_steps, model=args.model, device=args.device)
         with exit_on_sigterm():
             session.open()                                 # options that cannot build the world: one line
             server = Server(sock, publisher, hello=lambda client: session.hello(), handle=session.submit,
@@ -136,10 +136,12 @@ def add_view_options(p) -> None:
                    help=f"frames a second the page gets at most (default {VIEW_FPS:g})")
 
 
-def bind_view(args) -> None:
-    """Before any work: the --view port (one line and exit status 2 when it is in use)."""
-    args.view_socket = None
-    if getattr(args, "view", False):
-        need_aiohttp()
-        from drivestudio.studio.server import bind  # lazy: aiohttp
-        args.view_socket = bind(args.view_host or LOCALHOST, args.view_port)
+def bind_view(args):
+    """Before any work: the --view port bound (one line and exit status 2 when it is in use), as the run's View;
+    None without --view."""
+    if not args.view:
+        return None
+    need_aiohttp()
+    from drivestudio.drive_session import View  # lazy: the bridge, only when a run is watched
+    from drivestudio.studio.server import bind  # lazy: aiohttp
+    return View(bind(args.view_host or LOCALHOST, args.view_port), args.view_host, args.view_control, args.view_fps)

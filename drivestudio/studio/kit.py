@@ -80,9 +80,9 @@ class HumanMap:
 
 @dataclass(frozen=True)
 class StudioKit:
-    """A world in the studio. scene_key: the option naming a scene (highway: track, sidewalk: path) and its
-    default; presets: the names the page offers; view(world, scene ref): the page's view; note: what the labels
-    panel's truth and bars are, in a line."""
+    """A world in the studio. scene_key: the setting of the world's configuration naming a scene (highway: track,
+    sidewalk: path) and its default; presets: the names the page offers; view(world, scene ref): the page's view;
+    note: what the labels panel's truth and bars are, in a line."""
 
     scene_key: str
     scene_default: str
@@ -91,10 +91,10 @@ class StudioKit:
     note: str
     human: HumanMap
 
-    def scene(self, args) -> dict:
-        """{scene_key: what the options name, "seed": ...} of the scene a world is built from."""
-        return {self.scene_key: getattr(args, self.scene_key, None) or self.scene_default,
-                "seed": int(getattr(args, "seed", 0) or 0)}
+    def scene(self, config) -> dict:
+        """{scene_key: what the world's configuration names, "seed": ...} of the scene a world is built from."""
+        return {self.scene_key: str(getattr(config, self.scene_key, None) or self.scene_default),
+                "seed": int(config.seed)}
 
-    def view_for(self, world, args) -> View:
-        return self.view(world, self.scene(args)[self.scene_key])
+    def view_for(self, world, config) -> View:
+        return self.view(world, self.scene(config)[self.scene_key])

@@ -1,4 +1,4 @@
-"""The studio's run: the world the options describe, the driver the page chooses (the world's own, a checkpoint, or
+"""The studio's run: the world of a configuration, the driver the page chooses (the world's own, a checkpoint, or
 the person at the controls), the world's supervisor and metrics, and a recording when asked.
 
 The studio is the loop's third consumer, not a second loop: drivestudio/loop.py's run_loop steps the world, with
@@ -11,14 +11,16 @@ built. Only this thread touches the world; the server's thread queues messages (
 """
 from __future__ import annotations
 
-import argparse
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from core.settings import check, with_values
+from drivestudio.driver_spec import DriverSpec
 from drivestudio.loop import Observation, StepRecord, run_loop
 from drivestudio.studio.controls import Controls, Pacer
 from drivestudio.studio.human import TAKEOVER_HOLD, HumanDriver, HumanInput, Keys, Pad
@@ -38,18 +40,22 @@ class Restart(Exception):
 
 
 class Session:
-    def __init__(self, args: argparse.Namespace, plugin, out: Path, checkpoints: dict[str, str], watch: Watch,
-                 controls: Controls, tell=lambda kind, **fields: None, shard_steps: int = DEFAULT_SHARD_STEPS):
-        self.args, self.plugin, self.out = args, plugin, out
+    def __init__(self, plugin, config, out: Path, checkpoints: dict[str, str], watch: Watch, controls: Controls,
+                 tell=lambda kind, **fields: None, shard_steps: int = DEFAULT_SHARD_STEPS, model: str | None = None,
+                 device: str = "cpu"):
+        """`config`: the world's configuration (a reset changes its scene and seed); `model`: who drives at the
+        start (default: the person)."""
+        self.plugin, self.config, self.out, self.device = plugin, config, out, device
         self.checkpoints, self.watch, self.controls, self.tell = checkpoints, watch, controls, tell
         self.shard_steps = shard_steps
         self.kit = plugin.studio()
         self.scene_key = self.kit.scene_key         # the highway's tracks, the sidewalk's paths
         self.drivers = [HUMAN] + list(plugin.expert_names) + list(checkpoints)
-        self.driver_name = args.model or HUMAN
-        self.operation = getattr(args, "operation", None)
+        self.driver_name = model or HUMAN
+        self.spec = DriverSpec(self.driver_name)
+        self.operation = getattr(config, "operation", None)
         self.human = HumanInput()
-        self.world: Any = None           # the world the options describe (a reset builds a new one)
+        self.world: Any = None           # the world of the configuration (a reset builds a new one)
         self.driver: Any = None          # a Driver of drivestudio/loop.py
         self.human_driver: Any = None    # the person, always there for take-overs
         self.supervisor: Any = None
@@ -75,9 +81,9 @@ class Session:
 
     # --- the run -----------------------------------------------------------------------------------------------
     def open(self) -> None:
-        """Build the first world and its driver: options that cannot make them fail here, before the server
-        starts."""
-        self.world = self.plugin.world(self.args, render=True)
+        """Build the first world and its driver: a configuration that cannot make them fails here, before the
+        server starts."""
+        self.world = self.plugin.world(replace(self.config, render=True))
         self._use_driver(self.driver_name)
 
     def run(self, seconds: float = math.inf) -> None:
@@ -98,7 +104,7 @@ class Session:
     def _drive(self, seconds: float) -> None:
         world = self.world
         self.metrics = self.plugin.metrics(world)
-        self.watch.restart(self.kit.view_for(world, self.args), self.metrics)
+        self.watch.restart(self.kit.view_for(world, self.config), self.metrics)
         self.pacer.restart()
         self.tell("info", message=f"{world.declaration.name}: " + ", ".join(f"{k} {v}" for k, v in
                                                                              self._scene().items()))
@@ -106,23 +112,22 @@ class Session:
                  when_lost="recover")
 
     def _scene(self) -> dict:
-        return self.kit.scene(self.args)
+        return self.kit.scene(self.config)
 
     def _reset(self, changes: dict) -> None:
-        """A new world for the changed options; if it cannot be built, the one before is built again."""
+        """A new world for the changed settings; if it cannot be built, the one before is built again."""
         if self.recorder is not None:
             self.recorder.cut()      # a new scene is a new episode
         self.world.close()
         self.world = None
-        before = argparse.Namespace(**vars(self.args))
-        for key, value in changes.items():
-            setattr(self.args, key, value)
+        before = self.config
         try:
-            self.world = self.plugin.world(self.args, render=True)
+            self.config = check(with_values(self.config, changes))
+            self.world = self.plugin.world(replace(self.config, render=True))
         except Exception as e:       # noqa: BLE001 - any failure to build is the page's to hear, not the end
-            self.args = before
+            self.config = before
             self.tell("error", message=f"reset refused: {_line(e)}", about="reset")
-            self.world = self.plugin.world(self.args, render=True)
+            self.world = self.plugin.world(replace(self.config, render=True))
         self._use_driver(self.driver_name)     # drivers keep state of the world they drove (lanes, history)
 
     # --- the transport -----------------------------------------------------------------------------------------
@@ -150,7 +155,7 @@ class Session:
         if self.recorder is not None:
             self.recorder.add(rec, self.watch.view.columns(rec, "human" if who == HUMAN else "none"),
                               {**self._scene(), "drivers": [who], "human_steps": int(who == HUMAN)},
-                              int(self.args.seed))
+                              int(self.config.seed))
         self.watch.step(rec, self.driver, self.supervisor, self._extra(), self.driver_name)
         if self.controls.hold(self.handle, idle=self._idle):
             self.pacer.restart()
@@ -177,21 +182,21 @@ class Session:
         self.human_driver = HumanDriver(self.kit.human, decl.dt, len(decl.estimate_names), decl.index("speed"),
                                         self.human)
         if name == HUMAN:
-            driver = self.human_driver
+            driver, spec = self.human_driver, DriverSpec(HUMAN)
         else:
-            model = self.checkpoints.get(name, name)
-            driver = self.plugin.driver(self.plugin.parse_driver(model), self.args.device, decl, self.args.seed)
-        self.driver, self.driver_name = driver, name
-        self.args.model = self.checkpoints.get(name, name)
+            spec = self.plugin.parse_driver(self.checkpoints.get(name, name))
+            driver = self.plugin.driver(spec, self.device, decl, self.config.seed)
+        self.driver, self.driver_name, self.spec = driver, name, spec
         self._supervise()
 
     def _supervise(self) -> None:
         """The world's supervisor for the driver. On the sidewalk a person drives as the expert (a demonstration);
         another driver under the operation the page chose, or drive's default (expert for the world's expert,
         correctional otherwise)."""
+        config = self.config
         if self.plugin.declaration.modes:
-            self.args.operation = "expert" if self.driver_name == HUMAN else self.operation
-        self.supervisor = self.plugin.supervisor(self.world, self.args)
+            config = replace(config, operation="expert" if self.driver_name == HUMAN else self.operation)
+        self.supervisor = self.plugin.supervisor(self.world, config, self.spec)
 
     def _switch_driver(self, name: str) -> None:
         previous = self.driver_name
@@ -212,7 +217,7 @@ class Session:
             self._switch_driver(f["name"])
         elif msg.type == "mode":
             self.world.set_mode(f["mode"])
-            self.args.mode = f["mode"]        # and a reset keeps it
+            self.config = replace(self.config, mode=f["mode"])        # and a reset keeps it
         elif msg.type == "operation":
             self.operation = f["operation"]
             self._supervise()
@@ -227,9 +232,9 @@ class Session:
         from drivestudio.generate import _software  # lazy: tqdm
         name = name or time.strftime("rec-%Y%m%d-%H%M%S")
         decl = self.world.declaration
-        meta = {"config": {"world": decl.name, "studio": {**self._scene(), **self.plugin.describe_run(self.world,
-                                                                                                    self.args)}},
-                "seed": int(self.args.seed), "renderer": getattr(self.args, "renderer", "tiny"),
+        meta = {"config": {"world": decl.name, "studio": {**self._scene(), **self.plugin.describe_run(
+                    self.world, self.config, self.spec)}},
+                "seed": int(self.config.seed), "renderer": getattr(self.config, "renderer", "tiny"),
                 "recorded_by": "drivestudio studio", "software": _software()}
         try:
             self.recorder = DatasetRecorder(self.out / "recordings" / name, decl, meta, self.shard_steps)

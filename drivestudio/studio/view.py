@@ -17,24 +17,26 @@ from drivestudio.studio.watch import Watch
 
 
 class RunView:
-    def __init__(self, args, plugin, world, metrics, label: str):
-        self.label = label
-        self.controls = Controls(realtime=bool(getattr(args, "realtime", False))) if args.view_control else None
-        kit = plugin.studio()
-        self.watch = Watch(Publisher(args.view_fps), kit.view_for(world, args), metrics)
+    def __init__(self, run, world, metrics):
+        """`run`: drivestudio/drive_session.py's Run, with its View."""
+        view = run.view
+        self.label = label = run.label
+        self.controls = Controls(realtime=run.realtime) if view.control else None
+        kit = run.plugin.studio()
+        self.watch = Watch(Publisher(view.fps), kit.view_for(world, run.config), metrics)
         self.extra = {"driver": label, "human": False, "takeover": False, "recording": None,
-                      "realtime": bool(getattr(args, "realtime", False)), "scene": kit.scene(args)}
+                      "realtime": run.realtime, "scene": kit.scene(run.config)}
         decl = world.declaration
         hello = {"world": decl.name, "title": decl.title, "dt": decl.dt, "studio": False,
-                 "controls": bool(args.view_control), "cameras": [c.name for c in decl.cameras],
+                 "controls": view.control, "cameras": [c.name for c in decl.cameras],
                  "action": [{"name": a.name, "low": a.low, "high": a.high, "neutral": a.neutral}
                             for a in decl.action],
                  "drivers": [label], "modes": [], "operations": [], "scene_key": kit.scene_key,
                  "scenes": [], "labels_note": kit.note}
-        host = args.view_host or "127.0.0.1"
-        self.server = Server(args.view_socket, self.watch.publisher, hello=lambda client: hello,
-                             handle=self._handle, leave=self._left, token=new_token() if args.view_host else None,
-                             drives=False, controls=bool(args.view_control))
+        host = view.host or "127.0.0.1"
+        self.server = Server(view.socket, self.watch.publisher, hello=lambda client: hello,
+                             handle=self._handle, leave=self._left, token=new_token() if view.host else None,
+                             drives=False, controls=view.control)
         self.server.start()
         print(f"watch the run at {self.server.url(host)}", file=sys.stderr, flush=True)
         if Server.where(host):

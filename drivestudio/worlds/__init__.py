@@ -11,9 +11,9 @@ import pkgutil
 
 from core import worlds as declared
 from drivestudio.errors import UsageError
-from drivestudio.worlds.base import Episode, NoRecorder, Plugin, WorldOptions, direct_driver
+from drivestudio.worlds.base import Episode, NoRecorder, Plugin, direct_driver
 
-__all__ = ["Episode", "NoRecorder", "Plugin", "WorldOptions", "direct_driver", "register", "load_external", "names",
+__all__ = ["Episode", "NoRecorder", "Plugin", "direct_driver", "register", "load_external", "names",
            "get", "all_plugins"]
 
 _REGISTERED: dict[str, Plugin] = {}

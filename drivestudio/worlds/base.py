@@ -1,19 +1,20 @@
 """The base of every world's Plugin: how the application sees a world (docs/architecture.md).
 
-A Plugin builds its world from command-line options, names its drivers (experts and checkpoints), its supervisor,
+A Plugin names its world's typed configuration (core/settings.py) and the settings each verb shows, builds the
+world of a configuration, names its drivers (experts and checkpoints), its supervisor,
 metrics and recorders, draws its overlays and plans the episodes `generate` records. Everything generic (the loop,
 the bridge, datasets, models, training, the verbs) talks to a world only through its WorldDeclaration
 (core/worlds/) and its Plugin.
 """
 from __future__ import annotations
 
-import argparse
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Protocol
 
 from core.declaration import WorldDeclaration
+from core.settings import MAX_SEED, setting
 from drivestudio.checkpoints import check_checkpoint, load_predictor_for
 from drivestudio.driver_spec import DriverSpec, EstimateFilter, parse_driver
 from drivestudio.drivers import DirectDriver
@@ -26,31 +27,12 @@ if TYPE_CHECKING:
     from drivestudio.studio.kit import StudioKit
 
 
-class WorldOptions:
-    """The world-specific options of one verb's parser. Each world adds its own with `add`; a flag that two worlds
-    share (--width, --warmup, ...) is added once, with the first world's help and checks, and belongs to both.
-    Every option has default None, so that `given` can tell which flags of a world the user set."""
+@dataclass
+class NoConfig:
+    """The configuration of a world that declares none: the seed alone."""
 
-    def __init__(self, parser: argparse.ArgumentParser, verb: str):
-        self.parser, self.verb = parser, verb
-        self._dest: dict[str, str] = {}                # flag -> dest, of every world option added
-        self._owned: dict[str, dict[str, str]] = {}    # world -> flag -> dest
-
-    def group(self, title: str):
-        return self.parser.add_argument_group(title)
-
-    def add(self, world: str, group, *flags: str, **kw) -> None:
-        flag = flags[0]
-        if flag not in self._dest:
-            self._dest[flag] = group.add_argument(*flags, default=None, **kw).dest
-        self._owned.setdefault(world, {})[flag] = self._dest[flag]
-
-    def owns(self, world: str, flag: str) -> bool:
-        return flag in self._owned.get(world, {})
-
-    def given(self, world: str, args) -> list[str]:
-        """The flags of `world` that `args` sets."""
-        return [f for f, dest in self._owned.get(world, {}).items() if getattr(args, dest, None) is not None]
+    seed: int = setting(0, "seed of the world", low=0, high=MAX_SEED)
+    render: bool = True
 
 
 @dataclass(frozen=True)
@@ -75,18 +57,30 @@ class Plugin:
     def name(self) -> str:
         return self.declaration.name
 
-    # --- command-line options --------------------------------------------------------------------------------------
-    def add_options(self, options: WorldOptions) -> None:
-        """Add this world's options for `options.verb` (render, generate, drive, serve, ...) with options.add."""
+    # --- configuration ---------------------------------------------------------------------------------------------
+    # the world's typed configuration (core/settings.py): a dataclass whose settings the verbs show as options
+    config_type: type = NoConfig
+    # per verb (render, drive, serve, generate), the settings of config_type it shows, by dotted path
+    verb_settings: Mapping[str, tuple[str, ...]] = MappingProxyType({})
+
+    def add_options(self, options) -> None:
+        """Options of this world that are not settings of its configuration (generate's plan), added for
+        `options.verb` with options.add (drivestudio/commands/world_options.py); `generate_options` gets them."""
+
+    def settle(self, config):
+        """The configuration with what its settings imply (the highway's side views bring the mirror)."""
+        return config
 
     # --- worlds and drivers --------------------------------------------------------------------------------------
-    def world(self, args, render: bool) -> World:
-        """The world the options describe (render, drive, serve)."""
-        raise UsageError(f"the {self.name} world cannot be built from options")
+    def world(self, config) -> World:
+        """The world of a configuration (render, drive, serve, the studio); `config.render` says whether it
+        renders."""
+        raise UsageError(f"the {self.name} world cannot be built from a configuration")
 
-    def render(self, args) -> tuple[dict, dict]:
-        """({camera: RGB image}, truth as JSON-able dict) of the scene the options describe (drivestudio render)."""
-        raise UsageError(f"the {self.name} world cannot render from options")
+    def render(self, config, warmup: float = 0.0, scenario: str | None = None) -> tuple[dict, dict]:
+        """({camera: RGB image}, truth as JSON-able dict) of the scene of a configuration after `warmup` simulated
+        seconds of the world's own driver (drivestudio render); a scenario file where the world has them."""
+        raise UsageError(f"the {self.name} world cannot render from a configuration")
 
     def own_model(self, model: str) -> bool:
         """Whether --model MODEL names a driver this world makes itself, not a checkpoint (highway: a trained
@@ -103,9 +97,10 @@ class Plugin:
         if spec.source not in self.expert_names:
             check_checkpoint(spec.source, self.name)
 
-    def resolve_args(self, args) -> None:
-        """Before any work: check this world's options of a verb against --model (one line and exit status 2,
-        UsageError) and settle those the model decides. By default there is nothing to do."""
+    def fit_driver(self, config, spec: DriverSpec):
+        """Before any work: the configuration a driver needs (the highway's mirror for a model that learned it),
+        or one line and exit status 2 (UsageError) where it cannot drive this one. By default the configuration."""
+        return config
 
     def driver(self, spec: DriverSpec, device: str = "cpu", declaration: WorldDeclaration | None = None,
                seed: int = 0) -> Driver:
@@ -114,7 +109,7 @@ class Plugin:
         outputs are the world's action drives directly (drivestudio/drivers.py)."""
         return direct_driver(spec.source, device, declaration or self.declaration)
 
-    def supervisor(self, world: World, args) -> Supervisor | None:
+    def supervisor(self, world: World, config, spec: DriverSpec | None) -> Supervisor | None:
         """What the world side does with the driver's command in `manual` mode or under correction: a function
         (obs, action, driver_mode) -> (applied action, operation mode), or None (the command is applied)."""
         return None
@@ -141,7 +136,7 @@ class Plugin:
         """Whether an in-process run must render: a model reads frames, a video (`record`) shows them."""
         return spec.source not in self.expert_names or record
 
-    def describe_run(self, world, args) -> dict:
+    def describe_run(self, world, config, spec: DriverSpec | None) -> dict:
         """What a run's metrics.json records about the world (track, lanes, cars, ...)."""
         return {}
 
@@ -163,8 +158,9 @@ class Plugin:
         """The declaration of the worlds a generation with these options builds (e.g. its camera size)."""
         return self.declaration
 
-    def generate_options(self, args) -> dict:
-        """The JSON-able options of this world that decide a dataset's content, validated."""
+    def generate_options(self, config, plan: dict) -> dict:
+        """The JSON-able options of this world that decide a dataset's content, validated: from its configuration
+        (camera, insets) and `plan`, its own options of generate by destination (and `renderer`)."""
         return {}
 
     def plan(self, options: dict, frames: int, episode_frames: int, seed: int) -> list[Episode]:

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import math
 import weakref
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
 
-from core.worlds.highway import FRAME, GAP_INACTIVE, GAPS, HIGHWAY, INDICATORS, Action
+from core.worlds.highway import GAP_INACTIVE, GAPS, HIGHWAY, INDICATORS, Action
 from sim import gym_options as opt
-from sim.camera import RENDERERS, CameraConfig
-from sim.highway.sumo_traffic import MAX_CARS, car_count_problem
+from sim.highway.sumo_traffic import car_count_problem
 from sim.highway.vehicle import VehicleParams
 from sim.highway.world import Observation, World, WorldConfig
 from sim.track import load_track
@@ -37,8 +37,7 @@ ENV = "drivestudio/Highway-v0"
 COLLISION_PENALTY = 50.0
 OFF_ROAD_PENALTY = 5.0
 LOST_PENALTY = 50.0
-MAX_LANES = 4
-MAX_START_SPEED = 60.0   # [m/s] as the CLI's --start-speed
+DEFAULTS = WorldConfig()   # the world's configuration: the keyword arguments' defaults, units and ranges
 MAX_EPISODE = 1_000_000  # steps
 MARKING_RANGE = 15.0     # [m] |toMarking_*| bound: 1.5 lanes of the widest lane and more (docs/affordances.md)
 
@@ -55,17 +54,18 @@ AFFORDANCES = opt.Affordances(HIGHWAY, BOUNDS)
 class HighwayEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, track="oval", lanes: int | None = None, cars: int = 12, renderer: str = "tiny",
-                 width: int = FRAME[1], height: int = FRAME[0], max_steps: int = 3000, start_speed: float = 15.0,
-                 render_mode: str | None = "rgb_array", observation: str = "camera"):
+    def __init__(self, track=DEFAULTS.track, lanes: int | None = DEFAULTS.lanes, cars: int = DEFAULTS.cars,
+                 renderer: str = DEFAULTS.renderer, width: int = DEFAULTS.camera.width,
+                 height: int = DEFAULTS.camera.height, max_steps: int = 3000,
+                 start_speed: float = DEFAULTS.start_speed, render_mode: str | None = "rgb_array",
+                 observation: str = "camera"):
         self.observation = opt.check_choice(ENV, "observation", observation, opt.OBSERVATIONS)
-        if lanes is not None:
-            lanes = opt.check_int(ENV, "lanes", lanes, 1, MAX_LANES)
-        cars = opt.check_int(ENV, "cars", cars, 0, MAX_CARS)
-        opt.check_choice(ENV, "renderer", renderer, RENDERERS)
-        width, height = opt.check_side(ENV, "width", width), opt.check_side(ENV, "height", height)
+        config = opt.check_settings(ENV, DEFAULTS, {
+            "lanes": ("lanes", lanes), "cars": ("cars", cars), "renderer": ("renderer", renderer),
+            "width": ("camera.width", width), "height": ("camera.height", height),
+            "start_speed": ("start_speed", start_speed)})
+        lanes, cars, width, height = config.lanes, config.cars, config.camera.width, config.camera.height
         self.max_steps = opt.check_int(ENV, "max_steps", max_steps, 1, MAX_EPISODE)
-        start_speed = opt.check_number(ENV, "start_speed", start_speed, 0.0, MAX_START_SPEED)
         if render_mode is not None:
             opt.check_choice(ENV, "render_mode", render_mode, tuple(self.metadata["render_modes"]))
         try:
@@ -75,9 +75,7 @@ class HighwayEnv(gym.Env):
         problem = car_count_problem(road, cars)
         if problem:
             raise opt.fail(ENV, "cars", problem)
-        camera = CameraConfig(width=width, height=height)
-        self._config = WorldConfig(track=track, lanes=lanes, cars=cars, renderer=renderer, camera=camera,
-                                   start_speed=start_speed, render=self.observation != "affordances")
+        self._config = replace(config, track=track, render=self.observation != "affordances")
         self.declaration = HIGHWAY.with_camera("front", height, width)
         self._world: World | None = None
         self._finalizer: weakref.finalize | None = None

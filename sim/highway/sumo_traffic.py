@@ -16,13 +16,13 @@ from __future__ import annotations
 import numpy as np
 
 from sim.highway.car_models import car_models
+from sim.highway.config import MAX_CARS
 from sim.highway.errors import TrafficError
 from sim.highway.sumo_connection import TRANSPORTS, SumoConnection
 from sim.highway.sumo_network import SumoNetwork, network_for
 from sim.highway.traffic import CarStates, assign_looks
 from sim.track import Track
 
-MAX_CARS = 300
 MIN_SPACING = 20.0        # [m] of lane per car: denser traffic cannot be inserted
 EGO_CLEARANCE = 30.0      # [m] no AI car starts closer than this to the host car, along the loop
 START_SPACING = 60.0      # [m] between cars of one lane at the start

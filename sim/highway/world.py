@@ -6,47 +6,22 @@ shared-memory server, the Gymnasium environment and the CLI's probe/render.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from core.worlds.highway import HIGHWAY, Action
-from sim.camera import CameraConfig
 from sim.collision import overlaps
+from sim.highway.config import WorldConfig
 from sim.highway.renderer import Renderer
 from sim.highway.scenario import Scenario
 from sim.highway.sumo_traffic import SumoTraffic
 from sim.highway.traffic import CarStates, ScriptedTraffic
 from sim.highway.truth import GroundTruth, ground_truth, truth_record
-from sim.highway.vehicle import VehicleParams, VehicleState, step_vehicle
-from sim.mirror import inset_name
+from sim.highway.vehicle import VehicleState, step_vehicle
 from sim.track import Track, load_track
 
 LOST_MARGIN = 6.0  # [m] beyond the road edge the host car is lost and the episode ends
-
-
-@dataclass
-class WorldConfig:
-    track: object = "oval"          # preset name, track file, track object or "procedural:SEED"
-    lanes: int | None = None        # overrides the track's lane count
-    lane_width: float | None = None
-    cars: int = 12                  # AI cars driven by SUMO (0: none); scenarios bring their own
-    dt: float = 0.1                 # [s] one world step (10 Hz, as DeepDriving's loop)
-    seed: int = 0
-    render: bool = True
-    renderer: str = "tiny"          # "tiny" (TinyRenderer) or "egl"
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    mirror: bool = False            # a rear-view mirror pasted into the top of the frame (sim/mirror.py)
-    side_views: bool = False        # with the mirror: the views out of both side windows, below it (sim/mirror.py)
-    vehicle: VehicleParams = field(default_factory=VehicleParams)
-    start_speed: float = 0.0        # [m/s] host car's speed after reset (scenarios set their own)
-    start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
-    sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
-
-    @property
-    def inset(self) -> str:
-        """What the frames hold besides the scene (core/declaration.py Camera.inset)."""
-        return inset_name(self.mirror, self.side_views)
 
 
 @dataclass

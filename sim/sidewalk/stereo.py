@@ -16,11 +16,21 @@ distant skyline that turns with the car, the grass), the ground painted as exact
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from sim.camera import CameraConfig
+from sim.sidewalk.config import (  # noqa: F401  (the rig's constants and configuration, re-exported)
+    BASELINE,
+    CULL,
+    EYE_FORWARD,
+    EYE_HEIGHT,
+    FOV_DEG,
+    PITCH_DEG,
+    SIZE,
+    StereoConfig,
+)
 from sim.sidewalk.ground import StereoGroundPainter
 from sim.sidewalk.layout import Layout
 from sim.sidewalk.look import SidewalkLook, make_look
@@ -28,47 +38,8 @@ from sim.sidewalk.painter import PieceSet, StereoObjectPainter, face_colours
 from sim.sidewalk.scenery import DETAIL, GROUND, GROUND_BASE, build_scenery, lead_pieces
 from sim.sidewalk.shapes import concat
 
-BASELINE = 0.12           # [m] between the two cameras' centres (ZED: 120 mm)
-EYE_HEIGHT = 0.24         # [m] above the ground
-EYE_FORWARD = 0.10        # [m] ahead of the car body's centre
-PITCH_DEG = -5.0          # [deg] looking down
-FOV_DEG = 56.0            # [deg] vertical field of view
-SIZE = (188, 336)         # (rows, columns) per camera
-CULL = 60.0               # [m] nothing farther is drawn (a 0.3 m object there is under 1 px wide)
+DEFAULT_RIG = StereoConfig()
 PANORAMA = 1440           # columns of the skyline panorama (0.25 deg each)
-
-
-@dataclass(frozen=True)
-class StereoConfig:
-    width: int = SIZE[1]
-    height: int = SIZE[0]
-    fov_deg: float = FOV_DEG
-    baseline: float = BASELINE
-
-    def camera(self, side: str) -> CameraConfig:
-        """The left or right camera (or the rig's centre, between them)."""
-        offset = {"left": self.baseline / 2, "right": -self.baseline / 2, "centre": 0.0}[side]
-        return CameraConfig(width=self.width, height=self.height, fov_deg=self.fov_deg, eye_height=EYE_HEIGHT,
-                            eye_forward=EYE_FORWARD, pitch_deg=PITCH_DEG, near=0.05, far=200.0,
-                            cull_distance=CULL, eye_left=offset)
-
-    @property
-    def focal_px(self) -> float:
-        """Focal length [px] (square pixels)."""
-        return self.height / 2 / math.tan(math.radians(self.fov_deg) / 2)
-
-    @property
-    def hfov_deg(self) -> float:
-        return math.degrees(self.camera("left").hfov)
-
-    def disparity(self, depth: float) -> float:
-        """[px] of a point `depth` metres along the optical axis."""
-        return self.focal_px * self.baseline / depth
-
-    def describe(self) -> dict:
-        return {"width": self.width, "height": self.height, "baseline_m": self.baseline,
-                "focal_px": round(self.focal_px, 3), "vfov_deg": self.fov_deg, "hfov_deg": round(self.hfov_deg, 3),
-                "eye_height_m": EYE_HEIGHT, "eye_forward_m": EYE_FORWARD, "pitch_deg": PITCH_DEG}
 
 
 def in_view(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float, hfov: float,
@@ -82,7 +53,7 @@ def in_view(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: flo
 
 
 class StereoRenderer:
-    def __init__(self, layout: Layout, seed: int, config: StereoConfig = StereoConfig()):
+    def __init__(self, layout: Layout, seed: int, config: StereoConfig = DEFAULT_RIG):
         self.config = config
         self.look: SidewalkLook = make_look(seed, layout.path.style)
         chunks = build_scenery(layout, self.look)

@@ -12,36 +12,22 @@ recover, set_mode, timings, close.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
 from sim.collision import overlaps
 from sim.sidewalk.car import CAR, CarState, step_car
+from sim.sidewalk.config import SidewalkConfig
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.layout import Layout, build_layout
 from sim.sidewalk.lead import START_GAP, LeadCar
 from sim.sidewalk.paths import SidewalkPath, load_path
-from sim.sidewalk.stereo import StereoConfig, StereoRenderer
+from sim.sidewalk.stereo import StereoRenderer
 from sim.sidewalk.truth import truth_record
 
 NEUTRAL = (0.5, 0.5)    # steer straight, motor stopped
-
-
-@dataclass
-class SidewalkConfig:
-    path: object = "park"              # preset name, path file, "procedural:SEED", a JSON object or a SidewalkPath
-    path_width: float | None = None    # [m] overrides the path's width (1.5 to 3)
-    seed: int = 0                      # looks, borders, trees, obstacle placement, start, lead car
-    mode: str = "direct"               # behavioural mode: direct, follow or furtive
-    obstacles: object = 4.0            # obstacles per 100 m, a list of layout.Obstacle, or an obstacle file
-    stereo: StereoConfig = field(default_factory=StereoConfig)
-    render: bool = True
-    start_s: float | None = None       # [m] where the car starts (default: drawn from the seed)
-    start_speed: float = 0.0           # [m/s]
-
-
 @dataclass
 class Observation:
     frames: tuple                      # (left, right) uint8 RGB, or (None, None) when not rendered

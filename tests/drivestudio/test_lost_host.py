@@ -1,6 +1,6 @@
 """A host car that leaves the road for good: `generate` puts it back and records on (when_lost="recover"), a
 benchmark route ends with "host lost"; both worlds answer the loop's `recover` (drivestudio/loop.py's World)."""
-import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -76,10 +76,8 @@ def test_a_benchmark_route_whose_host_car_is_lost_ends_there(monkeypatch, tmp_pa
 @pytest.mark.parametrize("world", ["highway", "sidewalk"])
 def test_both_worlds_keep_the_loop_contract(world):
     """Every method and attribute of drivestudio.loop.World, by the same names in both worlds."""
-    args = argparse.Namespace(track=None, lanes=None, seed=0, cars=0, renderer="tiny", start_speed=None,
-                              width=None, height=None, fov=None, path=None, path_width=None, mode=None,
-                              obstacles=None)
-    with get(world).world(args, render=False) as w:
+    plugin = get(world)
+    with plugin.world(replace(plugin.config_type(), render=False)) as w:
         for name in ("declaration", "dt", "timings", "observe", "step", "recover", "close"):
             assert hasattr(w, name), name
         assert isinstance(w.declaration, type(HIGHWAY))

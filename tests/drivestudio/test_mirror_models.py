@@ -4,7 +4,6 @@ benchmark renders it for that row only, `--mirror` with a model that learned non
 2), and training goes on only with data like the model's own."""
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
@@ -20,6 +19,7 @@ from drivestudio.worlds.highway.plugin import Plugin
 from perception.checkpoint import CheckpointError, save_checkpoint
 from perception.models import Regressor, frame_inset, make_spec
 from perception.train_sgd import check_inset
+from sim.highway.config import WorldConfig
 
 DS = [sys.executable, "-m", "drivestudio"]
 MIRRORED = HIGHWAY.with_camera("front", 210, 280, "mirror")
@@ -38,9 +38,9 @@ def models(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
-def drive_args(model, mirror=False, side_views=False):
-    return argparse.Namespace(track="oval", lanes=3, seed=0, cars=4, renderer="tiny", start_speed=None, width=None,
-                              height=None, fov=None, model=str(model), mirror=mirror, side_views=side_views)
+def drive_config(mirror=False, side_views=False) -> WorldConfig:
+    """The configuration `drive --mirror --side-views` asks for (the side views bring the mirror)."""
+    return Plugin().settle(WorldConfig(track="oval", lanes=3, cars=4, mirror=mirror, side_views=side_views))
 
 
 def test_the_spec_records_the_inset_of_the_frames_it_learned(models):
@@ -53,9 +53,8 @@ def resolved(model, mirror=False, side_views=False) -> bool:
 
 
 def resolved_inset(model, mirror=False, side_views=False) -> str:
-    args = drive_args(model, mirror, side_views)
-    Plugin().resolve_args(args)
-    return Plugin().config(args, render=True).inset
+    plugin = Plugin()
+    return plugin.fit_driver(drive_config(mirror, side_views), plugin.parse_driver(str(model))).inset
 
 
 def test_drive_renders_the_mirror_for_a_model_that_learned_it_and_only_then(models):
@@ -83,7 +82,6 @@ def test_drive_renders_the_side_views_for_a_model_that_learned_them_and_only_the
 def test_a_running_world_unlike_the_models_frames_is_refused(models):
     """Over the bridge or in the studio the world runs before the driver is made: its declaration decides."""
     plugin = Plugin()
-    args = drive_args(models["plain"])
     assert plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", MIRRORED) is not None
     assert plugin.driver(plugin.parse_driver(str(models["plain"])), "cpu", HIGHWAY) is not None
     with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world's are without the "

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import nn
 
 from core.declaration import Camera, Control, Label, Moment, Quantity, WorldDeclaration
+from core.settings import MAX_SEED, setting
 from drivestudio.worlds import Episode
 from drivestudio.worlds import Plugin as BasePlugin
 from perception import models
@@ -131,17 +133,24 @@ class Metrics:
         return "\n".join(["| metric | value |", "|---|---|"] + [f"| {k} | {v} |" for k, v in self.report().items()])
 
 
+@dataclass
+class CorridorConfig:
+    """The corridor's configuration: its settings are the verbs' options (core/settings.py)."""
+
+    start_offset: float = setting(0.0, "offset at the start", unit="m", low=-2.0, high=2.0)
+    seed: int = setting(0, "seed of the corridor", low=0, high=MAX_SEED)
+    render: bool = True
+
+
 class Plugin(BasePlugin):
     declaration = TINY
     expert_names = ("expert",)
+    config_type = CorridorConfig
+    verb_settings = {"drive": ("start_offset", "seed"), "serve": ("start_offset", "seed"),
+                     "generate": ("start_offset",)}
 
-    def add_options(self, options) -> None:
-        if options.verb in ("generate", "drive", "serve"):
-            g = options.group("corridor world (--world corridor)")
-            options.add(self.name, g, "--start-offset", type=float, help="offset at the start [m]")
-
-    def world(self, args, render: bool):
-        return Corridor(getattr(args, "start_offset", None) or 0.0, getattr(args, "seed", 0))
+    def world(self, config):
+        return Corridor(config.start_offset, config.seed)
 
     def driver(self, spec, device="cpu", declaration=None, seed=0):
         return Expert(0) if spec.source == "expert" else super().driver(spec, device, declaration, seed)
@@ -149,8 +158,8 @@ class Plugin(BasePlugin):
     def metrics(self, world):
         return Metrics()
 
-    def generate_options(self, args) -> dict:
-        return {"start_offset": args.start_offset or 0.0}
+    def generate_options(self, config, plan) -> dict:
+        return {"start_offset": config.start_offset}
 
     def plan(self, options, frames, episode_frames, seed):
         n = -(-frames // episode_frames)

@@ -72,7 +72,7 @@ def write(tmp_path, name, text):
 
 @pytest.mark.parametrize("argv, message", [
     (["render", "--mode", "sneaky"], "invalid choice: 'sneaky'"),
-    (["render", "--path-width", "3.5"], "--path-width: must be in [1.5, 3]"),
+    (["render", "--path-width", "3.5"], "--path-width: must be a number from 1.5 to 3 m"),
     (["render", "--path-width", "nan"], "--path-width: must be a finite number"),
     (["render", "--path", "FILE:open.json"], "does not close"),
     (["render", "--path", "FILE:nan.json"], "NaN is not allowed"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import selectors
+import select
 import shutil
 import signal
 import subprocess
@@ -34,25 +34,33 @@ class Studio:
         self.proc = subprocess.Popen([sys.executable, "-m", "drivestudio", *args], cwd=REPO, env=env,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.lines: list[str] = []
+        self._pending = ""      # printed, not yet a whole line
         self.url = self._wait_for(marker, timeout).split(marker, 1)[1].strip()
 
     def _wait_for(self, marker: str, timeout: float) -> str:
+        """The first printed line holding `marker`. The pipe is read in chunks straight from its descriptor, so
+        that lines already printed are never left in a reader's buffer that select() cannot see."""
         out = self.proc.stdout
         assert out is not None   # started with stdout=PIPE
-        sel = selectors.DefaultSelector()
-        sel.register(out, selectors.EVENT_READ)
+        fd = out.fileno()
         end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if not sel.select(timeout=0.5):
+        while True:
+            while "\n" in self._pending:
+                line, self._pending = self._pending.split("\n", 1)
+                self.lines.append(line + "\n")
+                if marker in line:
+                    return line + "\n"
+            if time.monotonic() >= end:
+                break
+            ready, _, _ = select.select([fd], [], [], 0.5)
+            if not ready:
                 if self.proc.poll() is not None:
                     break
                 continue
-            line = out.readline()
-            if not line:
+            chunk = os.read(fd, 65536)
+            if not chunk:
                 break
-            self.lines.append(line)
-            if marker in line:
-                return line
+            self._pending += chunk.decode(errors="replace")
         self.stop()
         raise AssertionError(f"no '{marker}' from {self.proc.args!r}: {''.join(self.lines)[-2000:]}")
 
@@ -76,8 +84,11 @@ class Studio:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
-        rest = self.proc.stdout.read() if self.proc.stdout else ""
-        self.lines.append(rest)
+        chunks = []
+        while self.proc.stdout is not None and (chunk := os.read(self.proc.stdout.fileno(), 65536)):
+            chunks.append(chunk)
+        self.lines.append(self._pending + b"".join(chunks).decode(errors="replace"))
+        self._pending = ""
         return "".join(self.lines)
 
 

@@ -4,7 +4,7 @@ driving alone records expert demonstrations, the highway's human command is appl
 spans resets as one dataset."""
 from __future__ import annotations
 
-import argparse
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -20,16 +20,16 @@ from drivestudio.studio.watch import Watch
 from perception.shards import Dataset
 
 
-def session(world: str, model: str, tmp_path, **options) -> Session:
-    parser = argparse.ArgumentParser()
-    from drivestudio.commands.common import add_world_options
-    add_world_options(parser, "drive")
-    args = parser.parse_args(["--world", world])
-    args.model, args.device = model, "cpu"
-    for k, v in options.items():
-        setattr(args, k, v)
-    s = Session(args, worlds.get(world), tmp_path, {}, Watch(Publisher(), None), Controls(realtime=False),
-                shard_steps=40)
+def session(world: str, model: str, tmp_path, **settings) -> Session:
+    """A session of `world` whose configuration has the given settings (obstacles as the command line's text)."""
+    plugin = worlds.get(world)
+    config = plugin.config_type()
+    if "obstacles" in settings:
+        from sim.sidewalk.config import obstacles_value
+        settings["obstacles"] = obstacles_value(settings["obstacles"])
+    config = replace(config, **settings)
+    s = Session(plugin, config, tmp_path, {}, Watch(Publisher(), None), Controls(realtime=False), shard_steps=40,
+                model=model)
     s.open()
     return s
 
@@ -127,7 +127,7 @@ def test_a_reset_that_cannot_be_built_is_refused_and_the_scene_goes_on(tmp_path)
     s.tell = lambda kind, **f: told.append((kind, f))
     s._reset({"path": "procedural:1", "path_width": 99.0})     # a width no path may have
     assert any(kind == "error" and "reset refused" in f["message"] for kind, f in told)
-    assert s.world is not None and s.args.path is None
+    assert s.world is not None and s.config.path == "park" and s.config.path_width is None   # the one before
 
 
 def _lateral_after(tmp_path, tap_steps: int, seconds: float) -> tuple[list[float], list[float], float]:

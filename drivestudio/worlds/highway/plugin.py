@@ -3,18 +3,18 @@ data-collection expert, closed-loop metrics, overlay videos and the generation p
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.worlds.highway import FRAME, HIGHWAY, INDICATORS, MAX_LANES, REAR
+from core.worlds.highway import HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.driver_spec import DriverSpec
 from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
-from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
-from drivestudio.worlds.base import Episode, WorldOptions
+from drivestudio.worlds.base import Episode
 from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, chen_driver
 from drivestudio.worlds.highway.filters import FILTERS
 from drivestudio.worlds.highway.metrics import HighwayMetrics
@@ -25,15 +25,14 @@ from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
 from perception.highway.table3 import Table3Layout
 from sim.camera import CameraConfig
+from sim.highway.config import MAX_CARS, WorldConfig
 from sim.mirror import INSET_FLAGS, inset_name, inset_options
 from sim.track import load_track, preset_names
 
 if TYPE_CHECKING:
     from drivestudio.studio.kit import StudioKit
-    from sim.highway.world import World, WorldConfig
+    from sim.highway.world import World
 
-DEFAULT_CARS = 12
-START_SPEED = 15.0          # [m/s]
 
 
 # --- the plugin ----------------------------------------------------------------------------------------------------
@@ -42,86 +41,61 @@ class Plugin(base.Plugin):
     expert_names = ("oracle", "oracle-extended", "expert")
     filters = FILTERS
 
-    def add_options(self, options: WorldOptions) -> None:
-        verb = options.verb
-        g = options.group("highway world (--world highway)")
-        if verb in ("render", "drive", "serve"):
-            options.add(self.name, g, "--track", help="track preset, track file or procedural:SEED (default oval)")
-            options.add(self.name, g, "--lanes", type=count(1, MAX_LANES), help="lane count 1-4 (default: the "
-                        "track's)")
-            options.add(self.name, g, "--cars", type=count(0, 300),
-                        help=f"AI cars driven by SUMO (default {DEFAULT_CARS})")
-            options.add(self.name, g, "--start-speed", type=non_negative(60.0),
-                        help=f"host car's speed at the start [m/s] (default {START_SPEED:g})")
-        if verb in ("render", "drive", "serve", "generate"):
-            options.add(self.name, g, "--mirror", action="store_true",
-                        help="paste a rear-view mirror into the top of the frame (docs/rendering.md); drive turns it "
-                        "on by itself for a model that learned it")
-            options.add(self.name, g, "--side-views", action="store_true",
-                        help="with the mirror (implied): paste the views out of both side windows below it, where a "
-                        "car level with the host shows (docs/rendering.md); drive turns them on for a model that "
-                        "learned them")
-        if verb in ("render", "generate"):
-            options.add(self.name, g, "--width", type=count(16, 4096), help=f"frame width [px] (default {FRAME[1]})")
-            options.add(self.name, g, "--height", type=count(16, 4096), help=f"frame height [px] (default {FRAME[0]})")
-            options.add(self.name, g, "--fov", type=finite(10.0, 150.0),
-                        help="vertical field of view [deg] (default 60)")
-        if verb == "render":
-            options.add(self.name, g, "--warmup", type=non_negative(3600.0),
-                        help="simulated seconds to drive before the frame is taken (without a scenario)")
-        if verb == "generate":
+    verb_settings = {
+        "render": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views",
+                   "camera.width", "camera.height", "camera.fov_deg"),
+        "drive": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views"),
+        "serve": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views"),
+        "generate": ("mirror", "side_views", "camera.width", "camera.height", "camera.fov_deg"),
+    }
+
+    config_type = WorldConfig
+
+    def add_options(self, options) -> None:
+        if options.verb == "generate":
+            g = options.group("highway world (--world highway)")
             options.add(self.name, g, "--tracks", help="comma-separated tracks: presets, files, procedural:SEED "
                         "(default: every preset plus --procedural procedural tracks)")
-            options.add(self.name, g, "--procedural", type=count(0, 1000),
-                        help="procedural tracks added to the default list (3)")
+            options.add(self.name, g, "--procedural", type=int, help="procedural tracks added to the default list "
+                        "(3; 0-1000)")
             options.add(self.name, g, "--lanes", help="lane counts to cycle through (default 1,2,3)",
                         dest="lane_counts")
             options.add(self.name, g, "--cars", help="AI cars per episode: N or a range A-B (default 12-30)",
                         dest="car_range")
 
     # --- worlds ----------------------------------------------------------------------------------------------------
-    def config(self, args, render: bool, **extra) -> WorldConfig:
-        from sim.highway.world import WorldConfig  # lazy: the highway world imports trimesh (0.3 s)
-        camera = CameraConfig(width=getattr(args, "width", None) or FRAME[1],
-                              height=getattr(args, "height", None) or FRAME[0],
-                              fov_deg=getattr(args, "fov", None) or 60.0)
-        return WorldConfig(track=args.track or "oval", lanes=args.lanes, seed=args.seed,
-                           cars=DEFAULT_CARS if args.cars is None else args.cars, renderer=args.renderer,
-                           render=render, camera=camera, **_inset_flags(args),
-                           start_speed=START_SPEED if args.start_speed is None else args.start_speed, **extra)
+    def settle(self, config: WorldConfig) -> WorldConfig:
+        """The side views come with the mirror they sit below."""
+        return replace(config, mirror=config.mirror or config.side_views)
 
-    def resolve_args(self, args) -> None:
-        """drive's --mirror and --side-views follow the checkpoint that drives: a model reads frames like the ones
-        it learned, so one that learned the mirror gets it, and insets it did not learn are refused."""
-        model = getattr(args, "model", None)
-        if not model or model in self.expert_names or is_policy(model):
-            return
-        inset, asked = checkpoint_inset(model), inset_name(**_inset_flags(args))
+    def fit_driver(self, config: WorldConfig, spec: DriverSpec) -> WorldConfig:
+        """A checkpoint reads frames like the ones it learned: one that learned the mirror (and the side views) gets
+        them, and insets it did not learn are refused."""
+        model = spec.source
+        if model in self.expert_names or is_policy(model):
+            return config
+        inset, asked = checkpoint_inset(model), config.inset
         if asked and asked != inset:
             raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it "
                              f"{f'with {_inset_options(inset)}' if inset else 'without --mirror'}")
-        args.mirror, args.side_views = INSET_FLAGS[inset]
+        mirror, side_views = INSET_FLAGS[inset]
+        return replace(config, mirror=mirror, side_views=side_views)
 
-    def world(self, args, render: bool) -> World:
+    def world(self, config: WorldConfig) -> World:
         from sim.highway.world import World  # lazy: trimesh
-        return World(self.config(args, render))
+        return World(config)
 
-    def render(self, args) -> tuple[dict, dict]:
+    def render(self, config: WorldConfig, warmup: float = 0.0, scenario: str | None = None) -> tuple[dict, dict]:
         from sim.highway.scenario import load_scenario  # lazy: with the world
-        from sim.highway.world import World, WorldConfig  # lazy: trimesh
-        if args.scenario:
-            if args.track or args.warmup:
-                raise UsageError("--track and --warmup go without a scenario file (a scenario places its own cars)")
-            cfg = self.config(args, render=False)
-            scenario = load_scenario(args.scenario, lanes=args.lanes)
-            world = World(WorldConfig(renderer=args.renderer, camera=cfg.camera, cars=0, mirror=cfg.mirror,
-                                      side_views=cfg.side_views),
-                          scenario=scenario)
+        from sim.highway.world import World  # lazy: trimesh
+        if scenario:
+            # a scenario places its own cars and the host; the look and the camera are the configuration's
+            world = World(replace(config, cars=0, render=False), scenario=load_scenario(scenario, lanes=config.lanes))
         else:
-            world = self.world(args, render=False)
+            world = self.world(replace(config, render=False))
         with world:
-            if args.warmup:
-                warm_up(world, args.warmup)
+            if warmup:
+                warm_up(world, warmup)
             obs = world.observe(render=True)
             return {"front": obs.frame}, obs.truth.as_dict()
 
@@ -150,7 +124,7 @@ class Plugin(base.Plugin):
                              f"{_inset_words(declaration.cameras[0].inset)}: start the world {want}")
         return chen_driver(spec, predictor)
 
-    def supervisor(self, world, args) -> Supervisor:
+    def supervisor(self, world, config, spec: DriverSpec | None) -> Supervisor:
         expert = ChenDriver(None)   # in "manual" mode the world-side oracle drives, as a human did in TORCS
 
         def supervise(obs: Observation, action: np.ndarray, mode: str) -> tuple[np.ndarray, str]:
@@ -188,7 +162,7 @@ class Plugin(base.Plugin):
     def coverage(self) -> HighwayCoverage:
         return HighwayCoverage()
 
-    def describe_run(self, world, args) -> dict:
+    def describe_run(self, world, config, spec: DriverSpec | None) -> dict:
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars,
                 "mirror": world.config.mirror, "side_views": world.config.side_views}
 
@@ -200,20 +174,22 @@ class Plugin(base.Plugin):
         return OverlayRecorder(path, world, label)
 
     # --- datasets ------------------------------------------------------------------------------------------------
-    def generate_options(self, args) -> dict:
-        lanes = _int_list(args.lane_counts or "1,2,3", "--lanes")
+    def generate_options(self, config: WorldConfig, plan: dict) -> dict:
+        lanes = _int_list(plan.get("lane_counts") or "1,2,3", "--lanes")
         if not lanes or any(not 1 <= n <= MAX_LANES for n in lanes):
             raise UsageError(f"--lanes must list lane counts from 1 to {MAX_LANES}")
-        cars = _range(args.car_range or "12-30")
-        if not 0 <= cars[0] <= cars[1] <= 300:
-            raise UsageError("--cars must be from 0 to 300 (and A <= B)")
-        tracks = [t.strip() for t in (args.tracks or "").split(",") if t.strip()]
-        if args.tracks is not None and not tracks:
+        cars = _range(plan.get("car_range") or "12-30")
+        if not 0 <= cars[0] <= cars[1] <= MAX_CARS:
+            raise UsageError(f"--cars must be from 0 to {MAX_CARS} (and A <= B)")
+        tracks = [t.strip() for t in (plan.get("tracks") or "").split(",") if t.strip()]
+        if plan.get("tracks") is not None and not tracks:
             raise UsageError("--tracks names no track")
-        options = {"tracks": tracks, "procedural": 3 if args.procedural is None else args.procedural,
-                   "lanes": list(lanes), "cars": list(cars), "width": args.width or FRAME[1],
-                   "height": args.height or FRAME[0], "fov": 60.0 if args.fov is None else args.fov,
-                   **inset_options(inset_name(**_inset_flags(args)))}
+        procedural = 3 if plan.get("procedural") is None else plan["procedural"]
+        if not 0 <= procedural <= 1000:
+            raise UsageError(f"--procedural must be an integer from 0 to 1000, got {procedural}")
+        options = {"tracks": tracks, "procedural": procedural, "lanes": list(lanes), "cars": list(cars),
+                   "width": config.camera.width, "height": config.camera.height, "fov": config.camera.fov_deg,
+                   **inset_options(config.inset)}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)
@@ -248,11 +224,11 @@ class Plugin(base.Plugin):
         return episodes
 
     def episode(self, ep: Episode, options: dict, renderer: str):
-        from sim.highway.world import World, WorldConfig  # lazy: trimesh
+        from sim.highway.world import World  # lazy: trimesh
         camera = CameraConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         p = ep.params
         world = World(WorldConfig(track=p["track"], lanes=p["lanes"], cars=p["cars"], seed=ep.seed,
-                                  renderer=renderer, camera=camera, render=False, start_speed=START_SPEED,
+                                  renderer=renderer, camera=camera, render=False,
                                   mirror=bool(options.get("mirror")), side_views=bool(options.get("side_views"))))
         expert = ExpertDriver(p["lanes"], world.track.lane_width, ep.seed, world.dt)
 
@@ -289,12 +265,6 @@ def _range(text: str) -> tuple[int, int]:
         return (lo_i, int(hi) if hi else lo_i)
     except ValueError:
         raise UsageError(f"expected N or A-B for --cars, got '{text}'") from None
-
-
-def _inset_flags(args) -> dict:
-    """The world's mirror and side views asked for on the command line (--side-views implies the mirror)."""
-    sides = bool(getattr(args, "side_views", False))
-    return {"mirror": sides or bool(getattr(args, "mirror", False)), "side_views": sides}
 
 
 def _inset_options(inset: str) -> str:

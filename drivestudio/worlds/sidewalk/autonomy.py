@@ -15,7 +15,6 @@ import json
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 from core.files import check_output
@@ -25,6 +24,7 @@ from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
 from perception.train_outputs import side_outputs
+from sim.sidewalk.config import SidewalkConfig, obstacles_value
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
 HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
@@ -82,16 +82,16 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
     from drivestudio.bridge_loop import supervised  # lazy: the bridge, only when it runs (not for --help)
 
     plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
-    args = SimpleNamespace(path=run.path, path_width=None, seed=run.seed, mode=run.mode, obstacles=str(run.obstacles),
-                           width=None, height=None, fov=None, renderer="tiny", operation="correctional",
-                           model=run.model, device=run.device, rule=run.rule)
+    config = SidewalkConfig(path=run.path, seed=run.seed, mode=run.mode, obstacles=obstacles_value(str(run.obstacles)),
+                            operation="correctional", rule=run.rule)
+    spec = plugin.parse_driver(run.model)
     data_dir = out / f"corrections-{k}"
     t0 = time.perf_counter()
-    with plugin.world(args, render=True) as world:
+    with plugin.world(config) as world:
         decl = world.declaration
-        driver = plugin.driver(plugin.parse_driver(run.model), run.device, decl, run.seed)
+        driver = plugin.driver(spec, run.device, decl, run.seed)
         driver.mode = run.mode   # the network is told its behavioural mode, as the car's operator sets it
-        supervisor = plugin.supervisor(world, args)
+        supervisor = plugin.supervisor(world, config, spec)
         metrics = plugin.metrics(world)
         video_path = out / f"autonomy-{k}.mp4" if run.video else None
         recorder = plugin.recorder(world, video_path, f"{Path(run.model).stem} ({run.mode}, {run.rule} rule)")

@@ -4,20 +4,20 @@ autonomous, correctional), closed-loop metrics, videos with both cameras and a t
 plan of a balanced data-moment set."""
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from controller.sidewalk.correction import RULES
-from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK
+from core.worlds.sidewalk import SIDEWALK
 from drivestudio.checkpoints import load_predictor_for
 from drivestudio.driver_spec import DriverSpec
 from drivestudio.drivers import DirectDriver
 from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
-from drivestudio.numbers import count, finite, non_negative
 from drivestudio.worlds import base
-from drivestudio.worlds.base import Episode, WorldOptions
+from drivestudio.worlds.base import Episode
 from drivestudio.worlds.sidewalk.drivers import (
     CorrectionalDriver,
     ExpertDriver,
@@ -28,12 +28,12 @@ from drivestudio.worlds.sidewalk.drivers import (
 from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
 from drivestudio.worlds.sidewalk.video import Recorder
+from sim.sidewalk.config import SidewalkConfig, StereoConfig
 from sim.sidewalk.paths import load_path, preset_names
 
 if TYPE_CHECKING:
     from drivestudio.studio.kit import StudioKit
 
-DEFAULT_PATH = "park"
 
 
 # --- the plugin ----------------------------------------------------------------------------------------------------
@@ -41,72 +41,42 @@ class Plugin(base.Plugin):
     declaration = SIDEWALK
     expert_names = ("expert", "poor", "oracle")   # oracle: the expert, under the name `drive --shm` defaults to
 
-    def add_options(self, options: WorldOptions) -> None:
-        verb = options.verb
-        g = options.group("sidewalk world (--world sidewalk)")
-        if verb in ("render", "drive", "serve"):
-            options.add(self.name, g, "--path", help="path preset (park, sidewalk, forest), path file or "
-                        "procedural:SEED (default park)")
-            options.add(self.name, g, "--mode", choices=MODES, help="behavioural mode (default direct)")
-            options.add(self.name, g, "--obstacles",
-                        help="obstacles per 100 m (default 4), 'none', or an obstacle file")
-            options.add(self.name, g, "--path-width", type=finite(1.5, 3.0),
-                        help="path width [m], 1.5-3 (default: the path's)")
-        if verb in ("drive", "serve"):
-            options.add(self.name, g, "--operation", choices=OPERATIONS,
-                        help="expert, autonomous or correctional (default: expert for --model expert, correctional "
-                        "otherwise)")
-            options.add(self.name, g, "--rule", choices=RULES,
-                        help="the correction rule of correctional operation: safety (take over for leaving the path, "
-                        "an imminent collision, a stalled car; default) or strict (also for deviating from the "
-                        "expert)")
-        if verb in ("render", "generate"):
-            options.add(self.name, g, "--width", type=count(16, 4096), help="frame width [px] (sidewalk: 336)")
-            options.add(self.name, g, "--height", type=count(16, 4096), help="frame height [px] (sidewalk: 188)")
-            options.add(self.name, g, "--fov", type=finite(10.0, 150.0),
-                        help="vertical field of view [deg] (sidewalk: 56)")
-        if verb == "render":
-            options.add(self.name, g, "--warmup", type=non_negative(3600.0),
-                        help="simulated seconds the expert drives before the frame is taken")
-        if verb == "generate":
+    config_type = SidewalkConfig
+    verb_settings = {
+        "render": ("path", "mode", "obstacles", "path_width", "seed", "stereo.width", "stereo.height",
+                   "stereo.fov_deg"),
+        "drive": ("path", "mode", "obstacles", "path_width", "seed", "operation", "rule"),
+        "serve": ("path", "mode", "obstacles", "path_width", "seed", "operation", "rule"),
+        "generate": ("stereo.width", "stereo.height", "stereo.fov_deg"),
+    }
+
+    def add_options(self, options) -> None:
+        if options.verb == "generate":
+            g = options.group("sidewalk world (--world sidewalk)")
             options.add(self.name, g, "--modes", help="behavioural modes to cycle through, episode by episode (default "
                         "direct,follow,furtive)")
             options.add(self.name, g, "--paths", help="comma-separated paths: presets, files, procedural:SEED "
                         "(default: every preset plus --procedural procedural paths)")
-            options.add(self.name, g, "--procedural", type=count(0, 1000),
-                        help="procedural paths added to the default list (3)")
+            options.add(self.name, g, "--procedural", type=int, help="procedural paths added to the default list "
+                        "(3; 0-1000)")
             options.add(self.name, g, "--obstacles", help="obstacles per 100 m (default 4) or 'none'")
-            options.add(self.name, g, "--correctional", type=finite(0.0, 1.0),
-                        help="share of episodes driven by the poor driver under the correction rule (default 0)")
-            options.add(self.name, g, "--perturbed", type=finite(0.0, 1.0),
+            options.add(self.name, g, "--correctional", type=float,
+                        help="share of episodes driven by the poor driver under the correction rule, 0-1 (default 0)")
+            options.add(self.name, g, "--perturbed", type=float,
                         help="share of the other episodes whose expert's steering is knocked aside now and then, "
-                        "its recoveries labelled (default 0; docs/sidewalk.md)")
+                        "its recoveries labelled, 0-1 (default 0; docs/sidewalk.md)")
 
     # --- worlds ----------------------------------------------------------------------------------------------------
-    def _stereo(self, args):
-        from sim.sidewalk.stereo import StereoConfig, with_size  # lazy: the renderer, not for --help
-        return with_size(StereoConfig(), getattr(args, "width", None), getattr(args, "height", None),
-                         getattr(args, "fov", None))
+    def world(self, config: SidewalkConfig):
+        from sim.sidewalk.world import SidewalkWorld  # lazy: the renderer, not for --help
+        return SidewalkWorld(config)
 
-    @staticmethod
-    def _check_renderer(args) -> None:
-        if getattr(args, "renderer", "tiny") == "egl":
-            raise UsageError("the sidewalk world paints its frames with OpenCV (sim/sidewalk/painter.py); "
-                             "--renderer egl does not apply to it")
-
-    def world(self, args, render: bool):
-        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # lazy: the renderer, not for --help
-        self._check_renderer(args)
-        with one_line():
-            return SidewalkWorld(SidewalkConfig(path=args.path or DEFAULT_PATH, path_width=args.path_width,
-                                                seed=args.seed, mode=args.mode or "direct",
-                                                obstacles=obstacles_value(args.obstacles), stereo=self._stereo(args),
-                                                render=render))
-
-    def render(self, args) -> tuple[dict, dict]:
-        with self.world(args, render=False) as world:
-            if args.warmup:
-                run_loop(world, in_process(ExpertDriver()), args.warmup, render=False, when_lost="recover")
+    def render(self, config: SidewalkConfig, warmup: float = 0.0, scenario: str | None = None) -> tuple[dict, dict]:
+        if scenario:
+            raise UsageError("a scenario file describes a highway scene (--world highway)")
+        with self.world(replace(config, render=False)) as world:
+            if warmup:
+                run_loop(world, in_process(ExpertDriver()), warmup, render=False, when_lost="recover")
             obs = world.observe(render=True)
             truth = {**obs.truth, "t": obs.t, "path": world.path.ref, "style": world.path.style, "seed": world.seed,
                      "time_of_day": world.renderer.look.time, "stereo": world.config.stereo.describe()}
@@ -121,12 +91,15 @@ class Plugin(base.Plugin):
         predictor = load_predictor_for(model, self.name, device)
         return DirectDriver(predictor, declaration or self.declaration, smooth=True)
 
-    def operation(self, args) -> str:
-        return getattr(args, "operation", None) or ("expert" if getattr(args, "model", None) in ("expert", "oracle")
-                                                    else "correctional")
+    @staticmethod
+    def operation(config: SidewalkConfig, spec: DriverSpec | None) -> str:
+        """The configuration's operation mode, or by default expert for the expert and correctional for any other
+        driver (None: one that attaches over the bridge)."""
+        expert = spec is not None and spec.source in ("expert", "oracle")
+        return config.operation or ("expert" if expert else "correctional")
 
-    def supervisor(self, world, args):
-        return Supervisor(world, self.operation(args), getattr(args, "rule", None) or "safety")
+    def supervisor(self, world, config: SidewalkConfig, spec: DriverSpec | None):
+        return Supervisor(world, self.operation(config, spec), config.rule)
 
     def metrics(self, world):
         return Metrics(world)
@@ -136,10 +109,10 @@ class Plugin(base.Plugin):
             return super().recorder(world, path, label)
         return Recorder(path, world, label)
 
-    def describe_run(self, world, args) -> dict:
+    def describe_run(self, world, config: SidewalkConfig, spec: DriverSpec | None) -> dict:
         return {"path": world.path.ref, "path_length_m": round(world.path.length, 1),
                 "path_width_m": world.path.width, "style": world.path.style, "mode": world.mode,
-                "operation": self.operation(args), "rule": getattr(args, "rule", None) or "safety",
+                "operation": self.operation(config, spec), "rule": config.rule,
                 "obstacles": len(world.layout.obstacles), "seed": world.seed}
 
     def studio(self) -> StudioKit:
@@ -156,20 +129,31 @@ class Plugin(base.Plugin):
         return overlay_error(record, estimate)
 
     # --- datasets ------------------------------------------------------------------------------------------------
-    def generate_options(self, args) -> dict:
-        self._check_renderer(args)
-        modes = mode_list(args.modes)
-        density = obstacles_value(args.obstacles)
+    def generate_options(self, config: SidewalkConfig, plan: dict) -> dict:
+        if plan.get("renderer") == "egl":
+            raise UsageError("the sidewalk world paints its frames with OpenCV (sim/sidewalk/painter.py); "
+                             "--renderer egl does not apply to it")
+        modes = mode_list(plan.get("modes"))
+        density = obstacles_value(plan.get("obstacles"))
         if isinstance(density, str):
             raise UsageError("generate takes --obstacles as a density per 100 m or 'none' (an obstacle file belongs "
                              "to one path: use drive or render)")
-        paths = [t.strip() for t in (args.paths or "").split(",") if t.strip()]
-        if args.paths is not None and not paths:
+        paths = [t.strip() for t in (plan.get("paths") or "").split(",") if t.strip()]
+        if plan.get("paths") is not None and not paths:
             raise UsageError("--paths names no path")
-        stereo = self._stereo(args)
-        options = {"modes": modes, "paths": paths, "procedural": 3 if args.procedural is None else args.procedural,
-                   "obstacles": density, "correctional": args.correctional or 0.0,
-                   **({"perturbed": args.perturbed} if args.perturbed else {}),
+        procedural = 3 if plan.get("procedural") is None else plan["procedural"]
+        if not 0 <= procedural <= 1000:
+            raise UsageError(f"--procedural must be an integer from 0 to 1000, got {procedural}")
+        shares = {k: plan.get(k) or 0.0 for k in ("correctional", "perturbed")}
+        for k, v in shares.items():
+            if not math.isfinite(v):
+                raise UsageError(f"--{k}: must be a finite number, got {v}")
+            if not 0.0 <= v <= 1.0:
+                raise UsageError(f"--{k}: must be in [0, 1], got {v:g}")
+        stereo = config.stereo
+        options = {"modes": modes, "paths": paths, "procedural": procedural, "obstacles": density,
+                   "correctional": shares["correctional"],
+                   **({"perturbed": shares["perturbed"]} if shares["perturbed"] else {}),
                    "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg}
         with one_line():
             for ref in self.path_list(options, 0):   # a bad path fails here, in one line, before any work
@@ -209,8 +193,7 @@ class Plugin(base.Plugin):
         return out
 
     def episode(self, ep: Episode, options: dict, renderer: str):
-        from sim.sidewalk.stereo import StereoConfig  # lazy: the renderer, not for --help
-        from sim.sidewalk.world import SidewalkConfig, SidewalkWorld  # lazy: as above
+        from sim.sidewalk.world import SidewalkWorld  # lazy: the renderer, not for --help
         p = ep.params
         stereo = StereoConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         world = SidewalkWorld(SidewalkConfig(path=p["path"], seed=ep.seed, mode=p["mode"],

@@ -7,9 +7,9 @@ outside lane changes (RouteMetrics below).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -27,6 +27,7 @@ from drivestudio.errors import RunError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
+from sim.highway.config import WorldConfig
 
 BLOCKED_SECONDS = 60.0    # [s] a host car that drove less than BLOCKED_METRES in this long is blocked ...
 BLOCKED_METRES = 10.0     # [m] ... and its route ends (CARLA ends a route whose agent is blocked, too)
@@ -155,16 +156,13 @@ class RouteWorld:
 
 
 def world_for(route: Route, renderer: str = "tiny", inset: str = ""):
-    """The route's world, built as `drive` builds it (the highway plugin's defaults) at the route's start lane, with
-    the inset (the rear-view mirror, the side views) of a model that learned one."""
-    from drivestudio import worlds  # lazy: the plugin registry loads the worlds, only in a route's process
+    """The route's world: the highway's configuration (its defaults, as `drive` has them) of the route's track,
+    lanes, seed, cars and start lane, with the inset (the rear-view mirror, the side views) of a model that learned
+    one."""
     from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
     from sim.mirror import inset_options  # lazy: with the world
-    ns = argparse.Namespace(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
-                            cars=route.cars, renderer=renderer, start_speed=None, width=None, height=None, fov=None,
-                            **inset_options(inset))
-    plugin: Any = worlds.get("highway")   # the highway plugin: its config() builds the WorldConfig
-    return World(plugin.config(ns, render=True, start_lane=route.start_lane))
+    return World(WorldConfig(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
+                             cars=route.cars, renderer=renderer, start_lane=route.start_lane, **inset_options(inset)))
 
 
 # --- drivers --------------------------------------------------------------------------------------------------
@@ -254,7 +252,7 @@ def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, sec
     cmd = _driver_command(name, model, opts.device) + ["--stats-out", str(stats)]
     reason = "error"
     with WorldEndpoint(name, world.declaration, lockstep=True) as ep:
-        proc = popen(cmd, stdout=subprocess.DEVNULL, stderr=log)   # dies with this worker, however it ends
+        proc = popen(cmd, signal.SIGTERM, stdout=subprocess.DEVNULL, stderr=log)   # ends with this worker
         try:
             _wait_for_driver(ep, 120.0, proc)
             exchange = ShmExchange(ep)
