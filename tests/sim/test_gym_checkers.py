@@ -5,6 +5,7 @@ worlds keep their declared command, as every driver and the bridge send it; gymn
 removes the warning, checked below) and calls the sidewalk's stereo pair (2, height, width, 3) an unconventional
 shape (observation="both" gives the two images apart). Nothing else may warn.
 """
+import gc
 import warnings
 
 import gymnasium as gym
@@ -29,7 +30,9 @@ def private_cache(tmp_path, monkeypatch):
 
 
 def checked(env) -> list[str]:
-    """Both checkers on env; the warnings they raised."""
+    """Both checkers on env; the warnings they raised (not those of what an earlier test in this process left to
+    the garbage collector: an unclosed pipe of a process it started)."""
+    gc.collect()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env.unwrapped)        # makes a second world for its determinism test: two highways at once
