@@ -7,20 +7,32 @@ import os
 import sys
 
 from core.signals import Terminated
+from drivestudio.commands.parsing import Parser
 from drivestudio.errors import input_errors, runtime_errors
-from drivestudio.parsing import Parser
 
-VERBS = ("probe", "render", "generate", "stats", "train", "evaluate", "overlay", "serve", "drive", "benchmark",
-         "aggregate", "recipe", "autonomy", "study", "export", "demo", "studio")
+# the verbs that serve every world (--world where it matters); a world's own verbs are its Plugin's `verbs`
+VERBS = ("render", "generate", "stats", "train", "evaluate", "overlay", "ensemble", "export", "serve", "drive",
+         "studio", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = Parser(prog="drivestudio", description="Headless driving world with exact DeepDriving "
-                     "affordances, the models that read them and the loop that drives from them.")
+    from drivestudio import worlds  # lazy: `import drivestudio.cli` loads no world
+    plugins = worlds.all_plugins()
+    own = "\n".join(f"  {p.name + ':':<10}{', '.join(p.verbs)}" for p in plugins if p.verbs)
+    parser = Parser(prog="drivestudio", formatter_class=argparse.RawDescriptionHelpFormatter,
+                    description="Headless driving world with exact DeepDriving affordances, the models that read "
+                                "them and the loop that drives from them.",
+                    epilog=f"verbs of every world: {', '.join(VERBS)}\nverbs of one world:\n{own}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB", parser_class=Parser)
     sub.required = True
     for verb in VERBS:
         importlib.import_module(f"drivestudio.commands.{verb}").register(sub)
+    for plugin in plugins:
+        for verb in plugin.verbs:
+            importlib.import_module(f"drivestudio.commands.{verb}").register(sub)
+            sub.choices[verb].world = plugin.name   # type: ignore[attr-defined]
+            action = next(a for a in sub._choices_actions if a.dest == verb)
+            action.help = f"({plugin.name}) {action.help}"
     return parser
 
 

@@ -1,7 +1,7 @@
 """Make one checkpoint of several trained regressors of a world (perception/ensemble.py): each reads the same
 frames, the closest gap any of them reads is believed, every other output is their mean.
 
-    python -m drivestudio.ensemble --out runs/ensemble.pt runs/a.pt runs/b.pt [--gaps mean]
+    drivestudio ensemble --out runs/ensemble.pt runs/a.pt runs/b.pt [--gaps mean]
 
 The members must read the same input (camera, size, earlier frames, frame inset) of one world; each keeps its own
 input statistics. They may estimate different outputs: the ensemble estimates the union, each output combined over
@@ -12,14 +12,10 @@ status 2) before anything is written.
 from __future__ import annotations
 
 import copy
-import sys
 
-from core.files import check_output
-from drivestudio.errors import input_errors, refuse
-from drivestudio.parsing import Parser
-from perception.checkpoint import CheckpointError, save_checkpoint
-from perception.ensemble import COMBINE, GAP_PREFIX
-from perception.models import Regressor, declaration_of, describe, family_title, load_model
+from perception.checkpoint import CheckpointError
+from perception.ensemble import GAP_PREFIX
+from perception.models import Regressor, declaration_of, family_title, load_model
 
 SAME_INPUT = ("channels", "height", "width", "instants", "cameras", "scaling", "inset")
 
@@ -71,27 +67,3 @@ def make(paths: list[str], combine: str = "min") -> dict:
     for member, net in zip(model.net.get_submodule("members").children(), nets):
         member.load_state_dict(net.net.state_dict())
     return {"spec": spec, "state_dict": model.state_dict()}
-
-
-def main(argv=None) -> int:
-    ap = Parser(prog="python -m drivestudio.ensemble",
-                description="Make one checkpoint of several trained regressors of a world: the closest gap any "
-                            "of them reads, the mean of every other output, each over the members that estimate "
-                            "it (docs/aggregation.md).")
-    ap.add_argument("checkpoints", nargs="+", help="the members' checkpoint files (two or more)")
-    ap.add_argument("--out", required=True, help="the ensemble's checkpoint file to write (.pt)")
-    ap.add_argument("--gaps", choices=COMBINE, default="min",
-                    help="the gaps: the closest reading (min, the default) or the mean")
-    args = ap.parse_args(argv)
-    try:
-        out = check_output(args.out, (".pt",), "checkpoint")
-        payload = make(args.checkpoints, args.gaps)
-        save_checkpoint(out, payload)
-    except input_errors() as e:
-        return refuse(ap.prog, e)
-    print(f"wrote {out}: {describe(payload['spec'])}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -50,7 +50,7 @@ def _worlds_kept():
 def run_main(capfd, *argv, cwd: str | Path | None = None, env: dict[str, str] | None = None, entry=None) -> Run:
     """`drivestudio *argv` in this process, in `cwd`, with `env` added to the environment; everything it changed
     (cwd, environment, the worlds it learnt, signal handlers, torch's thread count) is put back afterwards. `entry`:
-    another tool's main(argv) (`python -m drivestudio.ensemble`'s), instead of drivestudio's."""
+    another tool's main(argv) (`drivestudio ensemble`'s), instead of drivestudio's."""
     from drivestudio.cli import main
     main = entry or main
     capfd.readouterr()                      # what came before is not this run's

@@ -9,14 +9,14 @@ from pathlib import Path
 from core.files import check_output_dir
 from drivestudio.checkpoints import check_checkpoint_path, check_device
 from drivestudio.commands.common import add_device_option
+from drivestudio.commands.numbers import count, finite, seed
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, finite, seed
 from perception.memory import check_batch
 
 
 def register(sub) -> None:
     p = sub.add_parser("aggregate", help="DAgger rounds: the model drives, its visited frames get exact labels, "
-                                         "the sets are merged and the model fine-tuned (highway)",
+                                         "the sets are merged and the model fine-tuned",
                        description="Closed-loop data aggregation with exact labels. Each round drives training "
                                    "tracks (never a benchmark route) with the expert and the model mixed step by step "
                                    "(the expert's share beta x decay^(round-1)), records every visited frame with its "

@@ -8,8 +8,8 @@ from core.files import check_output_dir
 from core.signals import exit_on_sigterm
 from drivestudio.checkpoints import check_checkpoint_path, check_device, load_predictor_for
 from drivestudio.commands.common import add_device_option, run_dir
+from drivestudio.commands.numbers import count, finite, positive, seed
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, finite, positive, seed
 from drivestudio.worlds.sidewalk import autonomy
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_OBSTACLES, HELD_OUT_PATH
 

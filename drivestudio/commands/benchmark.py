@@ -39,8 +39,8 @@ from pathlib import Path
 from core.files import check_output, check_output_dir
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
+from drivestudio.commands.numbers import count
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count
 
 
 def register(sub) -> None:

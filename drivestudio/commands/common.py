@@ -10,9 +10,9 @@ from core.files import make_dir
 from core.inputs import check_keys, read_json
 from core.settings import check, entries, from_json
 from drivestudio import worlds
+from drivestudio.commands.numbers import seed as seed_type
 from drivestudio.commands.world_options import WorldOptions, refuse_other_worlds
 from drivestudio.errors import UsageError
-from drivestudio.numbers import seed as seed_type
 
 DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 

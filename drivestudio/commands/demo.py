@@ -10,7 +10,7 @@ from pathlib import Path
 
 from core.files import make_dir
 from drivestudio.cli import main
-from drivestudio.numbers import count
+from drivestudio.commands.numbers import count
 from drivestudio.outputs import write_text
 
 

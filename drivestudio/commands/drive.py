@@ -24,10 +24,10 @@ from drivestudio.commands.common import (
     run_dir,
     world_config,
 )
+from drivestudio.commands.numbers import positive
 from drivestudio.commands.studio import add_view_options, bind_view
 from drivestudio.driver_spec import parse_driver
 from drivestudio.errors import UsageError
-from drivestudio.numbers import positive
 
 DEFAULT_SECONDS = 60.0
 MAX_SECONDS = 10 * 24 * 3600.0

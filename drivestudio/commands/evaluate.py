@@ -10,7 +10,7 @@ from core.files import check_output, check_output_dir
 from drivestudio import worlds
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
-from drivestudio.numbers import count
+from drivestudio.commands.numbers import count
 from drivestudio.outputs import write_json, write_png, write_text
 from perception.memory import check_batch
 

@@ -7,7 +7,7 @@ import time
 
 from core.files import check_output_dir
 from drivestudio.commands.common import add_world_options, plugin_for, world_config
-from drivestudio.numbers import count, non_negative
+from drivestudio.commands.numbers import count, non_negative
 
 
 def register(sub) -> None:

@@ -12,8 +12,8 @@ from core.files import check_output, check_output_dir
 from drivestudio import worlds
 from drivestudio.checkpoints import check_device, load_predictor_for
 from drivestudio.commands.common import add_device_option
+from drivestudio.commands.numbers import count, seed
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, seed
 from drivestudio.outputs import VideoWriter, write_png
 
 if TYPE_CHECKING:

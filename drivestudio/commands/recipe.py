@@ -10,10 +10,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from core.files import check_output_dir, make_dir
+from drivestudio.commands.numbers import count
 from drivestudio.commands.recipe_extended import EXTENDED, EXTENDED_QUICK, Extended, extended_recipe
 from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step, fingerprints
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count
 from drivestudio.outputs import write_text
 
 

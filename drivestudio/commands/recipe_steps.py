@@ -21,10 +21,10 @@ class Steps:
         self.t_start = time.perf_counter()
         self.log: list[str] = []
 
-    def header(self, title: str, argv_lines: list[list], program: str = "drivestudio") -> float:
+    def header(self, title: str, argv_lines: list[list]) -> float:
         print(f"\n== {title}  ({(time.perf_counter() - self.t_start) / 60:.1f} min so far)", flush=True)
         for argv in argv_lines:
-            line = program + " " + " ".join(map(str, argv))
+            line = "drivestudio " + " ".join(map(str, argv))
             print("$ " + line, flush=True)
             self.log.append(line)
         return time.perf_counter()
@@ -61,7 +61,7 @@ def ensemble_step(steps: Steps, title: str, members: list[Path], ensemble: Path)
     """The members as one ensemble, unless `ensemble` is newer than every member (made before)."""
     if ensemble.is_file() and all(m.stat().st_mtime <= ensemble.stat().st_mtime for m in members):
         return
-    t0 = steps.header(title, [["-m", "drivestudio.ensemble", "--out", ensemble, *members]], program="python")
+    t0 = steps.header(title, [["ensemble", "--out", ensemble, *members]])
     make_ensemble(members, ensemble)
     steps.done(t0)
 

@@ -5,8 +5,8 @@ from pathlib import Path
 
 from core.files import check_output
 from drivestudio.commands.common import add_world_options, plugin_for, world_config
+from drivestudio.commands.numbers import non_negative
 from drivestudio.errors import UsageError
-from drivestudio.numbers import non_negative
 from drivestudio.outputs import write_json, write_png
 
 

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from core.files import check_output
 from drivestudio.commands.common import add_world_options, plugin_for, run_dir, world_config
+from drivestudio.commands.numbers import positive
 from drivestudio.commands.studio import add_view_options, bind_view
-from drivestudio.numbers import positive
 
 
 def register(sub) -> None:

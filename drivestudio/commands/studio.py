@@ -18,8 +18,8 @@ from pathlib import Path
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio.checkpoints import check_checkpoint_path, check_device
 from drivestudio.commands.common import add_device_option, add_world_options, plugin_for, run_dir, world_config
+from drivestudio.commands.numbers import count, positive
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, positive
 
 LOCALHOST = "127.0.0.1"
 DEFAULT_PORT = 8765

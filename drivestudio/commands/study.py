@@ -7,8 +7,8 @@ from core.signals import exit_on_sigterm
 from drivestudio.checkpoints import check_device
 from drivestudio.cli import main
 from drivestudio.commands.common import add_device_option
+from drivestudio.commands.numbers import count, finite, positive, seed
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, finite, positive, seed
 from drivestudio.worlds.sidewalk.study import ROUND_LOOPS, Study, StudyConfig, config_from_args
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.paths import load_path

@@ -7,8 +7,8 @@ from core import worlds
 from core.files import check_output
 from drivestudio.checkpoints import check_checkpoint, check_device
 from drivestudio.commands.common import add_device_option
+from drivestudio.commands.numbers import count, finite, positive, seed
 from drivestudio.errors import UsageError
-from drivestudio.numbers import count, finite, positive, seed
 from perception.memory import check_batch
 
 # The options each trainer reads (perception/train_sgd.py, multinet.py, gist_fit.py); any other one given with a

@@ -62,6 +62,8 @@ class Plugin:
     config_type: type = NoConfig
     # per verb (render, drive, serve, generate), the settings of config_type it shows, by dotted path
     verb_settings: Mapping[str, tuple[str, ...]] = MappingProxyType({})
+    # the verbs that serve this world alone (modules of drivestudio/commands/), listed under it in --help
+    verbs: tuple[str, ...] = ()
 
     def add_options(self, options) -> None:
         """Options of this world that are not settings of its configuration (generate's plan), added for

@@ -205,18 +205,16 @@ def test_drawing_is_deterministic_and_follows_the_documented_rule():
     assert a[0]["lanes"] == lanes and a[0]["name"].startswith("r01-p") and a[0]["seconds"] == 240.0
 
 
-def test_the_draw_command_writes_a_suite_and_refuses_bad_input_in_one_line(tmp_path):
+def test_the_suite_command_writes_a_suite_and_refuses_bad_input_in_one_line(tmp_path, run_cli):
     out = tmp_path / "r.json"
-    cmd = [sys.executable, "-m", "drivestudio.worlds.highway.benchmark.draw"]
-    r = subprocess.run(cmd + ["--seed", "3", "--routes", "2", "--out", str(out)], capture_output=True, text=True)
+    r = run_cli("suite", "--seed", "3", "--routes", "2", "--out", str(out))
     assert r.returncode == 0, r.stderr
     suite = load_suite(out)
     assert suite.name == "r" and suite.generator["seed"] == 3 and len(suite.routes) == 2
     for args, message in ((["--seed", "3", "--lanes", "3", "1"], "LO <= HI"), (["--seed", "x"], "--seed"),
                           (["--seed", "3", "--out", str(tmp_path / "r.txt")], "must end in .json"),
                           (["--seed", "3", "--lanes", "1", "5"], "--lanes")):
-        r = subprocess.run(cmd + (args if "--out" in args else args + ["--out", str(tmp_path / "x.json")]),
-                           capture_output=True, text=True)
+        r = run_cli("suite", *(args if "--out" in args else args + ["--out", str(tmp_path / "x.json")]))
         assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
     assert not (tmp_path / "x.json").exists()
 

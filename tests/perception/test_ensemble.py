@@ -80,14 +80,13 @@ def test_members_that_read_otherwise_are_refused(members, tmp_path):
 
 
 def test_the_command_refuses_in_one_line_and_writes_nothing(members, run_cli, tmp_path):
-    from drivestudio.ensemble import main
     out = tmp_path / "e.pt"
     for args in ([str(members[0])], [str(members[0]), str(tmp_path / "missing.pt")],
                  [str(members[0]), str(members[0])]):
-        r = run_cli("--out", out, *args, entry=main)    # `python -m drivestudio.ensemble`, in this process
+        r = run_cli("ensemble", "--out", out, *args)    # `drivestudio ensemble`, in this process
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "error" in r.stderr, r.stderr
         assert not out.exists()
-    r = run_cli("--out", out, *members, entry=main)
+    r = run_cli("ensemble", "--out", out, *members)
     assert r.returncode == 0 and out.exists() and "Ensemble of 2" in r.stdout, r.stderr
 
 

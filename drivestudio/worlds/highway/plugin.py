@@ -40,6 +40,7 @@ class Plugin(base.Plugin):
     declaration = HIGHWAY
     expert_names = ("oracle", "oracle-extended", "expert")
     filters = FILTERS
+    verbs = ("probe", "benchmark", "suite", "aggregate", "recipe", "ppo")
 
     verb_settings = {
         "render": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views",

@@ -1,6 +1,6 @@
 """Train a reinforcement-learning driver of the highway with Stable-Baselines3 (the optional `rl` extra).
 
-    python -m drivestudio.worlds.highway.rl_train --minutes 18 --out runs/ppo-highway.zip
+    drivestudio ppo --minutes 18 --out runs/ppo-highway.zip
     drivestudio benchmark --model runs/ppo-highway.zip          # its row of the leaderboard, beside the oracle's
 
 PPO on drivestudio/Highway-v0's affordance observation (the 14 indicators and the speed: no pixels, so nothing is
@@ -15,8 +15,6 @@ would otherwise collect the off_road term for the rest of a long episode and tea
 """
 from __future__ import annotations
 
-import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -137,28 +135,3 @@ def train(minutes: float, steps: int, out: Path, seed: int = 0, log=print) -> di
     return {"steps": int(model.num_timesteps), "wall_s": round(wall, 1), "episodes": len(returns),
             "steps_per_s": round(model.num_timesteps / wall, 1),
             "mean_return_last_20": round(float(np.mean(recent)), 1) if recent else None, "model": str(out)}
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m drivestudio.worlds.highway.rl_train", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--minutes", type=float, default=18.0, help="wall-time budget (default 18)")
-    ap.add_argument("--steps", type=int, default=10_000_000, help="environment steps at most (default: no cap)")
-    ap.add_argument("--out", type=Path, default=Path("runs/ppo-highway.zip"), help="the saved model")
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args(argv)
-    if not (args.minutes > 0 and args.steps > 0):
-        ap.error("--minutes and --steps must be positive")
-    try:
-        import stable_baselines3  # noqa: F401  the optional dependency, checked before anything starts
-    except ImportError:
-        print(f"{ap.prog}: error: Stable-Baselines3 is not installed (pip install 'drivestudio[rl]')",
-              file=sys.stderr)
-        return 2
-    result = train(args.minutes, args.steps, args.out, args.seed)
-    print(result)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

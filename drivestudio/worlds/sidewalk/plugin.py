@@ -42,6 +42,7 @@ class Plugin(base.Plugin):
     expert_names = ("expert", "poor", "oracle")   # oracle: the expert, under the name `drive --shm` defaults to
 
     config_type = SidewalkConfig
+    verbs = ("autonomy", "study")
     verb_settings = {
         "render": ("path", "mode", "obstacles", "path_width", "seed", "stereo.width", "stereo.height",
                    "stereo.fov_deg"),

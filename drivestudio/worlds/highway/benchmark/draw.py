@@ -1,7 +1,7 @@
 """Suites nobody picked by hand: every route drawn from one generator seed (docs/benchmark.md, "Random suites").
 
-    python -m drivestudio.worlds.highway.benchmark.draw --seed 19 --out assets/suites/random.json
-    python -m drivestudio.worlds.highway.benchmark.draw --seed 20 --routes 10 --out runs/random-20.json
+    drivestudio suite --seed 19 --out assets/suites/random.json
+    drivestudio suite --seed 20 --routes 10 --out runs/random-20.json
 
 Route i (i = 1 .. routes) of the suite drawn from seed S; one generator, numpy.random.default_rng(S), draws in
 this order for each route:
@@ -21,16 +21,9 @@ that no route was swapped after it was driven (tests/drivestudio/test_benchmark.
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 
-from core.files import atomic_write, check_output
-from core.inputs import show_path
-from drivestudio.errors import input_errors, refuse
-from drivestudio.numbers import count, finite
-from drivestudio.parsing import Parser
-from drivestudio.worlds.highway.benchmark.suite import parse_suite
 from sim.track import TrackError, load_track
 
 TRACK_SEEDS = (3, 1_000_000)    # procedural track seeds are drawn from [3, 1e6) ...
@@ -79,44 +72,10 @@ def generator(seed: int, routes: int = ROUTES, lanes: tuple[int, int] = LANES, c
 def suite_text(name: str, gen: dict) -> str:
     """The suite file, one route per line (as the shipped suites are written)."""
     routes = draw_routes(gen["seed"], gen["routes"], tuple(gen["lanes"]), tuple(gen["cars"]), gen["seconds"])
-    description = (f"{gen['routes']} routes drawn from generator seed {gen['seed']} by `python -m "
-                   f"drivestudio.worlds.highway.benchmark.draw --seed {gen['seed']}` (docs/benchmark.md, random "
-                   f"suites): {gen['lanes'][0]}-{gen['lanes'][1]} lanes, {gen['cars'][0]}-{gen['cars'][1]} AI cars, "
-                   f"procedural tracks that generate's training plans never drive; nobody chose a route.")
+    description = (f"{gen['routes']} routes drawn from generator seed {gen['seed']} by `drivestudio suite --seed "
+                   f"{gen['seed']}` (docs/benchmark.md, random suites): {gen['lanes'][0]}-{gen['lanes'][1]} lanes, "
+                   f"{gen['cars'][0]}-{gen['cars'][1]} AI cars, procedural tracks that generate's training plans "
+                   f"never drive; nobody chose a route.")
     return "\n".join(["{", f'  "name": {json.dumps(name)},', f'  "description": {json.dumps(description)},',
                       f'  "generator": {json.dumps(gen)},', '  "routes": [',
                       ",\n".join("    " + json.dumps(r) for r in routes), "  ]", "}", ""])
-
-
-def main(argv=None) -> int:
-    ap = Parser(prog="python -m drivestudio.worlds.highway.benchmark.draw",
-                 description="Draw a benchmark suite of random routes from a generator seed.")
-    ap.add_argument("--seed", type=count(0, 2**32 - 1), required=True, help="the generator seed")
-    ap.add_argument("--routes", type=count(1, 200), default=ROUTES, help=f"routes (default {ROUTES})")
-    ap.add_argument("--lanes", type=count(1, 4), nargs=2, default=LANES, metavar=("LO", "HI"),
-                    help=f"lane counts, from LO to HI (default {LANES[0]} {LANES[1]})")
-    ap.add_argument("--cars", type=count(0, 300), nargs=2, default=CARS, metavar=("LO", "HI"),
-                    help=f"AI cars per route, from LO to HI (default {CARS[0]} {CARS[1]})")
-    ap.add_argument("--seconds", type=finite(1.0, 7200.0), default=SECONDS,
-                    help=f"simulated seconds per route (default {SECONDS:g})")
-    ap.add_argument("--name", help="the suite's name (default: the output file's name)")
-    ap.add_argument("--out", required=True, help="the suite file to write (.json)")
-    args = ap.parse_args(argv)
-    errors: tuple[type[BaseException], ...] = (ValueError, *input_errors())
-    try:
-        if args.lanes[0] > args.lanes[1] or args.cars[0] > args.cars[1]:
-            raise ValueError("--lanes and --cars take LO HI with LO <= HI")
-        out = check_output(args.out, (".json",), "suite")
-        name = args.name or out.stem
-        text = suite_text(name, generator(args.seed, args.routes, tuple(args.lanes), tuple(args.cars),
-                                          args.seconds))
-        parse_suite(json.loads(text), show_path(out), out.resolve().parent)   # a name or route it cannot drive
-        atomic_write(out, text.encode())
-    except errors as e:
-        return refuse(ap.prog, e)
-    print(f"wrote {out}: {args.routes} routes drawn from seed {args.seed}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,50 @@
+"""Verbs belong to their world: the generic verbs serve every world, a world's own verbs are its Plugin's and are
+listed under it in --help; the command line's arguments object stays in the command layer."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from drivestudio import worlds
+from drivestudio.cli import VERBS, build_parser
+
+REPO = Path(__file__).resolve().parents[2]
+LIBRARY = ("core", "sim", "perception", "controller", "shm_bridge", "drivestudio")
+
+
+def _verbs() -> dict:
+    return next(a for a in build_parser()._subparsers._group_actions if a.dest == "verb").choices  # type: ignore
+
+
+def test_each_worlds_own_verbs_are_registered_and_listed_under_it():
+    verbs = _verbs()
+    text = build_parser().format_help()
+    for plugin in worlds.all_plugins():
+        for verb in plugin.verbs:
+            assert verbs[verb].world == plugin.name
+            assert re.search(rf"^\s+{verb}\s+\({plugin.name}\)", text, re.M), verb
+        if plugin.verbs:
+            assert re.search(rf"^  {plugin.name}:\s+{re.escape(', '.join(plugin.verbs))}$", text, re.M)
+    assert {"benchmark", "recipe", "probe", "aggregate", "suite", "ppo"} <= set(worlds.get("highway").verbs)
+    assert {"autonomy", "study"} == set(worlds.get("sidewalk").verbs)
+
+
+def test_a_generic_verb_is_no_worlds_and_none_is_listed_twice():
+    own = [v for p in worlds.all_plugins() for v in p.verbs]
+    assert len(own) == len(set(own)) and not set(own) & set(VERBS)
+    assert all(not hasattr(_verbs()[v], "world") for v in VERBS)
+
+
+def test_no_module_below_the_command_layer_reads_the_command_line():
+    """The library takes typed configurations and driver specs; argparse and its namespace stay in
+    drivestudio/commands/ and drivestudio/cli.py."""
+    offenders = []
+    for package in LIBRARY:
+        for path in (REPO / package).rglob("*.py"):
+            rel = path.relative_to(REPO).as_posix()
+            if rel.startswith("drivestudio/commands/") or rel == "drivestudio/cli.py":
+                continue
+            text = path.read_text()
+            if re.search(r"^\s*(import argparse|from argparse)", text, re.M) or "getattr(args" in text:
+                offenders.append(rel)
+    assert offenders == []
