@@ -12,9 +12,9 @@ import argparse
 import json
 from pathlib import Path
 
+from controller.highway.metrics import HighwayMetrics
 from drivestudio.loop import in_process, run_loop
 from drivestudio.worlds.highway.drivers import ChenDriver
-from drivestudio.worlds.highway.metrics import HighwayMetrics
 from sim.highway.world import World, WorldConfig
 
 
@@ -34,7 +34,7 @@ def main() -> None:
         with World(WorldConfig(track=args.track, lanes=args.lanes, cars=n, seed=0, render=False,
                                start_speed=15.0)) as world:
             driver = ChenDriver(None)   # the oracle
-            metrics = HighwayMetrics(world)
+            metrics = HighwayMetrics.of(world)
             run_loop(world, in_process(driver), args.seconds, render=False, metrics=metrics)
         r = metrics.report()
         driver_ms = sum(driver.timings.values()) / metrics.steps * 1e3

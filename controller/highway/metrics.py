@@ -1,11 +1,13 @@
-"""Closed-loop driving metrics: what a run achieved and where its time went.
+"""The highway's closed-loop metrics: what a run achieved and where its time went (the one place they are computed;
+the plugin's `metrics(world)` and the benchmark's routes use this class).
 
-Fed once per 10 Hz step with plain numbers from the ground truth (so it does not depend on the world):
-speed, the host car's lane and in-lane flag, collision / off-road flags, and the signed along-track gaps to
-the other cars in a stable order.
+Fed once per 10 Hz step, either with the world's observation (`observe`: its truth and flags, the gaps from the
+track's own `gap`) or with plain numbers (`update`): speed, the host car's lane and in-lane flag, collision /
+off-road flags, and the signed along-track gaps to the other cars in a stable order.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,9 +17,10 @@ STAGES = ("render", "transfer", "perception", "control", "physics", "traffic", "
 
 
 @dataclass
-class ClosedLoopMetrics:
+class HighwayMetrics:
     track_length: float   # [m]
     dt: float             # [s] one step
+    gap: Callable[[float, np.ndarray], np.ndarray] | None = field(default=None, repr=False)   # the track's (observe)
     steps: int = 0
     distance: float = 0.0          # [m]
     collisions: int = 0            # events: steps where a collision begins
@@ -32,6 +35,19 @@ class ClosedLoopMetrics:
     _colliding: bool = False
     _off_road: bool = False
     _gaps: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, world) -> HighwayMetrics:
+        """The metrics of a highway world (sim/highway/world.py): its track's length and gaps, its step."""
+        return cls(world.track.length, world.dt, world.track.gap)
+
+    def observe(self, obs) -> None:
+        """One step of the world's observation: the host car's truth, the collision and off-road flags."""
+        t = obs.truth
+        if len(t.cars) and self.gap is None:
+            raise ValueError("observing a world needs its track's gap: HighwayMetrics.of(world)")
+        gaps = self.gap(t.ego[3], t.cars[:, 3]) if len(t.cars) and self.gap is not None else np.zeros(0)
+        self.update(t.speed, t.lanes_left, t.in_lane, obs.collision, obs.off_road, gaps)
 
     def update(self, speed: float, lane: int, in_lane: bool, collision: bool, off_road: bool, gaps) -> None:
         self.steps += 1

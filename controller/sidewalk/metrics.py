@@ -4,16 +4,19 @@ Distance, mean speed, collisions (events: steps where a contact begins) and time
 obstacles met, the lead car's mean distance and its spread (follow), the mean distance to the nearer border while
 one is beside the car (furtive), the time the expert corrected, the contacts begun while the expert held the wheel
 (the correction rule acted too late if there are any), the take-overs and their seconds by the clause of the
-correction rule that caused them (`clauses`, filled in by whoever ran the rule), and percentage autonomy as
-Chowdhuri, Pankaj and Zipser define it (MultiNet, 2017): (1 - correction time / elapsed time) * 100.
+correction rule that caused them (from `correction`, which names the rule that ran, or set by whoever ran it), and
+percentage autonomy as Chowdhuri, Pankaj and Zipser define it (MultiNet, 2017): (1 - correction time / elapsed
+time) * 100. The one place they are computed: the plugin's `metrics(world)` is this class, fed with observations.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from dataclasses import field as dc_field
 
 import numpy as np
 
+from controller.sidewalk.correction import CorrectionRule
 from controller.sidewalk.experts import BORDER_CAP, GAP_CAP
 from core.worlds.sidewalk import MODES, SIDEWALK
 
@@ -41,8 +44,14 @@ class SidewalkMetrics:
     mode_steps: dict = dc_field(default_factory=lambda: {m: 0 for m in MODES})
     lead_gaps: list = dc_field(default_factory=list)
     border_gaps: list = dc_field(default_factory=list)
+    # the correction rule of a correctional run at report time (None: none ran), for `rule` and `clauses`
+    correction: Callable[[], CorrectionRule | None] | None = dc_field(default=None, repr=False)
     _prev: dict = dc_field(default_factory=lambda: {"collision": False, "off_path": False, "near": False,
                                                     "correcting": False})
+
+    def observe(self, obs) -> None:
+        """One step of the world's observation: its truth record."""
+        self.update(obs.record)
 
     def update(self, record) -> None:
         r = np.asarray(record, dtype=np.float64)
@@ -73,6 +82,9 @@ class SidewalkMetrics:
         self.stage_time[stage] = self.stage_time.get(stage, 0.0) + seconds
 
     def report(self) -> dict:
+        rule = self.correction() if self.correction is not None else None
+        if rule is not None:
+            self.rule, self.clauses = rule.rule, rule.tally.report(self.dt)
         t = self.steps * self.dt
         per_step = {k: (v / self.steps * 1e3 if self.steps else 0.0) for k, v in self.stage_time.items()}
         lead = np.array(self.lead_gaps)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from controller.highway.metrics import HighwayMetrics
 from core.worlds.highway import HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.driver_spec import DriverSpec
@@ -17,7 +18,6 @@ from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode
 from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, chen_driver
 from drivestudio.worlds.highway.filters import FILTERS
-from drivestudio.worlds.highway.metrics import HighwayMetrics
 from drivestudio.worlds.highway.overlays import overlay_record
 from drivestudio.worlds.highway.policy import PolicyDriver, is_policy, load_policy
 from drivestudio.worlds.highway.video import OverlayRecorder
@@ -135,7 +135,7 @@ class Plugin(base.Plugin):
         return supervise
 
     def metrics(self, world):
-        return HighwayMetrics(world)
+        return HighwayMetrics.of(world)
 
     @staticmethod
     def _estimate(estimate: dict | None):

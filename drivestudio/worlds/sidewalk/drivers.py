@@ -105,6 +105,13 @@ class Supervisor:
 SUPERVISORS: WeakKeyDictionary = WeakKeyDictionary()   # world -> its supervisor, for the metrics' report
 
 
+def correction_rule(world) -> CorrectionRule | None:
+    """The correction rule of the world's supervisor under correctional operation (None under any other), whose
+    take-overs by clause the world's metrics report."""
+    supervisor = SUPERVISORS.get(world)
+    return supervisor.rule if supervisor is not None and supervisor.operation == "correctional" else None
+
+
 class CorrectionalDriver:
     """In-process correctional operation for dataset episodes: the poor driver drives, the supervisor's rule lets
     the expert take over; the command returned is the one applied."""

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from controller.sidewalk import SidewalkMetrics
 from core.worlds.sidewalk import SIDEWALK
 from drivestudio.checkpoints import load_predictor_for
 from drivestudio.driver_spec import DriverSpec
@@ -24,8 +26,8 @@ from drivestudio.worlds.sidewalk.drivers import (
     PerturbedDriver,
     PoorDriver,
     Supervisor,
+    correction_rule,
 )
-from drivestudio.worlds.sidewalk.metrics import Metrics
 from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
 from drivestudio.worlds.sidewalk.video import Recorder
 from sim.sidewalk.config import SidewalkConfig, StereoConfig
@@ -103,7 +105,7 @@ class Plugin(base.Plugin):
         return Supervisor(world, self.operation(config, spec), config.rule)
 
     def metrics(self, world):
-        return Metrics(world)
+        return SidewalkMetrics(world.dt, correction=partial(correction_rule, world))
 
     def recorder(self, world, path, label: str):
         if not path:

@@ -1,9 +1,9 @@
 """One route driven by one model: the same loop as `drive` (drivestudio/loop.py's run_loop), in process or with
 the driver in its own process over the bridge, with the benchmark's metrics and crash clips.
 
-What a route measures comes from the truth only, so it is the same whatever drives: HighwayMetrics (collisions,
-off-road events, overtakes, distance) plus the lateral offset from the lane centre and the time on markings
-outside lane changes (RouteMetrics below).
+What a route measures comes from the truth only, so it is the same whatever drives: the highway's metrics
+(controller/highway/metrics.py: collisions, off-road events, overtakes, distance) plus the lateral offset from the
+lane centre and the time on markings outside lane changes (RouteMetrics below, which holds the highway's metrics).
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from controller.highway.metrics import HighwayMetrics
 from core.children import popen
 from core.worlds.highway import lane_centres
 from drivestudio.errors import RunError
@@ -48,9 +49,10 @@ class RunOptions:
 
 # --- metrics ---------------------------------------------------------------------------------------------------
 class RouteMetrics:
-    """The drive metrics (controller/highway/metrics.py through the highway plugin's HighwayMetrics) and, per step from
-    the truth, the host car's offset from its lane centre, its lane and whether it is on a marking; `report`
-    splits lane changes from the rest."""
+    """The highway's metrics (`base`: controller/highway/metrics.py's HighwayMetrics, as `drive` reports them) and
+    what only the benchmark reports, per step from the truth: the host car's offset from its lane centre, its lane
+    and whether it is on a marking; `report` is the base's report and then these columns, lane changes split from
+    the rest."""
 
     def __init__(self, world, base):
         self.base = base
@@ -199,12 +201,11 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
     from drivestudio.worlds.highway.benchmark.clips import (
         ClipRecorder,  # lazy: OpenCV video writing, only in a route's process
     )
-    from drivestudio.worlds.highway.metrics import HighwayMetrics  # lazy: only in a route's process
 
     world = world_for(route, opts.renderer, model.inset)
     t0 = time.perf_counter()
     try:
-        metrics = RouteMetrics(world, HighwayMetrics(world))
+        metrics = RouteMetrics(world, HighwayMetrics.of(world))
         recorder = ClipRecorder(world, route, model, clip_dir, opts if clip_dir is not None else
                                 RunOptions(clips=0))
         steps = [0]
