@@ -4,10 +4,7 @@ output is their mean."""
 from __future__ import annotations
 
 from core.files import check_output
-from drivestudio.ensemble import make
-from perception.checkpoint import save_checkpoint
-from perception.ensemble import COMBINE
-from perception.models import describe
+from drivestudio.errors import UsageError
 
 
 def register(sub) -> None:
@@ -17,12 +14,17 @@ def register(sub) -> None:
                                    "estimate it (docs/aggregation.md). The members must read the same input.")
     p.add_argument("checkpoints", nargs="+", help="the members' checkpoint files (two or more)")
     p.add_argument("--out", required=True, help="the ensemble's checkpoint file to write (.pt)")
-    p.add_argument("--gaps", choices=COMBINE, default="min",
-                   help="the gaps: the closest reading (min, the default) or the mean")
+    p.add_argument("--gaps", default="min", help="the gaps: the closest reading (min, the default) or the mean")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from drivestudio.ensemble import make  # lazy: torch, only when an ensemble is made
+    from perception.checkpoint import save_checkpoint  # lazy: torch
+    from perception.ensemble import COMBINE  # lazy: torch
+    from perception.models import describe  # lazy: torch
+    if args.gaps not in COMBINE:
+        raise UsageError(f"--gaps must be one of {', '.join(COMBINE)}, got {args.gaps!r}")
     out = check_output(args.out, (".pt",), "checkpoint")
     payload = make(args.checkpoints, args.gaps)
     save_checkpoint(out, payload)

@@ -48,3 +48,13 @@ def test_no_module_below_the_command_layer_reads_the_command_line():
             if re.search(r"^\s*(import argparse|from argparse)", text, re.M) or "getattr(args" in text:
                 offenders.append(rel)
     assert offenders == []
+
+
+def test_the_command_line_is_built_without_torch():
+    """--help of every verb, the worlds' own included, pays only for what the verbs import at the top: no torch
+    (a second of start-up and most of a GB)."""
+    import subprocess
+    import sys
+    code = "import sys; from drivestudio.cli import build_parser; build_parser(); print('torch' in sys.modules)"
+    r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
