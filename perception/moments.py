@@ -1,95 +1,45 @@
-"""Data moments at the network's input size, decoded once per dataset and kept on disk (MultiNet's trainer).
+"""MultiNet's data moments: every moment of one or more datasets of a world with behavioural modes, its images at
+the network's input size from the frame cache (perception/frame_cache.py).
 
 Z2Color reads 94 x 168 images; the sidewalk records 188 x 336 PNGs. Decoding two PNGs and averaging them 2x2 costs
 about a millisecond a step, and a study passes over every moment 10-24 times in each of several trainings, so each
-shard's images are decoded and downsampled once and kept beside the dataset:
-
-    <dataset>/.moments/<h>x<w>/<shard stem>.<first 16 hex digits of the shard's SHA-256>.npy
-        uint8 (steps, cameras, h, w, 3): every step of the shard, cameras in declaration order, RGB
-
-The name carries the shard's checksum from the manifest, so a regenerated shard is cached afresh. A file is written
-whole or not at all (renamed into place), so a build that is cut off continues with the shards it had not done.
-Training maps the files (NumPy memory maps): the operating system keeps them in memory once for every process
-that reads them, and no image is decoded again. A dataset folder that cannot be written is read into memory
+shard's images are decoded and downsampled once into the dataset's frame cache at that size
+(`<dataset>/.frames/94x168/`) and mapped from there: the operating system keeps them in memory once for every
+process that reads them, and no image is decoded again. A dataset folder that cannot be written is read into memory
 instead (every training then decodes it again; a line says so).
 
-The downsampling is OpenCV's area resampling, which for the factor of two is the 2x2 mean rounded to a whole grey
-level: within half a grey level of the float mean Z2Color's own input scaling takes of full-size frames
-(perception/models.py), and what tests/perception/test_moment_cache.py compares with the readers' moments.
-
-`Moments` indexes every data moment of one or more datasets of a world with behavioural modes; `batch(ids)`
-assembles them as the network reads them.
+`Moments` indexes every data moment; `batch(ids)` assembles them as the network reads them.
 """
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
 
-from core.files import OutputError, atomic_write
+from core.files import OutputError
 from perception.datasets import SampleSpec
-from perception.shards import Dataset, DatasetError, ShardInfo, decode_image, image_column
+from perception.frame_cache import FOLDER, FrameCache
+from perception.shards import Dataset, DatasetError, ShardInfo
 
-CACHE_DIR = ".moments"
 VALIDATION_SHARE = 0.10
 
 
-def to_size(rgb: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """An (H, W, 3) uint8 image at (h, w) = size by area resampling (unchanged when it is that size already)."""
-    h, w = size
-    return rgb if rgb.shape[:2] == (h, w) else cv2.resize(rgb, (w, h), interpolation=cv2.INTER_AREA)
+def shard_images(cache: FrameCache, shard: ShardInfo) -> list[np.ndarray]:
+    """The shard's images from the cache, one (steps, h, w, 3) array per camera in declaration order."""
+    return [cache.frames(shard, camera) for camera in cache.cameras]
 
 
-def cache_path(ds: Dataset, shard: ShardInfo, size: tuple[int, int]) -> Path:
-    stem = Path(shard.file).stem
-    digest = (shard.sha256 or f"{shard.size}")[:16]
-    return ds.root / CACHE_DIR / f"{size[0]}x{size[1]}" / f"{stem}.{digest}.npy"
-
-
-def decode_shard(ds: Dataset, shard: ShardInfo, size: tuple[int, int]) -> np.ndarray:
-    """Every step's images of one shard at `size`: uint8 (steps, cameras, h, w, 3). Two threads decode (OpenCV
-    releases the interpreter while it decodes and resamples)."""
-    cams = [image_column(c.name) for c in ds.declaration.cameras]
-    reader = ds.reader(shard)
-    out = np.empty((len(reader), len(cams), size[0], size[1], 3), dtype=np.uint8)
-    jobs: list[tuple[int, int, bytes]] = []
-    step = 0
-    for group in reader.iter_row_groups(cams):
-        columns = [group.column(c).to_pylist() for c in cams]
-        for row in zip(*columns):
-            jobs.extend((step, k, data) for k, data in enumerate(row))
-            step += 1
-
-    def one(job) -> None:
-        t, k, data = job
-        out[t, k] = to_size(decode_image(data), size)
-
-    with ThreadPoolExecutor(2) as pool:
-        list(pool.map(one, jobs))
-    return out
-
-
-def shard_images(ds: Dataset, shard: ShardInfo, size: tuple[int, int], log=print) -> np.ndarray:
-    """The shard's images at `size`, from the cache (mapped, read-only), built first if it is missing."""
-    path = cache_path(ds, shard, size)
-    if path.exists():
-        try:
-            images = np.load(path, mmap_mode="r")
-            if images.shape[0] == shard.frames and images.shape[2:4] == size:
-                return images
-        except (ValueError, OSError):
-            pass   # a damaged cache file: built again below
-    images = decode_shard(ds, shard, size)
+def cached(ds: Dataset, size: tuple[int, int], log=print) -> FrameCache:
+    """The dataset's frame cache at `size` with every shard decoded (held in memory where it cannot be written)."""
+    cache = FrameCache(ds, size=size)
     try:
-        atomic_write(path, lambda f: np.save(f, images))
-    except (OSError, OutputError) as e:
+        cache.prepare()
+    except (OSError, OutputError, DatasetError) as e:
         log(f"cannot cache the moments of {ds.root} ({getattr(e, 'strerror', None) or e}): reading them into memory")
-        return images
-    return np.load(path, mmap_mode="r")
+        cache.hold(ds.shards)
+    return cache
 
 
 class Moments:
@@ -113,7 +63,7 @@ class Moments:
         self.spec = SampleSpec(decl, targets, normalised=False)
         self.instants = np.asarray(self.spec.moment.instants)
         self.cameras = len(decl.cameras)
-        self.arrays: list[np.ndarray] = []          # one per shard: (steps, cameras, h, w, 3)
+        self.arrays: list[list[np.ndarray]] = []    # one per shard: one (steps, h, w, 3) array per camera
         starts: list[int] = []
         modes: list[int] = []
         targets_: list[np.ndarray] = []
@@ -121,13 +71,14 @@ class Moments:
         self.offsets = [0]                            # first global step of every shard, and the total
         t0 = time.perf_counter()
         for ds in datasets:
+            cache = cached(ds, size, log)
             for shard in ds.shards:
                 for t, mode, target in self._shard_moments(ds, shard):
                     starts.append(self.offsets[-1] + t)
                     modes.append(mode)
                     targets_.append(target)
                     self.episodes.append((str(ds.root), shard.episode))
-                self.arrays.append(shard_images(ds, shard, size, log))
+                self.arrays.append(shard_images(cache, shard))
                 self.offsets.append(self.offsets[-1] + shard.frames)
         if not starts:
             raise DatasetError("the datasets hold no complete data moment")
@@ -137,7 +88,7 @@ class Moments:
         self._offsets = np.asarray(self.offsets)
         mb = self.offsets[-1] * self.cameras * size[0] * size[1] * 3 / 1e6
         log(f"{len(self.index)} data moments of {len(datasets)} dataset(s) ({mb:.0f} MB of images at "
-            f"{size[1]}x{size[0]}, cached in {CACHE_DIR}/ beside each dataset) ready in "
+            f"{size[1]}x{size[0]}, cached in {FOLDER}/ beside each dataset) ready in "
             f"{time.perf_counter() - t0:.0f} s")
 
     def _shard_moments(self, ds: Dataset, shard: ShardInfo):
@@ -161,15 +112,17 @@ class Moments:
     def images(self, ids) -> np.ndarray:
         """uint8 (B, h, w, instants * cameras * 3): the moments' images, channels oldest instant first, cameras in
         declaration order, RGB (the channel order of perception/datasets.py), channels last in memory."""
-        # the cached pairs are copied whole first, then interleaved in one reordering copy that moves whole pixels
-        # (3-byte elements): 45 % faster than writing each pair into its interleaved place byte by byte
+        # the cached images are copied whole first, then interleaved in one reordering copy that moves whole pixels
+        # (3-byte elements): 45 % faster than writing each image into its interleaved place byte by byte
         steps = self.index[np.asarray(ids)][:, None] + self.instants[None, :]        # (B, instants)
         shard = np.searchsorted(self._offsets, steps, side="right") - 1
         h, w = self.size
         out = np.empty((len(steps), len(self.instants), self.cameras, h, w, 3), dtype=np.uint8)
         for b, i in np.ndindex(*steps.shape):
             k = int(shard[b, i])
-            out[b, i] = self.arrays[k][int(steps[b, i]) - self.offsets[k]]        # (cameras, h, w, 3)
+            step = int(steps[b, i]) - self.offsets[k]
+            for c, camera in enumerate(self.arrays[k]):
+                out[b, i, c] = camera[step]                                        # (h, w, 3)
         pixels = out.view(np.dtype("V3"))[..., 0]                                  # (B, instants, cameras, h, w)
         return np.ascontiguousarray(pixels.transpose(0, 3, 4, 1, 2)).view(np.uint8).reshape(len(steps), h, w, -1)
 

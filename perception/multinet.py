@@ -1,7 +1,7 @@
 """Training of Z2Color as MultiNet and as its MTL baselines (Chowdhuri, Pankaj and Zipser, MultiNet: Multi-Modal
 Multi-Task Learning for Autonomous Driving, 2017), with the paper's measures.
 
-- Data: data moments of one or more datasets of one world (perception/moment_cache.py: images at the network's
+- Data: data moments of one or more datasets of one world (perception/moments.py: images at the network's
   94 x 168, decoded once per dataset and cached beside it; a moment is an index).
 - Held-out data: 10 % of the episodes of each behavioural mode (at least one), whole episodes, with every mode
   equally represented (the larger modes' held-out moments are subsampled to the smallest's count).
@@ -49,7 +49,7 @@ from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import write_curves
 from perception.models import Regressor, family, make_spec
-from perception.moment_cache import Moments
+from perception.moments import Moments
 from perception.optimizers import make_optimizer as optimizer
 from perception.train_outputs import state_path
 from perception.training import bf16_native, open_data, resolve_device

@@ -10,7 +10,7 @@ from controller.sidewalk import SidewalkExpert
 from controller.sidewalk.perturbed import PerturbedExpert, PerturbParams, triangle
 from core.worlds.sidewalk import SIDEWALK, STEP
 from drivestudio.worlds.sidewalk.plugin import Plugin
-from perception.moment_cache import Moments
+from perception.moments import Moments
 from perception.shards import Dataset
 from tests.sidewalk.helpers import record
 

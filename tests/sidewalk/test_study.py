@@ -17,7 +17,7 @@ from drivestudio.worlds.sidewalk.autonomy import Drive, drive_round, retrain
 from drivestudio.worlds.sidewalk.study import Job, Study, StudyConfig, run_jobs
 from perception.checkpoint import load_checkpoint, save_checkpoint
 from perception.models import Regressor, make_spec
-from perception.moment_cache import Moments
+from perception.moments import Moments
 from perception.multinet import resolve
 from perception.shards import Dataset
 from perception.training import TrainConfig

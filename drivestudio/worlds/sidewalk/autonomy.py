@@ -196,7 +196,7 @@ def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
 
 def check_held_out(root: str, options: dict) -> None:
     """The retraining validates on whole episodes of the first dataset, at least one held out per mode the model
-    learns (perception/moment_cache.py): each such mode needs two episodes there."""
+    learns (perception/moments.py): each such mode needs two episodes there."""
     from perception.shards import Dataset  # lazy: pyarrow
     # the retraining's modes: the MTL net's one, else those it was trained on (all the world's when not recorded)
     modes = [options["mtl"]] if options.get("mtl") else list(options.get("modes_trained") or SIDEWALK.modes)

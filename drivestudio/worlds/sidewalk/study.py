@@ -219,7 +219,7 @@ class Study:
 
     def cache(self) -> None:
         """The moments cached at 94 x 168 once, before the trainings that share them start together."""
-        from perception.moment_cache import Moments  # lazy: torch, pyarrow
+        from perception.moments import Moments  # lazy: torch, pyarrow
         self.timed("cache", Moments, [self.data], (94, 168))
 
     # --- 2. training -------------------------------------------------------------------------------------------------

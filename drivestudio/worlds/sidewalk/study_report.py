@@ -225,7 +225,7 @@ def data_summary(study, moments: dict, added: dict) -> dict:
     manifest = json.loads((study.data / "manifest.json").read_text())
     return {"steps": manifest["frames"], "episodes": len(manifest["shards"]), "moments": moments,
             "shards_mb": round(sum(s["size"] for s in manifest["shards"]) / 1e6, 1),
-            "cache_mb": round(folder_mb(study.data / ".moments"), 1),
+            "cache_mb": round(folder_mb(study.data / ".frames"), 1),   # the frame cache (perception/frame_cache.py)
             "paths": sorted({s["params"]["path"] for s in manifest["shards"]}),
             "corrections_added": added,
             "correctional_share": {n: round(a / (a + moments["train"]), 4) for n, a in added.items()}}

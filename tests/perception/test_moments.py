@@ -1,15 +1,18 @@
-"""The moment cache (perception/moment_cache.py): a cached moment is the one the readers assemble from the shards,
-downsampled to the network's 94 x 168; the cache is written once and read back without decoding."""
+"""MultiNet's data moments (perception/moments.py) from the frame cache at the network's 94 x 168: a cached moment
+is the one the readers assemble from the shards, downsampled; the cache is written once per camera and read back
+without decoding; a damaged cache file is built again; a folder that cannot be written holds them in memory."""
+
+import shutil
 
 import numpy as np
 import pytest
 import torch
 
 from core import worlds
-from perception import moment_cache
 from perception.datasets import FrameDataset
+from perception.frame_cache import FOLDER, FrameCache, to_size
 from perception.models import Regressor, make_spec
-from perception.moment_cache import CACHE_DIR, Moments, to_size
+from perception.moments import Moments
 
 SIZE = (94, 168)
 
@@ -58,26 +61,44 @@ def test_the_cache_is_within_half_a_grey_level_of_the_networks_own_scaling(data)
 
 def test_the_cache_is_written_once_and_then_only_read(data, monkeypatch):
     Moments([data], SIZE, log=lambda *a: None)
-    files = sorted((data / CACHE_DIR / "94x168").glob("*.npy"))
-    assert [f.name.split(".")[0] for f in files] == ["shard-000000", "shard-000001", "shard-000002"]
-    assert all(np.load(f, mmap_mode="r").shape == (40, 2, 94, 168, 3) for f in files)
+    files = sorted((data / FOLDER / "94x168").glob("*.npy"))
+    names = [[f"shard-00000{k}", camera] for k in range(3) for camera in ("left", "right")]
+    assert [f.name.split(".")[:2] for f in files] == names
+    assert all(np.load(f, mmap_mode="r").shape == (40, 94, 168, 3) for f in files)
 
     def no_decoding(*args):
         raise AssertionError("a cached shard was decoded again")
 
-    monkeypatch.setattr(moment_cache, "decode_shard", no_decoding)
+    monkeypatch.setattr(FrameCache, "decode", no_decoding)
     again = Moments([data], SIZE, log=lambda *a: None)
-    assert all(isinstance(a, np.memmap) for a in again.arrays)
+    assert all(isinstance(a, np.memmap) for cams in again.arrays for a in cams)
 
 
 def test_a_damaged_cache_file_is_built_again(data):
     Moments([data], SIZE, log=lambda *a: None)
-    victim = sorted((data / CACHE_DIR / "94x168").glob("*.npy"))[1]
+    victim = sorted((data / FOLDER / "94x168").glob("*.npy"))[2]
     victim.write_bytes(victim.read_bytes()[:1000])                   # cut short
     moments = Moments([data], SIZE, log=lambda *a: None)
-    assert np.load(victim, mmap_mode="r").shape == (40, 2, 94, 168, 3)
+    assert np.load(victim, mmap_mode="r").shape == (40, 94, 168, 3)
     images, _, _ = FrameDataset(data, None, normalised=False)[29]
     np.testing.assert_array_equal(moments.batch([29])[0][0].numpy(), small(images))
+
+
+def test_a_dataset_folder_that_cannot_be_written_is_read_into_memory(data, monkeypatch, tmp_path):
+    reference = Moments([data], SIZE, log=lambda *a: None)
+    fresh = tmp_path / "data"
+    shutil.copytree(data, fresh, ignore=shutil.ignore_patterns(FOLDER))
+
+    def unwritable(self, *args):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(FrameCache, "prepare", unwritable)
+    lines: list[str] = []
+    moments = Moments([fresh], SIZE, log=lines.append)
+    assert "reading them into memory" in lines[0]
+    assert not any(isinstance(a, np.memmap) for cams in moments.arrays for a in cams)
+    ids = np.arange(len(moments))
+    assert torch.equal(moments.batch(ids)[0], reference.batch(ids)[0])
 
 
 def test_validation_under_autocast_runs_in_bfloat16_within_a_percent_of_float32(data):
