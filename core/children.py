@@ -82,3 +82,18 @@ def forward(proc: subprocess.Popen, stopped: BaseException) -> None:
         proc.send_signal(signum)
     except ProcessLookupError:   # it ended meanwhile
         pass
+
+
+def end(proc: subprocess.Popen, stopped: BaseException | None, grace: float = 5.0) -> None:
+    """Wait for a child to end: a run that a signal stopped passes it on first (forward). A signal that reaches a
+    child while its interpreter is still starting can be lost, so after `grace` seconds it is sent SIGTERM, and
+    after as long again SIGKILL."""
+    if stopped is not None:
+        forward(proc, stopped)
+    for last_resort in (proc.terminate, proc.kill):
+        try:
+            proc.wait(timeout=grace)
+            return
+        except subprocess.TimeoutExpired:
+            last_resort()
+    proc.wait()

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from core import worlds as declared
-from core.children import forward, popen
+from core.children import end, popen
 from core.settings import as_json
 from core.signals import Terminated, exit_on_sigterm
 from drivestudio import worlds
@@ -160,10 +160,8 @@ def run_world_side(run: Run, out: Path, driver_proc: subprocess.Popen | None = N
                  "world": world.declaration.name, "end": reason,
                  **plugin.describe_run(world, run.config, run.driver)}
     driver_time = 0.0
-    if driver_proc is not None:
-        if stopped is not None:   # a driver still starting would wait for a world that is gone
-            forward(driver_proc, stopped)
-        driver_proc.wait(timeout=15)
+    if driver_proc is not None:   # a driver still starting would wait for a world that is gone
+        end(driver_proc, stopped, grace=5.0 if stopped is not None else 15.0)
         if driver_stats is not None and driver_stats.exists():
             stats = json.loads(driver_stats.read_text())
             for stage, value in stats.get("timings", {}).items():
