@@ -1,5 +1,6 @@
 """What every test shares."""
 import functools
+import os
 import signal
 
 import pytest
@@ -18,3 +19,11 @@ def run_cli(capfd):
     """`run_cli("render", "-o", path, cwd=..., env=...)`: the command in this process (tests/helpers.py), returning
     its exit status and what it wrote on stdout and stderr."""
     return functools.partial(run_main, capfd)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _folder_the_workers_share(tmp_path_factory):
+    """Under pytest -n, a folder all workers of the run see (their base temporary folders' parent), for data one
+    worker makes and the others reuse (tests/perception/frames.py); pytest removes it with the run's others."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        os.environ["DRIVESTUDIO_TEST_SHARED"] = str(tmp_path_factory.getbasetemp().parent)

@@ -7,7 +7,9 @@ for the checkpoint, predictor and evaluation tests. Everything lives in one temp
 from __future__ import annotations
 
 import atexit
+import fcntl
 import functools
+import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -22,14 +24,31 @@ def workdir() -> Path:
     return path
 
 
-@functools.cache
-def dataset() -> Path:
+def _generate(out: Path) -> None:
     from drivestudio.cli import main
 
-    out = workdir() / "frames"
     rc = main(["generate", "--out", str(out), "--frames", str(FRAMES), "--episode-frames", str(EPISODE_FRAMES),
                "--workers", "1", "--cars", "6-10", "--quiet"])
     assert rc == 0, "drivestudio generate failed"
+
+
+@functools.cache
+def dataset() -> Path:
+    out = workdir() / "frames"
+    shared = os.environ.get("DRIVESTUDIO_TEST_SHARED")    # the folder a run's workers share (tests/conftest.py)
+    if not shared:
+        _generate(out)
+        return out
+    # several workers (pytest -n): the first to ask generates it, the others wait for it; each then works on a
+    # copy of its own (training writes a frame cache beside the data)
+    made = Path(shared) / "perception-frames"
+    with open(Path(shared) / "perception-frames.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (Path(shared) / "perception-frames.done").exists():
+            shutil.rmtree(made, ignore_errors=True)
+            _generate(made)
+            (Path(shared) / "perception-frames.done").touch()
+    shutil.copytree(made, out)
     return out
 
 
