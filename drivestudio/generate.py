@@ -8,8 +8,8 @@ the listed shards (a damaged one is regenerated), skips finished episodes, adopt
 place just before the manifest could list them, and deletes half-written temporaries: no step is lost, duplicated
 or half-written.
 
-Local workers are plain child processes (`python -m drivestudio.generate worker`) that read episodes and write
-results as JSON lines on pipes: no POSIX semaphores or shared memory, so a kill -9 leaves nothing in /dev/shm.
+Every episode is a job of the pool (drivestudio/pool.py): on local worker processes (`--workers`) or as Ray tasks
+(`--backend ray`); the same bytes either way.
 """
 from __future__ import annotations
 
@@ -17,9 +17,7 @@ import fcntl
 import importlib
 import importlib.metadata
 import json
-import os
 import platform
-import socket
 import sys
 import time
 from collections.abc import Callable
@@ -30,9 +28,9 @@ from tqdm import tqdm
 
 from core.files import make_dir
 from drivestudio import worlds
-from drivestudio.errors import RunError, UsageError
+from drivestudio.errors import UsageError
 from drivestudio.loop import StepRecord, in_process, run_loop
-from drivestudio.worker_pool import run_pool, serve
+from drivestudio.pool import Job, Pool
 from drivestudio.worlds import Episode, Plugin
 from perception.shards import (
     MANIFEST,
@@ -213,83 +211,27 @@ def _adopt_orphans(out: Path, manifest: dict, episodes: list[Episode]) -> None:
             path.unlink()
 
 
-# --- local workers -------------------------------------------------------------------------------------------
-def _episode_name(job: dict) -> str:
-    return f"episode {job['episode']['index']}"
+# --- the jobs of the pool ------------------------------------------------------------------------------------
+def job_name(args: dict) -> str:
+    return f"episode {args['episode']['index']}"
 
 
-def _record_job(job: dict, progress) -> dict:
-    return record_episode(load_plugin(job["ref"]), Episode(**job["episode"]), GenerateConfig(**job["config"]),
-                          job["out"], progress=progress)
+def record_job(args: dict, progress) -> dict:
+    """One episode as a job of the pool (drivestudio/pool.py), on a local worker or a Ray task: plain data in
+    ({"ref", "episode", "config", "out"}: the world's plugin is loaded by its "module:Class" reference), its shard's
+    manifest entry out."""
+    return record_episode(load_plugin(args["ref"]), Episode(**args["episode"]), GenerateConfig(**args["config"]),
+                          args["out"], progress=progress)
 
 
-def worker_main() -> int:
-    """A local worker (worker_pool): jobs {"ref", "episode", "config", "out"}, results: shard entries."""
-    return serve(_record_job, _episode_name)
-
-
-def _run_local(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int, ref: str, on_done,
-               on_frames) -> None:
-    jobs = [{"ref": ref, "episode": asdict(ep), "config": asdict(cfg), "out": str(out)} for ep in todo]
-    run_pool("drivestudio.generate", jobs, workers, on_frames, on_done, _episode_name)
-
-
-def _check_reachable(address: str | None, timeout: float = 10.0) -> None:
-    """RAY_ADDRESS=host:port (or ray://host:port) must answer: ray.init would otherwise retry for minutes."""
-    if not address or address == "auto":
-        return
-    host, _, port = address.split("://")[-1].rpartition(":")
-    if not host or not port.isdigit():
-        return
-    try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
-    except OSError as e:
-        raise RunError(f"--backend ray: no Ray cluster answers at RAY_ADDRESS={address} ({e.strerror or e}); start "
-                       "one with `ray start --head` (docs/scaling.md)") from None
-
-
-def ray_record_episode(ref: str, episode: dict, config: dict, out: str) -> dict:
-    """A Ray task: record one episode on whichever node runs it (module level, so that the workers import it by
-    reference; the world's plugin is loaded there by its "module:Class" reference)."""
-    return record_episode(load_plugin(ref), Episode(**episode), GenerateConfig(**config), out)
-
-
-def _run_ray(todo: list[Episode], cfg: GenerateConfig, out: Path, ref: str, on_done) -> None:
-    try:
-        import ray  # lazy: an optional extra, seconds to import; without it, one clear line
-    except ImportError:
-        raise UsageError("--backend ray needs Ray: pip install 'drivestudio[cluster]' (and a folder every node "
-                         "can write to as --out)") from None
-    address = os.environ.get("RAY_ADDRESS")
-    _check_reachable(address)
-    env_vars = {k: os.environ[k] for k in ("DRIVESTUDIO_WORLDS",) if os.environ.get(k)}
-    started = not ray.is_initialized()
-    try:
-        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False,
-                 runtime_env={"env_vars": env_vars} if env_vars else None)
-    except (ConnectionError, RuntimeError, ValueError) as e:
-        raise RunError(f"--backend ray: cannot reach the Ray cluster at {address or '(a new local one)'}: "
-                       f"{str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__}") from None
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=2)(ray_record_episode)
-        # plain data only, as the local workers get it (JSON); the folder must be the same path on every node
-        config = json.loads(json.dumps(asdict(cfg)))
-        pending = {remote.remote(ref, asdict(ep), config, str(out.resolve())): ep for ep in todo}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            ep = pending.pop(done[0])
-            try:
-                entry = ray.get(done[0])
-            except ray.exceptions.RayError as e:
-                for rest in pending:
-                    ray.cancel(rest, force=True)
-                cause = getattr(e, "cause", None) or e
-                raise RunError(f"episode {ep.index} failed on the Ray cluster: {type(cause).__name__}: "
-                               f"{str(cause).strip().splitlines()[-1] if str(cause).strip() else ''}") from None
-            on_done(entry)
-    finally:
-        if started:
-            ray.shutdown()
+def _run(todo: list[Episode], cfg: GenerateConfig, out: Path, workers: int, backend: str, ref: str, on_done,
+         on_frames) -> None:
+    """The episodes as jobs of the pool; the folder must be the same path on every node of a cluster."""
+    config = json.loads(json.dumps(asdict(cfg)))   # plain data, as it comes back from JSON
+    jobs = [Job(job_name(args), call="drivestudio.generate:record_job", args=args)
+            for ep in todo for args in [{"ref": ref, "episode": asdict(ep), "config": config,
+                                         "out": str(out.resolve())}]]
+    Pool(backend, slots=workers, stop_wait=0).run(jobs, on_progress=on_frames, on_done=on_done)
 
 
 def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "local",
@@ -323,14 +265,10 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
             manifest["shards"].sort(key=lambda s: s["episode"])
             manifest["frames"] = sum(s["frames"] for s in manifest["shards"])
             write_manifest(out, manifest)
-            if backend == "ray":
-                bar.update(entry["frames"])
 
         try:
-            if todo and backend == "ray":
-                _run_ray(todo, cfg, out, ref, on_done)
-            elif todo:
-                _run_local(todo, cfg, out, workers, ref, on_done, bar.update)
+            if todo:
+                _run(todo, cfg, out, workers, backend, ref, on_done, bar.update)
         finally:
             bar.close()
         manifest["complete"] = len(manifest["shards"]) == len(episodes)
@@ -340,8 +278,3 @@ def generate(out: Path, cfg: GenerateConfig, workers: int = 2, backend: str = "l
         fcntl.flock(lock, fcntl.LOCK_UN)
         lock.close()
 
-
-if __name__ == "__main__":
-    if sys.argv[1:] == ["worker"]:
-        sys.exit(worker_main())
-    sys.exit("usage: python -m drivestudio.generate worker (started by `drivestudio generate`)")

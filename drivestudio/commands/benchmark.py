@@ -7,6 +7,8 @@
     benchmark --model runs/ex.pt@pass_memory=15,rear_memory=10   ... or remembers the cars out of view
     benchmark --model runs/ppo-highway.zip                       a trained policy on the exact affordances
     benchmark --suite my-suite.json --workers 2 --shm --out DIR
+    benchmark --model runs/a.pt --model runs/b.pt --backend ray  every (route, model) pair a task on the Ray cluster
+                                                                 of RAY_ADDRESS (docs/scaling.md)
 
 Every route is driven with every model through drive's loop, in process (default) or with each route's driver
 in its own process over shared memory (--shm); same track, traffic, seed and start for every model, so two rows
@@ -54,6 +56,10 @@ def register(sub) -> None:
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,
                    help=f"routes driven at once, one process each (default: cores, {os.cpu_count() or 1})")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local worker processes (default), or Ray tasks on the cluster of RAY_ADDRESS (pip install "
+                        "'drivestudio[cluster]'; --out and the models must be paths every node shares; --workers does "
+                        "not apply)")
     p.add_argument("--shm", action="store_true",
                    help="each route's driver in its own process over shared memory, as `drive` (default: in process)")
     p.add_argument("--clips", type=count(0, 1000), default=10,
@@ -93,8 +99,9 @@ def run(args) -> int:
     workers = min(args.workers or os.cpu_count() or 1, len(suite.routes) * len(models))
     print(f"benchmark: suite '{suite.name}' ({len(suite.routes)} routes, {suite.seconds / 60:.1f} simulated "
           f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {workers} workers, "
-          f"{'over shared memory' if args.shm else 'in process'}", file=sys.stderr)
-    board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet)
+          f"{'over shared memory' if args.shm else 'in process'}{', as Ray tasks' if args.backend == 'ray' else ''}",
+          file=sys.stderr)
+    board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet, backend=args.backend)
     text = write_board(out, board)
     print(text.split("\n## Per route")[0].rstrip())
     clips = sum(e["overall"]["clips"] for e in board["models"])

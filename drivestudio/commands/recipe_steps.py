@@ -1,14 +1,14 @@
 """The recipes' shared steps (drivestudio/commands/recipe.py, recipe_extended.py): the verbs a user would run,
-each timed and logged; the ensemble; the benchmark, skipped when it is newer than its models."""
+each timed and logged, each a process of its own run by the pool (drivestudio/pool.py); the ensemble; the
+benchmark, skipped when it is newer than its models."""
 from __future__ import annotations
 
 import json
 import time
 from pathlib import Path
 
-from drivestudio.cli import main
 from drivestudio.outputs import write_json
-from drivestudio.side_by_side import run_side_by_side
+from drivestudio.pool import ONE_THREAD, Job, JobFailed, Pool
 
 EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
 
@@ -33,10 +33,13 @@ class Steps:
         print(f"({(time.perf_counter() - t0) / 60:.1f} min)", flush=True)
 
     def verb(self, title: str, *argv) -> None:
+        """A verb as a process of its own, its output this one's; its failure (its one line already on stderr)
+        ends the recipe with its exit status."""
         t0 = self.header(title, [list(argv)])
-        rc = main([str(a) for a in argv])
-        if rc != 0:
-            raise SystemExit(rc)
+        try:
+            Pool().run([Job(str(argv[0]), argv=[str(a) for a in argv])])
+        except JobFailed as e:
+            raise SystemExit(e.status or 1) from None
         self.done(t0)
 
     def side_by_side(self, title: str, commands: list[list], logs: list[Path],
@@ -44,11 +47,29 @@ class Steps:
         t0 = self.header(title, commands)
         print(f"  (one thread each; their output in {', '.join(str(log) for log in logs)}; progress every minute)",
               flush=True)
-        run_side_by_side([[str(a) for a in argv] for argv in commands], logs, after=after)
+        run_side_by_side(commands, logs, after=after)
         self.done(t0)
 
     def minutes(self) -> float:
         return (time.perf_counter() - self.t_start) / 60
+
+
+def run_side_by_side(commands: list[list], logs: list[Path], every: float = 60.0,
+                     after: list[int | None] | None = None) -> None:
+    """Run `drivestudio ARGV` for each of `commands` at once, one thread each, stdout and stderr into the matching log,
+    but for a command i with `after[i]` (an earlier command's index), which starts when that one has succeeded;
+    returns when all have succeeded, raises RunError (JobFailed) naming the first that failed (the others are
+    stopped); their progress (the last `N/M` count of each log) on one line every `every` seconds. On a machine with
+    fewer cores than commands, one thread each keeps the cores busy without the trainings' thread pools fighting
+    (two trainings side by side on 2 cores take 1.4x one training's time, not 2x: docs/aggregation.md); a child's
+    results do not depend on what runs beside it."""
+    n = len(commands)
+    after = after or [None] * n
+    if len(logs) != n or len(after) != n or any(a is not None and not 0 <= a < i for i, a in enumerate(after)):
+        raise ValueError("one log per command, and each command after an earlier one")
+    jobs = [Job(str(i), argv=[str(a) for a in argv], log=log, after=() if a is None else (str(a),))
+            for i, (argv, log, a) in enumerate(zip(commands, logs, after))]
+    Pool(slots=n, env=ONE_THREAD, every=every).run(jobs)
 
 
 def make_ensemble(members: list[Path], ensemble: Path) -> None:

@@ -5,7 +5,6 @@ from controller.sidewalk.correction import RULES
 from core.files import check_output_dir
 from core.signals import exit_on_sigterm
 from drivestudio.checkpoints import check_device
-from drivestudio.cli import main
 from drivestudio.commands.common import add_device_option
 from drivestudio.commands.numbers import count, finite, positive, seed
 from drivestudio.errors import UsageError
@@ -60,6 +59,10 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed(), help="seed of the data, the trials and the runs (default 0)")
     p.add_argument("--jobs", type=count(1, 64), help=f"trainings and autonomy runs side by side, each with cores / "
                                                      f"jobs threads (default {d.jobs})")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="the verbs as local processes (default), or as Ray tasks on the cluster of RAY_ADDRESS (pip "
+                        "install 'drivestudio[cluster]'; --out must be a path every node shares; --jobs does not "
+                        "apply; docs/scaling.md)")
     add_device_option(p, default="cpu")
     p.set_defaults(func=run)
 
@@ -79,6 +82,6 @@ def run(args) -> int:
             raise UsageError(f"--loops: {loop} is driven by the study's data or rounds; autonomy is measured on "
                              "held-out loops only")
     with exit_on_sigterm():   # a SIGTERM ends the running verbs too, each keeping what it finished
-        report = Study(cfg, cli=main).run()
+        report = Study(cfg, backend=args.backend).run()
     print(f"the study's report is {report}")
     return 0

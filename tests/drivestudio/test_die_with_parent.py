@@ -173,7 +173,7 @@ def test_drive_over_the_bridge_leaves_no_driver_behind(tmp_path, signum):
 
 def test_generate_leaves_no_worker_behind(tmp_path):
     def ready(kids) -> bool:
-        return sum("drivestudio.generate worker" in ln for ln in _cmdlines(kids)) == 2
+        return sum("drivestudio.pool worker" in ln for ln in _cmdlines(kids)) == 2
 
     started = Started(DS + ["generate", "--out", str(tmp_path / "data"), "--frames", "100000", "--cars", "0",
                             "--workers", "2", "--quiet"], ready, tmp_path)
@@ -183,7 +183,7 @@ def test_generate_leaves_no_worker_behind(tmp_path):
 SIDE_BY_SIDE = """
 import sys
 from pathlib import Path
-from drivestudio.side_by_side import run_side_by_side
+from drivestudio.commands.recipe_steps import run_side_by_side
 out = Path(sys.argv[1])
 run_side_by_side([["serve", "--shm", "drivestudio-sbs-" + out.name, "--cars", "0", "--wait", "120"]],
                  [out / "serve.log"])

@@ -1,15 +1,16 @@
-"""drivestudio/side_by_side.py, the recipe's runner of its members' trainings: real child processes of the
-`drivestudio` command; progress read from their logs; a child that fails stops the others and names itself. And
-the recipe's rule for a benchmark done before (drivestudio/commands/recipe.py: done_before)."""
+"""The recipe's runner of its members' trainings (drivestudio/commands/recipe_steps.py's run_side_by_side, on
+drivestudio/pool.py): real child processes of the `drivestudio` command; progress read from their logs; a child
+that fails stops the others and names itself. And the recipe's rule for a benchmark done before
+(drivestudio/commands/recipe.py: done_before)."""
 import json
 import os
 import time
 
 import pytest
 
-from drivestudio.commands.recipe_steps import done_before
+from drivestudio.commands.recipe_steps import done_before, run_side_by_side
 from drivestudio.errors import RunError
-from drivestudio.side_by_side import progress, run_side_by_side
+from drivestudio.pool import progress
 from drivestudio.worlds.highway.benchmark import DEFAULT_SUITE, load_suite
 
 
@@ -78,7 +79,7 @@ def test_sigterm_to_the_runner_stops_its_children(tmp_path):
     import sys
 
     out = tmp_path / "gen-stopped"
-    code = ("from pathlib import Path\nfrom drivestudio.side_by_side import run_side_by_side\n"
+    code = ("from pathlib import Path\nfrom drivestudio.commands.recipe_steps import run_side_by_side\n"
             f"run_side_by_side([['generate', '--out', {str(out)!r}, '--frames', '1000000', '--workers', '1', "
             f"'--quiet']], [Path({str(tmp_path / 'g.log')!r})])\n")
     def running() -> set[int]:

@@ -133,7 +133,7 @@ def test_a_failed_job_ends_the_run_and_what_waits_for_it_never_starts(tmp_path):
 
 
 def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
-    study = Study(StudyConfig(out=str(tmp_path), rounds=2), cli=lambda argv: 0)
+    study = Study(StudyConfig(out=str(tmp_path), rounds=2))
     final, jobs = study.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
     after = {j.name: j.after for j in jobs}
     assert after["round1-multinet-direct"] == () and after["round1-mtl-direct-direct"] == ()
@@ -150,8 +150,8 @@ def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
 def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
     """--perturbed goes to generate, --steer-share to the first trainings and every round's fine-tuning."""
     calls: list = []
-    study = Study(StudyConfig(out=str(tmp_path), rounds=1, perturbed=0.5, steer_share=0.5),
-                  cli=lambda argv: calls.append(argv) or 0)
+    study = Study(StudyConfig(out=str(tmp_path), rounds=1, perturbed=0.5, steer_share=0.5))
+    study.verb = lambda *argv: calls.append([str(a) for a in argv])   # the verb's argv, not run
     study.generate()
     assert calls[0][0] == "generate" and calls[0][calls[0].index("--perturbed") + 1] == "0.5"
     first = []
@@ -162,7 +162,7 @@ def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
     assert len(trainings) == 5
     for job in trainings:
         assert job.argv[job.argv.index("--steer-share") + 1] == 0.5
-    assert "--steer-share" not in Study(StudyConfig(out=str(tmp_path)), cli=lambda a: 0).draws()
+    assert "--steer-share" not in Study(StudyConfig(out=str(tmp_path))).draws()
 
 
 def test_the_data_plan_holds_the_moments_asked_for():

@@ -17,7 +17,8 @@ simulation): `drivestudio study --out DIR`.
 6. **STUDY.md** and **study.json**: the tables beside the paper's numbers, the sizes of the networks, the data and
    the times.
 
-Every step goes through the verbs a user runs (generate, train, autonomy) and skips what is done, so a study that
+Every step goes through the verbs a user runs (generate, train, autonomy), each a process of the pool
+(drivestudio/pool.py; `--backend ray`: Ray tasks), and skips what is done, so a study that
 was cut off continues where it stopped when the same command runs again.
 """
 from __future__ import annotations
@@ -26,16 +27,13 @@ import json
 import math
 import os
 import resource
-import subprocess
-import sys
 import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
-from core.children import popen
 from drivestudio.errors import RunError, UsageError
+from drivestudio.pool import Job, JobFailed, Pool
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
 from perception.train_outputs import check_train_outputs
@@ -94,60 +92,33 @@ PAPER_SCALE: dict = dict(moments=200_000, epochs=24, trials=8, rounds=2, round_s
                    runs=5, autonomy_seconds=180.0, baseline_runs=1)   # --device cuda: the paper's epochs and trials
 
 
-@dataclass
-class Job:
-    name: str            # also its log: out/logs/NAME.log
-    argv: list           # the verb and its options
-    after: tuple = ()    # names of the jobs that must finish first (one not in the run finished before it)
-
-
-def run_jobs(jobs: list[Job], parallel: int, logs: Path, command: tuple = (sys.executable, "-m", "drivestudio")) \
+def run_jobs(jobs: list[Job], parallel: int, logs: Path, command: tuple | None = None, backend: str = "local") \
         -> None:
-    """Verbs as processes, `parallel` at a time, each with cores / parallel torch threads: one thread per process
-    wastes no time in the threads' barriers when the cores are shared (measured on this machine under load: 180
-    training moments per CPU-second with one thread, 40-60 with two). A free slot takes the first job in the list
-    whose `after` jobs have finished, so one network's drives fill the time another spends retraining. A failure
-    ends the study (exit status 1) once the running ones are done; Ctrl-C or SIGTERM ends them (each verb keeps
-    what it finished)."""
-    threads = max(1, (os.cpu_count() or 1) // parallel)
-    env = os.environ | {"OMP_NUM_THREADS": str(threads)}
+    """Verbs as processes of the pool (drivestudio/pool.py), `parallel` at a time, each with cores / parallel torch
+    threads: one thread per process wastes no time in the threads' barriers when the cores are shared (measured on
+    this machine under load: 180 training moments per CPU-second with one thread, 40-60 with two). A free slot takes
+    the first job in the list whose `after` jobs have finished, so one network's drives fill the time another spends
+    retraining. A failure ends the study (exit status 1) once the running ones are done; Ctrl-C or SIGTERM ends them
+    (each verb keeps what it finished). With backend "ray" every job that may start is a Ray task (one CPU), and the
+    cluster decides how many run at once; `logs` and the study's folder must then be paths every node shares."""
+    env = {"OMP_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // parallel))} if backend == "local" else {}
     logs.mkdir(parents=True, exist_ok=True)
-    waiting, failed = list(jobs), []
-    pending = {job.name for job in jobs}
-    running: list[tuple[Job, subprocess.Popen]] = []
+    for job in jobs:
+        job.log = logs / f"{job.name}.log"
+
+    def started(job: Job) -> None:
+        print("$ drivestudio " + " ".join(map(str, job.argv or [])) + f"   (log: {job.log})", flush=True)
+
     try:
-        while waiting or running:
-            while len(running) < parallel:
-                job = next((j for j in waiting if not pending.intersection(j.after)), None)
-                if job is None:
-                    break
-                waiting.remove(job)
-                print("$ drivestudio " + " ".join(map(str, job.argv)) + f"   (log: {logs / job.name}.log)", flush=True)
-                with open(logs / f"{job.name}.log", "ab") as log:
-                    running.append((job, popen([*command, *map(str, job.argv)], stdout=log,
-                                               stderr=subprocess.STDOUT, env=env)))
-            if not running and waiting:
-                raise RunError(f"{waiting[0].name} waits for jobs that never run: {', '.join(waiting[0].after)}")
-            time.sleep(1.0)
-            for job, proc in [r for r in running if r[1].poll() is not None]:
-                running.remove((job, proc))
-                if proc.returncode != 0:
-                    failed.append(job.name)
-                    waiting.clear()
-                else:
-                    pending.discard(job.name)
-    finally:
-        for _, proc in running:
-            proc.terminate()
-            proc.wait()
-    if failed:
-        raise RunError(f"{', '.join(failed)} failed: see {logs}/{failed[0]}.log")
+        Pool(backend, slots=parallel, env=env, finish=True, command=command).run(jobs, on_start=started)
+    except JobFailed as e:
+        raise RunError(f"{', '.join(j.name for j in e.jobs)} failed: see {logs}/{e.jobs[0].name}.log") from None
 
 
 class Study:
-    def __init__(self, cfg: StudyConfig, cli: Callable[[list[str]], int]):
+    def __init__(self, cfg: StudyConfig, backend: str = "local"):
         self.cfg = cfg
-        self.cli = cli   # drivestudio's verbs, in this process (the study verb passes drivestudio.cli.main)
+        self.backend = backend   # of the pool that runs the verbs: local processes or Ray tasks
         self.out = Path(cfg.out)
         self.data, self.models, self.logs = self.out / "data", self.out / "models", self.out / "logs"
         self.times_path = self.out / "times.json"
@@ -198,7 +169,7 @@ class Study:
 
     def jobs(self, stage: str, jobs: list[Job]) -> None:
         if jobs:
-            self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs)
+            self.timed(stage, run_jobs, jobs, self.cfg.jobs, self.logs, None, self.backend)
 
     # --- 1. data ---------------------------------------------------------------------------------------------------
     def generate(self) -> None:
@@ -208,14 +179,17 @@ class Study:
         c = self.cfg
         self.timed("generate", self.verb, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
                    "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet",
-                   *(["--perturbed", c.perturbed] if c.perturbed else []))
+                   *(["--perturbed", c.perturbed] if c.perturbed else []),
+                   *(["--backend", "ray"] if self.backend == "ray" else []))
 
     def verb(self, *argv) -> None:
-        """A verb, in this process; its failure ends the study with its exit status."""
+        """A verb as a process of its own, its output this one's; its failure (its one line already on stderr)
+        ends the study with its exit status."""
         print("$ drivestudio " + " ".join(map(str, argv)), flush=True)
-        rc = self.cli([str(a) for a in argv])
-        if rc != 0:
-            raise SystemExit(rc)
+        try:
+            Pool().run([Job(str(argv[0]), argv=[str(a) for a in argv])])
+        except JobFailed as e:
+            raise SystemExit(e.status or 1) from None
 
     def cache(self) -> None:
         """The moments cached at 94 x 168 once, before the trainings that share them start together."""

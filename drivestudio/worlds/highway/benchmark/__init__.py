@@ -5,7 +5,7 @@
     route.py    one route with one model through drive's loop (in process or over the bridge), its metrics
     clips.py    crash clips: the 5 s before every collision or off-road event, and the indicator to blame
     score.py    the driving score and the leaderboard (Markdown, CSV, JSON)
-    run.py      the worker processes that drive routes in parallel
+    run.py      the routes driven in parallel, as jobs of the pool (local processes or Ray tasks)
 """
 from drivestudio.worlds.highway.benchmark.models import ModelSpec, check_models
 from drivestudio.worlds.highway.benchmark.route import RunOptions, run_route

@@ -1,10 +1,10 @@
-"""Running a benchmark: every route with every model, in parallel worker processes, then the leaderboard.
+"""Running a benchmark: every route with every model as jobs of the pool (drivestudio/pool.py), then the leaderboard.
 
-Workers are plain child processes (`python -m drivestudio.worlds.highway.benchmark worker`, as generate's) that take one
-(route, model) job at a time as a JSON line on stdin and answer with JSON lines on stdout: progress in simulated
-seconds, the route's result, or an error. Each route builds its world afresh from the route's seed, so a route
-drives the same whichever worker takes it and whatever ran before it in that worker; torch runs one thread per
-worker (parallelism comes from the routes), so the same model gives the same scores run after run.
+Each (route, model) pair is one job: on a local worker process (`--workers` of them) or a Ray task (`--backend
+ray`), reporting its progress in simulated seconds and answering with the route's result. Each route builds its
+world afresh from the route's seed, so a route drives the same whichever worker takes it and whatever ran before it
+in that worker; torch runs one thread per worker (parallelism comes from the routes), so the same model gives the
+same scores run after run, on either backend.
 """
 from __future__ import annotations
 
@@ -16,8 +16,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from core.signals import exit_on_sigterm
-from drivestudio.side_by_side import ONE_THREAD
-from drivestudio.worker_pool import run_pool, serve
+from drivestudio.pool import ONE_THREAD, Job, Pool
 from drivestudio.worlds.highway.benchmark.models import ModelSpec, slug
 from drivestudio.worlds.highway.benchmark.route import RunOptions, run_route
 from drivestudio.worlds.highway.benchmark.suite import Route, Suite
@@ -37,21 +36,16 @@ def run_job(job: dict, progress=None) -> dict:
     return result
 
 
-def _job_name(job: dict) -> str:
+def job_name(job: dict) -> str:
     return f"route {job['route']['name']}, model {job['model']['text']}"
 
 
-def _worker_job(job: dict, progress) -> dict:
+def drive_job(job: dict, progress) -> dict:
+    """One job of the pool: one route with one model, torch on one thread (the parallelism is the routes')."""
     if job["model"]["path"] is not None:
         import torch  # lazy: torch, only to set its threads in a worker
-        torch.set_num_threads(1)   # the parallelism is the routes'
+        torch.set_num_threads(1)
     return run_job(job, progress)
-
-
-def worker_main() -> int:
-    """A worker (worker_pool): jobs of jobs_for(), results of run_job()."""
-    with exit_on_sigterm():   # SIGTERM from the parent unwinds: worlds, bridges and half-written clips are closed
-        return serve(_worker_job, _job_name)
 
 
 def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path) -> list[dict]:
@@ -64,19 +58,20 @@ def jobs_for(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path)
     return sorted(jobs, key=lambda j: -j["route"]["seconds"] * (1 if j["model"]["path"] is None else 8))
 
 
-def run_jobs(jobs: list[dict], workers: int, on_progress, on_done) -> None:
-    """Run the jobs on `workers` worker processes; on_progress(simulated seconds), on_done(result)."""
-    run_pool("drivestudio.worlds.highway.benchmark", jobs, workers, on_progress, on_done, _job_name, env=ONE_THREAD,
-             stop_wait=STOP_WAIT)
+def run_jobs(jobs: list[dict], workers: int, on_progress, on_done, backend: str = "local") -> None:
+    """Run the jobs on `workers` worker processes, or as Ray tasks; on_progress(simulated seconds), on_done(result)."""
+    Pool(backend, slots=workers, env=ONE_THREAD, stop_wait=STOP_WAIT).run(
+        [Job(job_name(j), call="drivestudio.worlds.highway.benchmark.run:drive_job", args=j) for j in jobs],
+        on_progress=on_progress, on_done=on_done)
 
 
 def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
-                  show_progress: bool = True) -> dict:
+                  show_progress: bool = True, backend: str = "local") -> dict:
     """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
     from tqdm import tqdm  # lazy: 20 ms, only while routes are driven
 
     from drivestudio.worlds.highway.benchmark.score import leaderboard  # lazy: only once routes are driven
-    jobs = jobs_for(suite, models, opts, out)
+    jobs = jobs_for(suite, models, opts, out.resolve())   # on a cluster, the same path on every node
     results: list[dict] = []
     total = sum(j["route"]["seconds"] for j in jobs)
     bar = tqdm(total=round(total), unit="sim s", disable=not show_progress, file=sys.stderr, dynamic_ncols=True,
@@ -84,7 +79,7 @@ def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: 
     t0 = time.perf_counter()
     try:
         with exit_on_sigterm():
-            run_jobs(jobs, workers, lambda s: bar.update(s), results.append)
+            run_jobs(jobs, workers, lambda s: bar.update(s), results.append, backend)
     finally:
         bar.close()
     board = leaderboard(suite, models, results)
