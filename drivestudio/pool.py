@@ -166,6 +166,15 @@ class Pool:
                 runner.stop()
 
 
+def run_verb(argv: list) -> None:
+    """A verb as a process of its own (a step of the recipe or the study), its output this process's; its failure,
+    whose one line it wrote to stderr itself, ends this process with its exit status."""
+    try:
+        Pool().run([Job(str(argv[0]), argv=[str(a) for a in argv])])
+    except JobFailed as e:
+        raise SystemExit(e.status or 1) from None
+
+
 # --- local processes -----------------------------------------------------------------------------------------
 class _Local:
     """Calls on worker processes (each takes the next call when it is done), commands as processes of their own;

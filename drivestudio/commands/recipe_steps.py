@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from drivestudio.outputs import write_json
-from drivestudio.pool import ONE_THREAD, Job, JobFailed, Pool
+from drivestudio.pool import ONE_THREAD, Job, Pool, run_verb
 
 EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
 
@@ -36,10 +36,7 @@ class Steps:
         """A verb as a process of its own, its output this one's; its failure (its one line already on stderr)
         ends the recipe with its exit status."""
         t0 = self.header(title, [list(argv)])
-        try:
-            Pool().run([Job(str(argv[0]), argv=[str(a) for a in argv])])
-        except JobFailed as e:
-            raise SystemExit(e.status or 1) from None
+        run_verb(list(argv))
         self.done(t0)
 
     def side_by_side(self, title: str, commands: list[list], logs: list[Path],

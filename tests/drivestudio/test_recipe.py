@@ -45,7 +45,7 @@ def test_the_recipe_trains_members_side_by_side_and_benchmarks_their_ensemble(tm
     ensemble = torch.load(out / "ensemble.pt", map_location="cpu", weights_only=False)
     assert [m["source"].rsplit("/", 1)[-1] for m in ensemble["spec"]["options"]["members"]] == members
     commands = (out / "commands.txt").read_text().splitlines()
-    assert [c.split()[1] for c in commands] == ["generate", "train", "train", "-m", "benchmark"]
+    assert [c.split()[1] for c in commands] == ["generate", "train", "train", "ensemble", "benchmark"]
     assert [c.split("--seed ")[1] for c in commands[1:3]] == ["0", "1"]
     assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:3]) and FULL.emphasis > 1
     # run again: every step is found done, nothing is trained or driven again
@@ -81,7 +81,7 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     assert set(ensemble["spec"]["outputs"]) >= {"dist_LB", "closing_RB", "dist_MM"}
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "train",
-                                                "aggregate", "aggregate", "-m", "benchmark"]
+                                                "aggregate", "aggregate", "ensemble", "benchmark"]
     assert "--mirror --side-views --lanes 1,2,3 " in commands[0]
     assert "--mirror --side-views --lanes 1,2,3,4 " in commands[1]
     assert ensemble["spec"]["input"]["inset"] == "mirror+sides"

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from controller.sidewalk.correction import RULES
 from drivestudio.errors import RunError, UsageError
-from drivestudio.pool import Job, JobFailed, Pool
+from drivestudio.pool import Job, JobFailed, Pool, run_verb
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
 from drivestudio.worlds.sidewalk.study_report import EVALUATED, MODES, write_report
 from perception.train_outputs import check_train_outputs
@@ -186,10 +186,7 @@ class Study:
         """A verb as a process of its own, its output this one's; its failure (its one line already on stderr)
         ends the study with its exit status."""
         print("$ drivestudio " + " ".join(map(str, argv)), flush=True)
-        try:
-            Pool().run([Job(str(argv[0]), argv=[str(a) for a in argv])])
-        except JobFailed as e:
-            raise SystemExit(e.status or 1) from None
+        run_verb(list(argv))
 
     def cache(self) -> None:
         """The moments cached at 94 x 168 once, before the trainings that share them start together."""
