@@ -13,14 +13,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 
 from perception.shards import Dataset
-from tests.studio.helpers import REPO, Studio, browser, close_browser, page_state, wait_page
-
-
-@pytest.fixture(scope="module")
-def page():
-    driver = browser()
-    yield driver
-    close_browser(driver)
+from tests.studio.helpers import REPO, Studio, page_state, wait_page
 
 
 @pytest.fixture(scope="module")

@@ -17,14 +17,7 @@ from selenium.webdriver.support.ui import Select
 from core.worlds.sidewalk import SIDEWALK
 from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
-from tests.studio.helpers import Studio, browser, close_browser, page_state, wait_page
-
-
-@pytest.fixture(scope="module")
-def page():
-    driver = browser()
-    yield driver
-    close_browser(driver)
+from tests.studio.helpers import Studio, page_state, wait_page
 
 
 @pytest.fixture(scope="module")
