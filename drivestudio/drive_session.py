@@ -118,6 +118,10 @@ def _run_over_bridge(run: Run, world, metrics, ep, exchange, view, driver_proc):
     seconds = run.seconds if run.seconds is not None else math.inf
     ok = False
     try:
+        # the readiness line: from here a stop signal ends the run in order, its metrics saved
+        print(f"world '{world.declaration.name}' on shared memory '{run.shm}' "
+              f"({'free-running' if run.free_running else 'lock-step'}); waiting for a driver",
+              file=sys.stderr, flush=True)
         _wait_for_driver(ep, run.wait, driver_proc)
         last = run_loop(world, exchange, seconds, render=True, metrics=metrics, realtime=run.realtime,
                         on_step=_steps(recorder, view))
@@ -146,9 +150,6 @@ def run_world_side(run: Run, out: Path, driver_proc: subprocess.Popen | None = N
     with exit_on_sigterm(), plugin.world(replace(run.config, render=True)) as world:
         metrics = plugin.metrics(world)
         with WorldEndpoint(str(run.shm), world.declaration, lockstep=not run.free_running) as ep:
-            print(f"world '{world.declaration.name}' on shared memory '{run.shm}' "
-                  f"({'free-running' if run.free_running else 'lock-step'}); waiting for a driver",
-                  file=sys.stderr, flush=True)
             exchange = ShmExchange(ep, plugin.supervisor(world, run.config, run.driver), world)
             view = _open_view(run, world, metrics)     # the page is there while the driver comes
             try:

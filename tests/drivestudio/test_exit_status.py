@@ -121,10 +121,7 @@ def _serve_until(name: str, out: Path, driver: bool) -> tuple[subprocess.Popen, 
     assert serve.stderr is not None and select.select([serve.stderr], [], [], 60)[0], "serve said nothing in 60 s"
     ready = serve.stderr.readline()     # its readiness line: the segment is there and the world waits for a driver
     assert "waiting for a driver" in ready and os.path.exists(f"/dev/shm/{name}"), ready + serve.stderr.read()
-    if not driver:
-        # the line comes a moment before the world's wait begins (and its handler of SIGTERM that saves the
-        # metrics): a signal in between ends it without metrics.json
-        time.sleep(0.5)
+    if not driver:   # the line comes once a stop signal ends the run in order, its metrics saved
         return serve, None
     proc = subprocess.Popen([sys.executable, "-c", DRIVER, name], stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None and proc.stdout.readline() == "driving\n"
