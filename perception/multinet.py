@@ -416,14 +416,16 @@ def resume(run: MultiNetRun, log=print):
 # --- the loop ------------------------------------------------------------------------------------------------------
 def train_multinet(cfg, log=print) -> dict:
     """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
-    first = next((r for r in str(cfg.data).split(",") if r), cfg.data)
-    run_modes(cfg, open_data(replace(cfg, data=first))[1])   # before anything is read or written
+    done = None
     if Path(cfg.out).exists() and not Path(str(cfg.out) + ".state").exists():
         done = load_checkpoint(cfg.out, model=cfg.model)
         if done["spec"]["options"].get("mtl") != cfg.mtl:   # an MTL net is not MultiNet, nor another mode's net
             was = done["spec"]["options"].get("mtl")
             raise CheckpointError(f"{cfg.out} is a finished {'MTL net of mode ' + was if was else 'MultiNet'}, not "
                                   f"{'the MTL net of mode ' + cfg.mtl if cfg.mtl else 'MultiNet'}; use another --out")
+    first = next((r for r in str(cfg.data).split(",") if r), cfg.data)
+    run_modes(cfg, open_data(replace(cfg, data=first))[1])   # before anything is read or written
+    if done is not None:
         log(f"{cfg.out} is trained already ({done['train'].get('trials', 1)} trial(s)): nothing to do (remove it, or "
             "give another --out, to train again)")
         return done["train"]
