@@ -31,7 +31,9 @@ class RateMeter:
         self.steps += 1
         now = self.clock()
         self._marks.append((now, self.steps, t))
-        while len(self._marks) > 2 and now - self._marks[0][0] > RATE_WINDOW:
+        # the oldest mark kept is the last one at or before the window's start, so that a stall (a busy CPU)
+        # stays in the measure for a whole window after the loop runs again, not for one step
+        while len(self._marks) > 2 and now - self._marks[1][0] >= RATE_WINDOW:
             self._marks.popleft()
 
     def restart(self) -> None:

@@ -35,3 +35,23 @@ def test_a_real_time_loop_that_falls_behind_says_how_far_and_only_then():
         clock[0] = 20.0 + 0.1 * n / (BEHIND - 0.05)
         w.rate.tick(5.0 + 0.1 * n)
     assert w.behind(running) == round(BEHIND - 0.05, 2)
+
+
+def test_a_stall_stays_in_the_measure_for_a_whole_window_after_the_loop_runs_again():
+    """A loop stopped for 1.5 s (a starved process) reads behind for the second after it runs again, every step of
+    it, not for one step the page may never be sent; a second later it keeps up."""
+    from drivestudio.studio.watch import RATE_WINDOW, RateMeter
+    clock = [0.0]
+    meter = RateMeter(clock=lambda: clock[0])
+    t = 0.0
+    for n in range(20):                     # 2 s in real time
+        clock[0], t = 0.1 * n, 0.1 * n
+        meter.tick(t)
+    resumed = clock[0] + 1.5                # the stall
+    rates = []
+    for n in range(1, 21):
+        clock[0], t = resumed + 0.1 * n, t + 0.1
+        meter.tick(t)
+        rates.append((clock[0] - resumed, meter.sim_rate))
+    assert all(r < BEHIND for dt, r in rates if dt < RATE_WINDOW - 1e-9)
+    assert all(abs(r - 1.0) < 1e-6 for dt, r in rates if dt > RATE_WINDOW + 0.1 + 1e-9)
