@@ -89,6 +89,15 @@ def run_config(args) -> dict | None:
     return args._run_config
 
 
+def run_seconds(args, default: float | None, high: float) -> float | None:
+    """The run's simulated seconds: --seconds, else the --config file's (held to (0, high]), else `default`."""
+    seconds = from_run(args, "seconds", default)
+    if seconds is not None and (isinstance(seconds, bool) or not isinstance(seconds, (int, float))
+                                or not 0 < seconds <= high):
+        raise UsageError(f"{args.config}: seconds must be a number above 0 and at most {high:g}")
+    return None if seconds is None else float(seconds)
+
+
 def from_run(args, name: str, default):
     """An option of the run: as given on the command line, else the --config file's, else `default`."""
     value = getattr(args, name)

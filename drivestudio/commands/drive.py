@@ -22,6 +22,7 @@ from drivestudio.commands.common import (
     from_run,
     plugin_for,
     run_dir,
+    run_seconds,
     world_config,
 )
 from drivestudio.commands.numbers import positive
@@ -85,11 +86,9 @@ def run(args) -> int:
         check_output(args.record, (".mp4",), "video")
     plugin.check_driver(spec)   # before the world starts: one line, exit 2
     config = plugin.fit_driver(world_config(plugin, args), spec)   # what the driver decides (the mirror)
-    seconds = from_run(args, "seconds", DEFAULT_SECONDS)
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds <= MAX_SECONDS:
-        raise UsageError(f"{args.config}: seconds must be a number above 0 and at most {MAX_SECONDS:g}")
-    run = drive_session.Run(plugin, config, spec, seconds=float(seconds), realtime=bool(from_run(args, "realtime",
-                            False)), free_running=bool(from_run(args, "free_running", False)), record=args.record,
+    run = drive_session.Run(plugin, config, spec, seconds=run_seconds(args, DEFAULT_SECONDS, MAX_SECONDS),
+                            realtime=bool(from_run(args, "realtime", False)),
+                            free_running=bool(from_run(args, "free_running", False)), record=args.record,
                             device=str(from_run(args, "device", "cpu")), view=bind_view(args))
     check_device(run.device)
     out = run_dir(args.out, "drive")

@@ -2,9 +2,19 @@
 from __future__ import annotations
 
 from core.files import check_output
-from drivestudio.commands.common import add_world_options, plugin_for, run_dir, world_config
+from drivestudio.commands.common import (
+    add_config_option,
+    add_world_options,
+    from_run,
+    plugin_for,
+    run_dir,
+    run_seconds,
+    world_config,
+)
 from drivestudio.commands.numbers import positive
 from drivestudio.commands.studio import add_view_options, bind_view
+
+MAX_SECONDS = 10 * 24 * 3600.0
 
 
 def register(sub) -> None:
@@ -14,7 +24,8 @@ def register(sub) -> None:
                                    "docs/shm-protocol.md), then step the world on its actions.")
     p.add_argument("--shm", required=True, help="name of the shared-memory segment (/dev/shm/NAME)")
     add_world_options(p, "serve")
-    p.add_argument("--seconds", type=positive(10 * 24 * 3600.0),
+    add_config_option(p)
+    p.add_argument("--seconds", type=positive(MAX_SECONDS),
                    help="simulated seconds to run (default: until Ctrl-C)")
     p.add_argument("--realtime", action="store_true", help="pace to wall-clock time (default: as fast as it can)")
     p.add_argument("--free-running", action="store_true",
@@ -34,6 +45,8 @@ def run(args) -> int:
     plugin = plugin_for(args)
     if args.record:
         check_output(args.record, (".mp4",), "video")
-    run = Run(plugin, world_config(plugin, args), None, seconds=args.seconds, realtime=args.realtime,
-              free_running=args.free_running, record=args.record, wait=args.wait, shm=args.shm, view=bind_view(args))
+    run = Run(plugin, world_config(plugin, args), None, seconds=run_seconds(args, None, MAX_SECONDS),
+              realtime=bool(from_run(args, "realtime", False)),
+              free_running=bool(from_run(args, "free_running", False)), record=args.record, wait=args.wait,
+              shm=args.shm, view=bind_view(args))
     return run_world_side(run, run_dir(args.out, "serve"))

@@ -72,3 +72,11 @@ def test_the_help_shows_the_configurations_own_defaults(verb, config_type, paths
     for path in paths:
         e = entries(config_type)[path]
         assert re.search(re.escape(e.flag) + r" \S+ .*?\(default (\w+ )?" + re.escape(str(e.default)), text), path
+
+
+def test_serve_reads_a_configuration_file_too(run_cli, tmp_path):
+    f = tmp_path / "run.json"
+    f.write_text(json.dumps({"world": "highway", "settings": {"lanes": 9}}))
+    r = run_cli("serve", "--shm", "drivestudio-cfg-test", "--config", str(f), "--out", str(tmp_path / "o"))
+    assert r.returncode == 2 and "lanes must be an integer from 1 to 4" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "o").exists()
