@@ -36,6 +36,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def listed_world(argv: list[str]) -> None:
+    """The world whose options --help lists: the command line's --world, if it names one."""
+    from drivestudio.commands.common import HELP_WORLD  # lazy: as the verbs, once a command line is read
+    HELP_WORLD[0] = "highway"
+    for i, a in enumerate(argv):
+        if a == "--world" and i + 1 < len(argv):
+            HELP_WORLD[0] = argv[i + 1]
+        elif a.startswith("--world="):
+            HELP_WORLD[0] = a.split("=", 1)[1]
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         from drivestudio.worlds import load_external  # lazy: `import drivestudio.cli` loads no world
@@ -43,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     except input_errors() as e:
         print(f"drivestudio: error: {e}", file=sys.stderr)
         return 2
+    listed_world(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)

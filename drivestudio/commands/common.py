@@ -17,10 +17,14 @@ from drivestudio.errors import UsageError
 DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 
 
+HELP_WORLD = ["highway"]   # the world whose options --help lists (cli.main sets it from the command line's --world)
+
+
 def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = True) -> None:
     """--world and every world's options for `verb`: the settings of its configuration that the verb shows
-    (drivestudio/commands/world_options.py) and its own options, each world in its own group. --seed and
-    --renderer are added here for the verbs whose worlds are built otherwise (generate's plans)."""
+    (drivestudio/commands/world_options.py) and its own options. Every world's options are read, but --help lists
+    those of one world (`--world W --help` another's). --seed and --renderer are added here for the verbs whose
+    worlds are built otherwise (generate's plans)."""
     g = p.add_argument_group("world")
     g.add_argument("--world", default=None, choices=worlds.names(), help="which world (default highway, or the "
                    "--config file's)")
@@ -32,17 +36,23 @@ def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool
                        help=f"seed of the scene and the traffic (default {seed_default})")
     if renderer and "renderer" not in shown:
         g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
+    listed = HELP_WORLD[0] if HELP_WORLD[0] in settings else "highway"
+    others = [pl.name for pl in plugins if pl.name != listed and settings[pl.name]]
+    if others:
+        p.epilog = "; ".join(f"the {w} world's options: {p.prog} --world {w} --help" for w in others)
     options = WorldOptions(p, verb)
     defaults: dict[str, dict] = {}
     for pl in plugins:
         for path in settings[pl.name]:
             e = entries(pl.config_type)[path]
             defaults.setdefault(e.flag, {})[pl.name] = e.default
-    for pl in plugins:
+    for pl in sorted(plugins, key=lambda pl: pl.name != listed):   # the listed world's flags first: shared ones show
+        options.hidden = pl.name != listed
         group = options.group(f"{pl.name} world (--world {pl.name})")
         if settings[pl.name]:
             options.add_settings(pl.name, pl.config_type, settings[pl.name], group, defaults)
         pl.add_options(options)
+    options.hidden = False
     p.set_defaults(world_options=options)
 
 

@@ -21,7 +21,7 @@ def _help(e: Entry, defaults: dict[str, Any]) -> str:
     unit = f" [{s.unit}]" if s.unit else ""
     limits = f", {s.low:g}-{s.high:g}" if s.low is not None and s.high is not None and e.kind in (int, float) and \
         s.high < 10**6 else ""
-    shown = {w: d for w, d in defaults.items() if d not in (None, False)}
+    shown = {w: d for w, d in defaults.items() if d is not None and d is not False}
     if e.kind is bool or not shown:
         return f"{s.help}{unit}{limits}"
     if len(set(map(str, shown.values()))) == 1:
@@ -36,6 +36,7 @@ class WorldOptions:
         self._owned: dict[str, dict[str, str]] = {}    # world -> flag -> dest
         self._paths: dict[str, dict[str, str]] = {}    # world -> setting path -> flag
         self._entries: dict[str, Entry] = {}           # flag -> the first world's entry (the flag's type)
+        self.hidden = False                            # options added now are read but not listed in --help
 
     def group(self, title: str):
         return self.parser.add_argument_group(title)
@@ -44,6 +45,8 @@ class WorldOptions:
         """An option of `world` that is not a setting of its configuration."""
         flag = flags[0]
         if flag not in self._dest:
+            if self.hidden:
+                kw["help"] = argparse.SUPPRESS
             self._dest[flag] = group.add_argument(*flags, default=None, **kw).dest
         self._owned.setdefault(world, {})[flag] = self._dest[flag]
 
@@ -58,8 +61,8 @@ class WorldOptions:
                     {"type": _reader(e), "metavar": e.flag[2:].upper().replace("-", "_")}
                 if e.setting.choices:
                     kw["choices"] = e.setting.choices
-                self._dest[e.flag] = group.add_argument(e.flag, default=None, help=_help(e, defaults[e.flag]),
-                                                        **kw).dest
+                shown = argparse.SUPPRESS if self.hidden else _help(e, defaults[e.flag])
+                self._dest[e.flag] = group.add_argument(e.flag, default=None, help=shown, **kw).dest
                 self._entries[e.flag] = e
             self._owned.setdefault(world, {})[e.flag] = self._dest[e.flag]
             self._paths.setdefault(world, {})[path] = e.flag

@@ -8,7 +8,6 @@ import re
 import pytest
 
 from core.settings import entries
-from drivestudio.cli import build_parser
 from sim.highway.config import WorldConfig
 from sim.sidewalk.config import SidewalkConfig
 
@@ -56,27 +55,27 @@ def test_a_bad_configuration_file_is_one_line_and_status_2(run_cli, tmp_path, co
     assert not (tmp_path / "o").exists()
 
 
-def _help_of(verb: str) -> str:
-    sub = next(a for a in build_parser()._subparsers._group_actions if a.dest == "verb")   # type: ignore[union-attr]
-    return " ".join(sub.choices[verb].format_help().split())
-
-
-@pytest.mark.parametrize("verb, config_type, paths", [
-    ("drive", WorldConfig, ("cars", "start_speed", "track")),
-    ("render", WorldConfig, ("camera.fov_deg",)),
-    ("drive", SidewalkConfig, ("rule", "mode")),
+@pytest.mark.parametrize("verb, world, config_type, paths", [
+    ("drive", "highway", WorldConfig, ("cars", "start_speed", "track", "seed")),
+    ("render", "highway", WorldConfig, ("camera.fov_deg",)),
+    ("drive", "sidewalk", SidewalkConfig, ("rule", "mode")),
 ])
-def test_the_help_shows_the_configurations_own_defaults(verb, config_type, paths):
+def test_the_help_shows_the_configurations_own_defaults(run_cli, verb, world, config_type, paths):
     """The default in --help is the dataclass's: written once, so the two cannot disagree."""
-    text = _help_of(verb)
+    r = run_cli(verb, "--world", world, "--help")
+    text = " ".join(r.stdout.split())
     for path in paths:
         e = entries(config_type)[path]
         assert re.search(re.escape(e.flag) + r" \S+ .*?\(default (\w+ )?" + re.escape(str(e.default)), text), path
 
 
-def test_serve_reads_a_configuration_file_too(run_cli, tmp_path):
-    f = tmp_path / "run.json"
-    f.write_text(json.dumps({"world": "highway", "settings": {"lanes": 9}}))
-    r = run_cli("serve", "--shm", "drivestudio-cfg-test", "--config", str(f), "--out", str(tmp_path / "o"))
-    assert r.returncode == 2 and "lanes must be an integer from 1 to 4" in r.stderr and r.stderr.count("\n") == 1
-    assert not (tmp_path / "o").exists()
+def test_help_lists_the_options_of_one_world_and_reads_every_worlds(run_cli, tmp_path):
+    """drive --help lists the highway's options and says where the sidewalk's are; the sidewalk's are still read
+    (and refused with the highway, naming the world they belong to)."""
+    highway = run_cli("drive", "--help").stdout
+    assert "--lanes" in highway and "--path-width" not in highway
+    assert "drivestudio drive --world sidewalk --help" in highway
+    sidewalk = run_cli("drive", "--world", "sidewalk", "--help").stdout
+    assert "--path-width" in sidewalk and "--lanes" not in sidewalk and "--seed" in sidewalk
+    r = run_cli("drive", "--path-width", "2", "--out", str(tmp_path / "o"))
+    assert r.returncode == 2 and "--path-width belongs to the sidewalk world, not to --world highway" in r.stderr
