@@ -180,7 +180,7 @@ def view_cost(page, how: str, windows: int, window: float, tmp: Path) -> dict:
     """One long `drive --view` run (highway oracle, lock-step over shared memory), watched (by a page in Chromium,
     or a protocol client) and not watched in alternating windows of `window` seconds, probed from outside."""
     out = Path(tempfile.mkdtemp(dir=tmp))
-    s = Studio(["drive", "--model", "oracle", "--seconds", "800000", "--view", "--view-port", "0", "--out", str(out)],
+    s = Studio(["drive", "--model", "oracle", "--seconds", "800000", "--view", "0", "--out", str(out)],
                out, marker="watch the run at ")
     probe = RunProbe(s.proc.pid)
     watched, unwatched = [], []

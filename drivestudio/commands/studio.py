@@ -125,23 +125,43 @@ def run(args) -> int:
 # --- drive --view and serve --view --------------------------------------------------------------------------------
 def add_view_options(p) -> None:
     g = p.add_argument_group("watching the run in a browser (docs/studio.md)")
-    g.add_argument("--view", action="store_true", help="publish the run to a web page: open the printed URL "
-                                                      "(read-only unless --view-control)")
-    g.add_argument("--view-port", type=count(0, 65535), default=DEFAULT_PORT,
-                   help=f"the page's port (default {DEFAULT_PORT}; 0: any free one)")
-    g.add_argument("--view-host", help=f"listen on this address (default {LOCALHOST}); then the page needs the "
-                                       "token of the printed URL")
-    g.add_argument("--view-control", action="store_true", help="the page may pause, resume and single-step the run")
-    g.add_argument("--view-fps", type=positive(240.0), default=VIEW_FPS,
-                   help=f"frames a second the page gets at most (default {VIEW_FPS:g})")
+    g.add_argument("--view", nargs="?", const=str(DEFAULT_PORT), metavar="[HOST:]PORT[,control][,fps=F]",
+                   help=f"publish the run to a web page and print its URL: on PORT (default {DEFAULT_PORT}; 0: any "
+                        f"free one) of HOST (default {LOCALHOST}; another address needs the URL's token), read-only "
+                        f"unless `control` (pause, resume, single-step), at most F frames a second (default "
+                        f"{VIEW_FPS:g})")
+
+
+def view_address(text: str) -> tuple[str | None, int, bool, float]:
+    """(host or None, port, control, fps) of a --view value, or one line (UsageError)."""
+    where, *extras = [part.strip() for part in text.split(",")]
+    host, _, port_text = where.rpartition(":")
+    control, fps = False, VIEW_FPS
+    for extra in extras:
+        if extra == "control":
+            control = True
+        elif extra.startswith("fps="):
+            fps = _number(extra[4:], "fps", positive(240.0))
+        else:
+            raise UsageError(f"--view {text}: after the address come 'control' and 'fps=F', got {extra!r}")
+    return host or None, _number(port_text, "port", count(0, 65535)), control, fps
+
+
+def _number(text: str, what: str, parse):
+    """`text` read by one of drivestudio/commands/numbers.py's types, its refusal as one line naming --view."""
+    try:
+        return parse(text)
+    except argparse.ArgumentTypeError as e:
+        raise UsageError(f"--view: {what} {e}") from None
 
 
 def bind_view(args):
     """Before any work: the --view port bound (one line and exit status 2 when it is in use), as the run's View;
     None without --view."""
-    if not args.view:
+    if args.view is None:
         return None
+    host, port, control, fps = view_address(args.view)
     need_aiohttp()
     from drivestudio.drive_session import View  # lazy: the bridge, only when a run is watched
     from drivestudio.studio.server import bind  # lazy: aiohttp
-    return View(bind(args.view_host or LOCALHOST, args.view_port), args.view_host, args.view_control, args.view_fps)
+    return View(bind(host or LOCALHOST, port), host, control, fps)

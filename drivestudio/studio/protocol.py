@@ -24,7 +24,7 @@ NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")   # recording names, check
 TRACK = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}|procedural:\d{1,9}")   # presets and procedural tracks or paths
 MAX_SEED = 2**32 - 1
 
-# type -> (allowed fields, who may send it: "wheel" = the page that drives, "view" = also a --view-control page)
+# type -> (allowed fields, who may send it: "wheel" = the page that drives, "view" = also a --view ...,control page)
 TYPES: dict[str, tuple[tuple[str, ...], str]] = {
     "ack": (("type", "seq"), "any"),
     "claim": (("type",), "any"),

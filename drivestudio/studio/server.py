@@ -256,7 +256,7 @@ class Server:
         if msg.type == "claim":
             if not self._wheel_free():
                 why = "another page holds the wheel" if self.drives or self.controls else \
-                    "this run is only watched here (start it with --view-control to pause it from a page)"
+                    "this run is only watched here (start it with --view PORT,control to pause it from a page)"
                 await client.ws.send_str(protocol.text("error", message=f"cannot take the wheel: {why}"))
                 return
             client.wheel = True
@@ -273,7 +273,7 @@ class Server:
             return None
         if not client.wheel:
             return ("this page is watching: another page holds the wheel (take it when it is free)" if self.drives
-                    else "this run is only watched here: pause, resume and step need --view-control")
+                    else "this run is only watched here: pause, resume and step need --view PORT,control")
         if msg.who == "wheel" and not self.drives:
             return f"'{msg.type}' is the studio's: a run watched with --view can only be paused, resumed and stepped"
         return None

@@ -1,7 +1,7 @@
 """drive --view and serve --view: a running job's loop published to the studio's page, as a step callback of
-drivestudio/loop.py's run_loop. Read-only by default; with --view-control the page holding the wheel may pause,
+drivestudio/loop.py's run_loop. Read-only by default; with --view ...,control the page holding the wheel may pause,
 resume and single-step the run (a paused lock-step run keeps its driver waiting). Its cost to the loop is a flag
-test per step, and a snapshot of references when a page is ready for a frame (at most --view-fps a second); the
+test per step, and a snapshot of references when a page is ready for a frame (at most --view's fps a second); the
 drawing and encoding run in the server's threads (docs/benchmarks.md measures the slowdown).
 """
 from __future__ import annotations
@@ -43,7 +43,7 @@ class RunView:
             print(Server.where(host), file=sys.stderr, flush=True)
 
     def _handle(self, msg, client) -> str | None:
-        if self.controls is None:   # the server lets nothing through without --view-control; kept for safety
+        if self.controls is None:   # the server lets nothing through without --view ...,control; kept for safety
             return "this run is only watched here"
         self.controls.put(msg)
         return None

@@ -135,7 +135,7 @@ def test_a_recording_in_the_page_becomes_a_dataset_that_stats_reads(page, sidewa
 
 def test_a_watched_run_shows_read_only(page, tmp_path):
     s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "4", "--seconds", "8", "--realtime",
-                "--view", "--view-port", "0", "--out", str(tmp_path)], tmp_path, marker="watch the run at ")
+                "--view", "0", "--out", str(tmp_path)], tmp_path, marker="watch the run at ")
     try:
         page.get(s.url)
         hello = wait_page(page, "window.studio.hello")

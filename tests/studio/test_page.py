@@ -119,7 +119,7 @@ def test_a_loop_behind_real_time_is_said_and_only_then(page, highway):
 
 def test_a_watched_run_that_ends_says_so_and_shows_no_rates(page, tmp_path):
     s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "0", "--seconds", "5", "--realtime",
-                "--view", "--view-port", "0", "--out", str(tmp_path)], tmp_path, marker="watch the run at ")
+                "--view", "0", "--out", str(tmp_path)], tmp_path, marker="watch the run at ")
     try:
         page.get(s.url)
         wait_page(page, "window.studio.drawn >= 3")

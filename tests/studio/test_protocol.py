@@ -65,7 +65,7 @@ def test_well_formed_messages_parse_to_their_fields():
 
 def test_who_may_send_what():
     assert parse('{"type": "ack", "seq": 1}').who == "any"
-    assert parse('{"type": "pause"}').who == "view"        # also a --view-control page
+    assert parse('{"type": "pause"}').who == "view"        # also a --view ...,control page
     assert parse('{"type": "driver", "name": "oracle"}').who == "wheel"
 
 

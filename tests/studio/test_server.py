@@ -207,8 +207,7 @@ def _busy_port() -> socket.socket:
     return s
 
 
-@pytest.mark.parametrize("verb", [["studio", "--port"], ["drive", "--in-process", "--seconds", "1", "--view",
-                                                         "--view-port"]])
+@pytest.mark.parametrize("verb", [["studio", "--port"], ["drive", "--in-process", "--seconds", "1", "--view"]])
 def test_a_port_in_use_gets_one_line_and_exit_status_2(verb, tmp_path):
     busy = _busy_port()
     try:

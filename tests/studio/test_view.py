@@ -1,5 +1,5 @@
 """drive --view and serve --view (docs/studio.md): a running job published to the studio's page, read-only unless
---view-control; tested on real runs (serve with a driver over shared memory, drive in one process) with a real
+--view ...,control; tested on real runs (serve with a driver over shared memory, drive in one process) with a real
 WebSocket client."""
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from tests.studio.helpers import REPO, Studio, connect, run
 
 def test_serve_view_publishes_the_world_side_read_only(tmp_path):
     name = f"studio-view-{os.getpid()}"
-    s = Studio(["serve", "--shm", name, "--cars", "0", "--seconds", "6", "--realtime", "--view", "--view-port", "0",
+    s = Studio(["serve", "--shm", name, "--cars", "0", "--seconds", "6", "--realtime", "--view", "0",
                 "--out", str(tmp_path)], tmp_path, marker="watch the run at ")
     driver = None
     try:
@@ -34,7 +34,7 @@ def test_serve_view_publishes_the_world_side_read_only(tmp_path):
                 for msg in ({"type": "pause"}, {"type": "claim"}, {"type": "driver", "name": "oracle"}):
                     await c.send(msg)
                 await c.receive(lambda c: len(c.errors()) >= 3)
-                assert "--view-control" in c.errors()[0]
+                assert "--view PORT,control" in c.errors()[0]
                 assert "only watched here" in c.errors()[1]
                 n = len(c.states)
                 await c.receive(lambda c: len(c.states) >= n + 5)     # and it goes on
@@ -51,7 +51,7 @@ def test_serve_view_publishes_the_world_side_read_only(tmp_path):
 
 def test_view_control_pauses_steps_and_resumes_a_drive(tmp_path):
     s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "0", "--seconds", "8", "--realtime",
-                "--view", "--view-port", "0", "--view-control", "--out", str(tmp_path)], tmp_path,
+                "--view", "0,control", "--out", str(tmp_path)], tmp_path,
                marker="watch the run at ")
     try:
         async def go():
@@ -75,3 +75,19 @@ def test_view_control_pauses_steps_and_resumes_a_drive(tmp_path):
         out = s.stop()
     assert s.proc.returncode == 0, out
     assert "metrics saved" in out
+
+
+def test_the_view_option_reads_address_control_and_rate_in_one_value():
+    import pytest as _pytest
+
+    from drivestudio.commands.studio import DEFAULT_PORT, VIEW_FPS, view_address
+    from drivestudio.errors import UsageError
+    assert view_address(str(DEFAULT_PORT)) == (None, DEFAULT_PORT, False, VIEW_FPS)
+    assert view_address("0") == (None, 0, False, VIEW_FPS)
+    assert view_address("0.0.0.0:9000,control,fps=5") == ("0.0.0.0", 9000, True, 5.0)
+    assert view_address("[::1]:9000".replace("[", "").replace("]", ""))[:2] == ("::1", 9000)
+    for bad, why in (("70000", "port must be an integer from 0 to 65535"), ("x", "port must be an integer"),
+                     ("0,ctl", "after the address come 'control' and 'fps=F'"), ("0,fps=0", "fps must be in"),
+                     ("0,fps=nan", "fps must be")):
+        with _pytest.raises(UsageError, match=why):
+            view_address(bad)
