@@ -28,9 +28,9 @@ from drivestudio.worlds.sidewalk.drivers import (
     Supervisor,
     correction_rule,
 )
-from drivestudio.worlds.sidewalk.options import mode_list, obstacles_value, one_line
+from drivestudio.worlds.sidewalk.options import mode_list
 from drivestudio.worlds.sidewalk.video import Recorder
-from sim.sidewalk.config import SidewalkConfig, StereoConfig
+from sim.sidewalk.config import DEFAULT_DENSITY, SidewalkConfig, StereoConfig, obstacles_value
 from sim.sidewalk.paths import load_path, preset_names
 
 if TYPE_CHECKING:
@@ -137,7 +137,7 @@ class Plugin(base.Plugin):
             raise UsageError("the sidewalk world paints its frames with OpenCV (sim/sidewalk/painter.py); "
                              "--renderer egl does not apply to it")
         modes = mode_list(plan.get("modes"))
-        density = obstacles_value(plan.get("obstacles"))
+        density = DEFAULT_DENSITY if plan.get("obstacles") is None else obstacles_value(plan["obstacles"])
         if isinstance(density, str):
             raise UsageError("generate takes --obstacles as a density per 100 m or 'none' (an obstacle file belongs "
                              "to one path: use drive or render)")
@@ -158,9 +158,8 @@ class Plugin(base.Plugin):
                    "correctional": shares["correctional"],
                    **({"perturbed": shares["perturbed"]} if shares["perturbed"] else {}),
                    "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg}
-        with one_line():
-            for ref in self.path_list(options, 0):   # a bad path fails here, in one line, before any work
-                load_path(ref)
+        for ref in self.path_list(options, 0):   # a bad path fails here, in one line (PathError), before any work
+            load_path(ref)
         return options
 
     def declaration_for(self, options: dict):
