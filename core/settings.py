@@ -1,7 +1,7 @@
 """Typed configurations: a setting is a dataclass field that carries its help, unit and limits.
 
 A world's configuration (sim/highway/world.py WorldConfig, sim/sidewalk/world.py SidewalkConfig) is the one place
-where each of its options has a default, a unit and a range. The command line (drivestudio/commands/settings.py),
+where each of its options has a default, a unit and a range. The command line (drivestudio/commands/world_options.py),
 the Gymnasium keyword arguments and the JSON a run writes are derived from it; `check` holds a configuration to its
 limits wherever it was made.
 
