@@ -13,7 +13,7 @@ import dataclasses
 import math
 import typing
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Iterable
 
 from core.inputs import check_keys
 
@@ -113,10 +113,18 @@ def check_value(entry: Entry, value: Any, what: str | None = None) -> Any:
 
 
 def read(entry: Entry, text: str, what: str = "") -> Any:
-    """The value of a setting given as text (the command line, a query string)."""
+    """The value of a setting given as text (the command line, `--set NAME=VALUE`, a query string): a number, a
+    choice, true or false, or `none` where None is a value."""
     name = what or entry.flag
     if entry.setting.parse is not None:
         return entry.setting.parse(text)
+    if entry.optional and text.strip().lower() == "none":
+        return None
+    if entry.kind is bool:
+        word = text.strip().lower()
+        if word not in TRUE + FALSE:
+            raise SettingError(f"{name} must be true or false, got {text!r}")
+        return word in TRUE
     if entry.kind in (int, float):
         try:
             value = entry.kind(text)
@@ -125,6 +133,25 @@ def read(entry: Entry, text: str, what: str = "") -> Any:
                                f"got {text!r}") from None
         return check_value(entry, value, name)
     return check_value(entry, text, name)
+
+
+TRUE, FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
+
+
+def assign(config: Any, pairs: Iterable[str], where: str = "--set") -> Any:
+    """`config` with settings given as `NAME=VALUE` texts (dotted names, as `entries` lists them), each read and
+    held to its setting; a malformed pair or an unknown name is refused in one line naming `where`."""
+    table = entries(type(config))
+    values = {}
+    for pair in pairs:
+        name, eq, text = pair.partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise SettingError(f"{where} takes NAME=VALUE, got {pair!r}")
+        if name not in table:
+            raise SettingError(f"{where} {name}: no such setting (settings: {', '.join(table)})")
+        values[name] = read(table[name], text.strip(), f"{where} {name}")
+    return with_values(config, values)
 
 
 def check(config: Any) -> Any:

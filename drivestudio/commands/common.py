@@ -20,7 +20,7 @@ DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
 HELP_WORLD = ["highway"]   # the world whose options --help lists (cli.main sets it from the command line's --world)
 
 
-def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = True) -> None:
+def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = False) -> None:
     """--world and every world's options for `verb`: the settings of its configuration that the verb shows
     (drivestudio/commands/world_options.py) and its own options. Every world's options are read, but --help lists
     those of one world (`--world W --help` another's). --seed and --renderer are added here for the verbs whose
@@ -53,7 +53,22 @@ def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool
             options.add_settings(pl.name, pl.config_type, settings[pl.name], group, defaults)
         pl.add_options(options)
     options.hidden = False
+    add_set_option(g, worlds.get(listed), set(settings[listed]))
     p.set_defaults(world_options=options)
+
+
+def add_set_option(group, plugin: worlds.Plugin, shown: set[str]) -> None:
+    """--set NAME=VALUE: any setting of the world's configuration, those without a flag of their own listed."""
+    rest = [f"{path}={_text(e.default)}{e.setting.unit and ' ' + e.setting.unit}"
+            for path, e in entries(plugin.config_type).items() if path not in shown]
+    group.add_argument("--set", action="append", metavar="NAME=VALUE",
+                       help=f"a setting of the {plugin.name} world's configuration, repeatable; the others, with "
+                            f"their defaults: {', '.join(rest)} (docs/configuration.md)")
+
+
+def _text(value) -> str:
+    """A default as `--set` reads it back."""
+    return "none" if value is None else str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def plugin_for(args) -> worlds.Plugin:

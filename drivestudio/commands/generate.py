@@ -30,7 +30,7 @@ def register(sub) -> None:
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local worker processes, or Ray tasks on a cluster (pip install 'drivestudio[cluster]')")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    add_world_options(p, "generate")
+    add_world_options(p, "generate", renderer=True)
     p.set_defaults(func=run)
 
 

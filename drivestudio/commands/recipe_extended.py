@@ -43,7 +43,7 @@ class Extended:
     rear_memory: float = 10.0
     history: int = 1             # earlier frames each network reads
     emphasis: int = 4            # the forward networks' decisive frames, in their trainings and rounds
-    side_views: bool = True      # the frames show the side windows too (generate --side-views): the blind spot
+    side_views: bool = True      # the frames show the side windows too (generate --set side_views=true): the blind spot
 
 
 EXTENDED = Extended()
@@ -73,7 +73,7 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
     for data, lanes in ((forward_data, "1,2,3"), (rear_data, "1,2,3,4")):
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
-                   "--mirror", *(["--side-views"] if size.side_views else []), "--lanes", lanes, "--workers",
+                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--workers",
                    args.workers, "--quiet")
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):

@@ -2,7 +2,7 @@
 
 A world's Plugin names, per verb, the settings of its configuration that the verb shows (`verb_settings`, dotted
 paths such as `camera.width`); each becomes a flag with the setting's help, unit, range and default, read back into
-a configuration by `config`. A flag two worlds share (--seed, --width, ...) is added once and belongs to both. Every
+a configuration by `config`; every other setting is given as `--set NAME=VALUE`. A flag two worlds share (--seed, --width, ...) is added once and belongs to both. Every
 flag has default None, so that `given` can tell which flags of a world the user set and a configuration keeps its
 own default for the others. A world may add options of its own that are not settings (a generation plan's lists)
 with `add`.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from core.settings import Entry, entries, read, with_values
+from core.settings import Entry, assign, entries, read, with_values
 from drivestudio.errors import UsageError
 
 
@@ -92,7 +92,7 @@ class WorldOptions:
             e = table[path]
             values[path] = v if e.kind is bool else read(e, str(v), flag) if e.setting.parse is None or \
                 isinstance(v, str) else v
-        return with_values(base, values)
+        return assign(with_values(base, values), getattr(args, "set", None) or ())
 
 
 def _reader(e: Entry):

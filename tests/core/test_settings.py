@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from core.settings import SettingError, as_json, check, check_value, entries, from_json, with_values
+from core.settings import SettingError, as_json, assign, check, check_value, entries, from_json, with_values
 from sim.highway.config import WorldConfig
 from sim.sidewalk.config import SidewalkConfig
 
@@ -80,3 +80,29 @@ def test_json_settings_are_checked_like_the_command_line():
     with pytest.raises(SettingError, match="run.json: cars must be an integer from 0 to 300"):
         from_json(WorldConfig(), {"cars": 1000}, "run.json")
     assert from_json(SidewalkConfig(), {"obstacles": "none"}, "run.json").obstacles == 0.0   # read as text is
+
+
+def test_set_reads_each_kind_of_setting_from_text():
+    """`--set NAME=VALUE`: numbers, true/false, none where None is a value, nested paths, a setting's own parser."""
+    c = assign(WorldConfig(), ["start_speed=12.5", "mirror=true", "lanes=3", "camera.width=140", "track=procedural:4"])
+    assert (c.start_speed, c.mirror, c.lanes, c.camera.width, c.track) == (12.5, True, 3, 140, "procedural:4")
+    assert assign(c, ["mirror=no", "lanes=none"]).mirror is False and assign(c, ["lanes=None"]).lanes is None
+    assert assign(SidewalkConfig(), ["path_width = 2"]).path_width == 2.0
+    assert WorldConfig().mirror is False and WorldConfig().camera.width == 280     # the defaults are not touched
+
+
+@pytest.mark.parametrize("pair, why", [
+    ("start_speed", "--set takes NAME=VALUE, got 'start_speed'"),
+    ("=3", "--set takes NAME=VALUE, got '=3'"),
+    ("speed=3", "--set speed: no such setting (settings: track, lanes, cars"),
+    ("start_speed=-1", "--set start_speed must be a number from 0 to 60 m/s, got -1.0"),
+    ("start_speed=fast", "--set start_speed must be a number, got 'fast'"),
+    ("cars=2.5", "--set cars must be an integer, got '2.5'"),
+    ("mirror=perhaps", "--set mirror must be true or false, got 'perhaps'"),
+    ("cars=none", "--set cars must be an integer, got 'none'"),
+    ("renderer=vulkan", "--set renderer: invalid choice: 'vulkan' (choose from"),
+])
+def test_set_refuses_a_bad_pair_naming_it(pair, why):
+    with pytest.raises(SettingError) as e:
+        assign(WorldConfig(), [pair])
+    assert str(e.value).startswith(why), str(e.value)

@@ -16,7 +16,7 @@ from drivestudio import worlds
 from perception.shards import Dataset, DatasetError, ShardReader, read_manifest, split_of
 
 SMALL = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,hairpins", "--lanes", "2,3",
-         "--cars", "6", "--width", "140", "--height", "105"]
+         "--cars", "6", "--set", "camera.width=140", "--set", "camera.height=105"]
 
 
 def generate(run_cli, out, *extra, workers=1, check=True):
@@ -235,7 +235,7 @@ def test_resuming_over_a_shard_of_another_world_is_refused(run_cli, tmp_path):
     hw, sw = tmp_path / "hw", tmp_path / "sw"
     gen = ["generate", "--quiet", "--workers", "1"]
     hw_args = ["--out", str(hw), "--frames", "20", "--episode-frames", "10", "--tracks", "oval", "--cars", "0-0",
-               "--width", "70", "--height", "52"]
+               "--set", "camera.width=70", "--set", "camera.height=52"]
     assert run_cli(*gen, *hw_args).returncode == 0
     assert run_cli(*gen, "--world", "sidewalk", "--out", sw, "--frames", "10", "--episode-frames", "10").returncode == 0
     manifest = json.loads((hw / "manifest.json").read_text())

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.slow
 
 RAY = str(Path(sys.executable).with_name("ray"))
 SMALL = ["--frames", "100", "--episode-frames", "10", "--tracks", "oval,hairpins", "--lanes", "2,3", "--cars", "6",
-         "--width", "140", "--height", "105", "--seed", "7"]
+         "--set", "camera.width=140", "--set", "camera.height=105", "--seed", "7"]
 # keep Ray on the loopback interface (by default it advertises the machine's own address, even for a local head)
 LOOPBACK = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 

@@ -70,12 +70,12 @@ def test_drive_renders_the_side_views_for_a_model_that_learned_them_and_only_the
     assert resolved_inset(models["sides"]) == "mirror+sides"
     assert resolved_inset(models["sides"], mirror=True, side_views=True) == "mirror+sides"
     assert resolved_inset(models["mirror"]) == "mirror"
-    assert resolved_inset("oracle", side_views=True) == "mirror+sides"    # --side-views brings the mirror with it
-    with pytest.raises(UsageError, match="^--mirror: .* learned frames with the rear-view mirror and the side views; "
-                                         "drive it with --mirror --side-views$"):
+    assert resolved_inset("oracle", side_views=True) == "mirror+sides"    # side_views brings the mirror with it
+    with pytest.raises(UsageError, match="^--set mirror=true: .* learned frames with the rear-view mirror and the side views; "
+                                         "drive it with --set side_views=true$"):
         resolved_inset(models["sides"], mirror=True)
-    with pytest.raises(UsageError, match="^--mirror --side-views: .* learned frames with the rear-view mirror; "
-                                         "drive it with --mirror$"):
+    with pytest.raises(UsageError, match="^--set side_views=true: .* learned frames with the rear-view mirror; "
+                                         "drive it with --set mirror=true$"):
         resolved_inset(models["mirror"], side_views=True)
 
 
@@ -85,13 +85,13 @@ def test_a_running_world_unlike_the_models_frames_is_refused(models):
     assert plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", MIRRORED) is not None
     assert plugin.driver(plugin.parse_driver(str(models["plain"])), "cpu", HIGHWAY) is not None
     with pytest.raises(UsageError, match="learned frames with the rear-view mirror and this world's are without the "
-                                         "rear-view mirror: start the world with --mirror$"):
+                                         "rear-view mirror: start the world with --set mirror=true$"):
         plugin.driver(plugin.parse_driver(str(models["mirror"])), "cpu", HIGHWAY)
     with pytest.raises(UsageError, match="learned frames without the rear-view mirror and this world's are with the "
-                                         "rear-view mirror: start the world without --mirror"):
+                                         "rear-view mirror: start the world without the mirror"):
         plugin.driver(plugin.parse_driver(str(models["plain"])), "cpu", MIRRORED)
     with pytest.raises(UsageError, match="with the rear-view mirror and the side views and this world's are with the "
-                                         "rear-view mirror: start the world with --mirror --side-views"):
+                                         "rear-view mirror: start the world with --set side_views=true"):
         plugin.driver(plugin.parse_driver(str(models["sides"])), "cpu", MIRRORED)
 
 
@@ -111,7 +111,7 @@ def test_drive_with_a_mirror_model_runs_with_the_mirror(models, tmp_path):
 
 
 def test_mirror_with_a_model_that_learned_none_is_one_line_and_exit_2(models, tmp_path):
-    run = subprocess.run(DS + ["drive", "--model", str(models["plain"]), "--mirror", "--seconds", "1",
+    run = subprocess.run(DS + ["drive", "--model", str(models["plain"]), "--set", "mirror=true", "--seconds", "1",
                                "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=120)
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0 and "without the rear-view mirror" in run.stderr
@@ -135,14 +135,14 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     from perception.merge import Source, merge
     from perception.shards import Dataset, DatasetError
 
-    for name, extra in (("plain", []), ("mirror", ["--mirror", "--lanes", "2,4"]), ("sides", ["--side-views"])):
+    for name, extra in (("plain", []), ("mirror", ["--set", "mirror=true", "--lanes", "2,4"]), ("sides", ["--set", "side_views=true"])):
         run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
                                    "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
                              capture_output=True, text=True, timeout=180)
         assert run.returncode == 0, run.stderr
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
-    assert Dataset(tmp_path / "sides").declaration.cameras[0].inset == "mirror+sides"   # --side-views: the mirror too
+    assert Dataset(tmp_path / "sides").declaration.cameras[0].inset == "mirror+sides"   # side_views: the mirror too
     from drivestudio.worlds.highway.aggregation import expert_lanes
     assert expert_lanes(str(tmp_path / "mirror")) == [2, 4] and expert_lanes(str(tmp_path / "plain")) == [1, 2, 3]
     with pytest.raises(DatasetError, match="another world or camera"):

@@ -17,7 +17,7 @@ def _drive(run_cli, out, *extra):
 
 
 def test_a_run_writes_its_configuration_and_runs_again_from_it(run_cli, tmp_path):
-    r = _drive(run_cli, tmp_path / "a", "--lanes", "2", "--seed", "5", "--start-speed", "12")
+    r = _drive(run_cli, tmp_path / "a", "--lanes", "2", "--seed", "5", "--set", "start_speed=12")
     assert r.returncode == 0, r.stderr
     saved = json.loads((tmp_path / "a" / "config.json").read_text())
     assert saved["world"] == "highway" and saved["model"] == "oracle" and saved["seconds"] == 0.5
@@ -55,27 +55,33 @@ def test_a_bad_configuration_file_is_one_line_and_status_2(run_cli, tmp_path, co
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize("verb, world, config_type, paths", [
-    ("drive", "highway", WorldConfig, ("cars", "start_speed", "track", "seed")),
-    ("render", "highway", WorldConfig, ("camera.fov_deg",)),
-    ("drive", "sidewalk", SidewalkConfig, ("rule", "mode")),
+@pytest.mark.parametrize("verb, world, config_type, paths, set_paths", [
+    ("drive", "highway", WorldConfig, ("cars", "track", "seed"), ("start_speed", "renderer")),
+    ("render", "highway", WorldConfig, (), ("camera.fov_deg", "mirror")),
+    ("drive", "sidewalk", SidewalkConfig, ("rule", "mode"), ("path_width", "stereo.width")),
 ])
-def test_the_help_shows_the_configurations_own_defaults(run_cli, verb, world, config_type, paths):
-    """The default in --help is the dataclass's: written once, so the two cannot disagree."""
+def test_the_help_shows_the_configurations_own_defaults(run_cli, verb, world, config_type, paths, set_paths):
+    """The default in --help is the dataclass's, for a flag and for a setting given with --set: written once, so
+    the two cannot disagree."""
     r = run_cli(verb, "--world", world, "--help")
     text = " ".join(r.stdout.split())
     for path in paths:
         e = entries(config_type)[path]
         assert re.search(re.escape(e.flag) + r" \S+ .*?\(default (\w+ )?" + re.escape(str(e.default)), text), path
+    for path in set_paths:
+        e = entries(config_type)[path]
+        shown = "none" if e.default is None else str(e.default).lower() if isinstance(e.default, bool) else \
+            str(e.default)
+        assert f" {path}={shown}" in text, path
 
 
 def test_help_lists_the_options_of_one_world_and_reads_every_worlds(run_cli, tmp_path):
     """drive --help lists the highway's options and says where the sidewalk's are; the sidewalk's are still read
     (and refused with the highway, naming the world they belong to)."""
     highway = run_cli("drive", "--help").stdout
-    assert "--lanes" in highway and "--path-width" not in highway
+    assert "--lanes" in highway and "--operation" not in highway
     assert "drivestudio drive --world sidewalk --help" in highway
     sidewalk = run_cli("drive", "--world", "sidewalk", "--help").stdout
-    assert "--path-width" in sidewalk and "--lanes" not in sidewalk and "--seed" in sidewalk
-    r = run_cli("drive", "--path-width", "2", "--out", str(tmp_path / "o"))
-    assert r.returncode == 2 and "--path-width belongs to the sidewalk world, not to --world highway" in r.stderr
+    assert "--operation" in sidewalk and "--lanes" not in sidewalk and "--seed" in sidewalk
+    r = run_cli("drive", "--operation", "expert", "--out", str(tmp_path / "o"))
+    assert r.returncode == 2 and "--operation belongs to the sidewalk world, not to --world highway" in r.stderr

@@ -31,8 +31,8 @@ def _tree(root: Path) -> list[str]:
 def sidewalk_data(tmp_path_factory):
     """Six episodes of 20 steps: two of each mode, so that a retraining can hold one of each out."""
     out = tmp_path_factory.mktemp("outputs") / "data"
-    assert main(["generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "20", "--width", "168",
-                 "--height", "94", "--paths", "park", "--workers", "1", "--quiet", "--seed", "5",
+    assert main(["generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "20", "--set", "stereo.width=168",
+                 "--set", "stereo.height=94", "--paths", "park", "--workers", "1", "--quiet", "--seed", "5",
                  "--out", str(out)]) == 0
     return out
 

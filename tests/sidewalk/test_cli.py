@@ -72,8 +72,8 @@ def write(tmp_path, name, text):
 
 @pytest.mark.parametrize("argv, message", [
     (["render", "--mode", "sneaky"], "invalid choice: 'sneaky'"),
-    (["render", "--path-width", "3.5"], "--path-width: must be a number from 1.5 to 3 m"),
-    (["render", "--path-width", "nan"], "--path-width: must be a finite number"),
+    (["render", "--set", "path_width=3.5"], "--set path_width must be a number from 1.5 to 3 m"),
+    (["render", "--set", "path_width=nan"], "--set path_width must be a finite number"),
     (["render", "--path", "FILE:open.json"], "does not close"),
     (["render", "--path", "FILE:nan.json"], "NaN is not allowed"),
     (["render", "--obstacles", "FILE:bad.json"], "malformed JSON"),

@@ -42,13 +42,8 @@ class Plugin(base.Plugin):
     filters = FILTERS
     verbs = ("probe", "benchmark", "suite", "aggregate", "recipe", "ppo")
 
-    verb_settings = {
-        "render": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views",
-                   "camera.width", "camera.height", "camera.fov_deg"),
-        "drive": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views"),
-        "serve": ("track", "lanes", "cars", "seed", "renderer", "start_speed", "mirror", "side_views"),
-        "generate": ("mirror", "side_views", "camera.width", "camera.height", "camera.fov_deg"),
-    }
+    # the settings each verb shows as flags; every other one is `--set NAME=VALUE`
+    verb_settings = {verb: ("track", "lanes", "cars", "seed") for verb in ("render", "drive", "serve")}
 
     config_type = WorldConfig
 
@@ -78,7 +73,7 @@ class Plugin(base.Plugin):
         inset, asked = checkpoint_inset(model), config.inset
         if asked and asked != inset:
             raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it "
-                             f"{f'with {_inset_options(inset)}' if inset else 'without --mirror'}")
+                             f"{f'with {_inset_options(inset)}' if inset else 'without the mirror (--set mirror=false)'}")
         mirror, side_views = INSET_FLAGS[inset]
         return replace(config, mirror=mirror, side_views=side_views)
 
@@ -120,7 +115,7 @@ class Plugin(base.Plugin):
         predictor = load_predictor_for(model, self.name, device)
         if declaration is not None and predictor.inset != declaration.cameras[0].inset:
             # the world is already running (a bridge, the studio): a model is not shown frames unlike its own
-            want = f"with {_inset_options(predictor.inset)}" if predictor.inset else "without --mirror"
+            want = f"with {_inset_options(predictor.inset)}" if predictor.inset else "without the mirror"
             raise UsageError(f"{model} learned frames {_inset_words(predictor.inset)} and this world's are "
                              f"{_inset_words(declaration.cameras[0].inset)}: start the world {want}")
         return chen_driver(spec, predictor)
@@ -269,7 +264,7 @@ def _range(text: str) -> tuple[int, int]:
 
 
 def _inset_options(inset: str) -> str:
-    return "--mirror --side-views" if inset == "mirror+sides" else "--mirror"
+    return "--set side_views=true" if inset == "mirror+sides" else "--set mirror=true"
 
 
 def _inset_words(inset: str) -> str:

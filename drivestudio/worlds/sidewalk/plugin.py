@@ -45,12 +45,11 @@ class Plugin(base.Plugin):
 
     config_type = SidewalkConfig
     verbs = ("autonomy", "study")
+    # the settings each verb shows as flags; every other one is `--set NAME=VALUE`
     verb_settings = {
-        "render": ("path", "mode", "obstacles", "path_width", "seed", "stereo.width", "stereo.height",
-                   "stereo.fov_deg"),
-        "drive": ("path", "mode", "obstacles", "path_width", "seed", "operation", "rule"),
-        "serve": ("path", "mode", "obstacles", "path_width", "seed", "operation", "rule"),
-        "generate": ("stereo.width", "stereo.height", "stereo.fov_deg"),
+        "render": ("path", "mode", "obstacles", "seed"),
+        "drive": ("path", "mode", "obstacles", "seed", "operation", "rule"),
+        "serve": ("path", "mode", "obstacles", "seed", "operation", "rule"),
     }
 
     def add_options(self, options) -> None:
