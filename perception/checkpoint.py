@@ -2,7 +2,7 @@
 code runs), written atomically (a temporary file renamed into place, so a crash leaves the previous one; a
 temporary left by a killed save is removed by the next save to the same place).
 
-    format, version   "drivestudio-perception", 2 (version 1: highway models before worlds were declared; read)
+    format, version   "drivestudio-perception", 2 (version 1, from before worlds were declared, is refused)
     spec              the model (perception/models.py): family, world, labels and outputs, options, input,
                       normalisation
     state_dict        the model's tensors
@@ -23,11 +23,10 @@ import torch
 
 from core.files import atomic_write
 from core.signals import deferred
-from core.worlds.highway import HIGHWAY, PAPER_INDICATORS
+from core.worlds.highway import PAPER_INDICATORS
 
 FORMAT = "drivestudio-perception"
 VERSION = 2
-READABLE = (1, 2)
 
 
 class CheckpointError(ValueError):
@@ -99,15 +98,17 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
         raise CheckpointError(f"{path} is not a drivestudio checkpoint ({type(e).__name__})") from None
     if not isinstance(ckpt, dict) or ckpt.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a drivestudio checkpoint")
-    if ckpt.get("version") not in READABLE:
-        raise CheckpointError(f"{path} has checkpoint version {ckpt.get('version')}; this reader reads "
-                              f"{', '.join(map(str, READABLE))}")
+    if ckpt.get("version") == 1:
+        raise CheckpointError(f"{path} is a checkpoint of format version 1 (drivestudio 0.1), which is no longer "
+                              "read; train it again")
+    if ckpt.get("version") != VERSION:
+        raise CheckpointError(f"{path} has checkpoint version {ckpt.get('version')}; this reader reads version "
+                              f"{VERSION}")
     spec = ckpt.get("spec")
     if not isinstance(spec, dict) or not isinstance(ckpt.get("state_dict"), dict) or \
-            not {"name", "labels", "input", "normalisation"} <= set(spec):
+            not {"name", "world", "labels", "outputs", "input", "normalisation"} <= set(spec):
         raise CheckpointError(f"{path} is a drivestudio checkpoint without a model in it")
     check_weights(path, ckpt)
-    spec = ckpt["spec"] = upgrade_spec(spec)
     if world is not None and spec["world"] != world:
         raise CheckpointError(f"{path} is a model of the {spec['world']} world, not of the {world} world")
     if model is not None and spec["name"] != model:
@@ -116,18 +117,6 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
         raise CheckpointError(f"{path} predicts {describe_labels(spec['labels'])}, not the "
                               f"{describe_labels(labels)} asked for (--fast / --lanes-left must match)")
     return ckpt
-
-
-def upgrade_spec(spec: dict) -> dict:
-    """A spec of a version-1 checkpoint (highway only, 3-channel frames) in the current form."""
-    if "world" in spec:
-        return spec
-    spec = dict(spec)
-    inp = dict(spec["input"])
-    inp.update(channels=3, instants=[0], cameras=["front"], modes=[], scaling="standardise")
-    spec.update(world="highway", world_fingerprint=None, outputs=list(spec["labels"]), input=inp)
-    spec.setdefault("normalisation", HIGHWAY.normalisation(spec["labels"]))
-    return spec
 
 
 def describe_labels(labels) -> str:

@@ -31,7 +31,7 @@ from torch import nn
 
 from core import worlds
 from core.declaration import DeclarationError, WorldDeclaration
-from perception.checkpoint import CheckpointError, load_checkpoint, upgrade_spec
+from perception.checkpoint import CheckpointError, load_checkpoint
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -202,7 +202,6 @@ class Regressor(nn.Module):
 
     def __init__(self, spec: dict) -> None:
         super().__init__()
-        spec = upgrade_spec(spec)
         self.spec = spec
         self.name = spec["name"]
         self.labels = tuple(spec["labels"])

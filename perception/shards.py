@@ -14,8 +14,7 @@ The columns come from the world's declaration (core/declaration.py): one image c
 the generic `episode`, `step`, `t`, `seed` and `action`. Each step is stored once; a data moment (several
 images, labels of later steps) is assembled by the readers (perception/datasets.py).
 
-Version 1 (the highway's first format: one `image` column, `ego` as a list) still reads: its tables are
-upgraded to version 2 columns as they are read.
+Version 1 (the highway's first format, before worlds were declared) is refused in one line: regenerate it.
 """
 from __future__ import annotations
 
@@ -32,11 +31,9 @@ import pyarrow.parquet as pq
 
 from core.declaration import COLUMN_KIND, DeclarationError, WorldDeclaration
 from core.files import atomic_write, reclaim_temporaries
-from core.worlds.highway import FRAME, HIGHWAY_WITHOUT_REAR  # a version-1 dataset is a highway dataset
 
 FORMAT = "drivestudio-dataset"
 VERSION = 2
-READABLE = (1, 2)
 ROW_GROUP = 64
 MANIFEST = "manifest.json"
 MANIFEST_LIMIT = 64 << 20          # [bytes] a manifest larger than this is not one of ours
@@ -202,13 +199,8 @@ def clean_temporaries(root: Path) -> int:
 
 
 # --- the manifest --------------------------------------------------------------------------------------------
-def _v1_declaration(manifest: dict) -> WorldDeclaration:
-    cfg = manifest.get("config", {})
-    return HIGHWAY_WITHOUT_REAR.with_camera("front", int(cfg.get("height", FRAME[0])), int(cfg.get("width", FRAME[1])))
-
-
 def read_manifest(root: Path) -> dict:
-    """The manifest of a dataset folder (version 1 or 2), or DatasetError in one line."""
+    """The manifest of a dataset folder, or DatasetError in one line."""
     path = Path(root) / MANIFEST
     try:
         if path.stat().st_size > MANIFEST_LIMIT:
@@ -225,9 +217,12 @@ def read_manifest(root: Path) -> dict:
         raise DatasetError(f"cannot read {path}: {e.strerror}") from None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         raise DatasetError(f"{path} is not a drivestudio dataset manifest")
-    if manifest.get("version") not in READABLE:
+    if manifest.get("version") == 1:
+        raise DatasetError(f"{path} is a dataset of format version 1 (drivestudio 0.1), which is no longer read; "
+                           "generate it again with `drivestudio generate`")
+    if manifest.get("version") != VERSION:
         raise DatasetError(f"{path} has dataset format version {manifest.get('version')}; this reader reads "
-                           f"versions {', '.join(map(str, READABLE))}")
+                           f"version {VERSION}")
     if not isinstance(manifest.get("shards", []), list):
         raise DatasetError(f"{path} is corrupt: its shard list is not a list")
     return manifest
@@ -241,8 +236,6 @@ def write_manifest(root: Path, manifest: dict) -> None:
 
 
 def manifest_declaration(manifest: dict) -> WorldDeclaration:
-    if manifest.get("version") == 1:
-        return _v1_declaration(manifest)
     try:
         return WorldDeclaration.from_json(manifest["world"])
     except (KeyError, DeclarationError) as e:
@@ -263,11 +256,8 @@ class ShardInfo:
     @classmethod
     def from_entry(cls, entry: dict) -> ShardInfo:
         try:
-            params = entry.get("params")
-            if params is None:   # version 1 listed track and lanes beside the file
-                params = {k: entry[k] for k in ("track", "lanes") if k in entry}
             return cls(str(entry["file"]), int(entry["episode"]), int(entry["frames"]), str(entry["split"]),
-                       dict(params), entry.get("size"), entry.get("sha256"))
+                       dict(entry.get("params", {})), entry.get("size"), entry.get("sha256"))
         except (KeyError, TypeError, ValueError):
             raise DatasetError(f"the manifest lists a shard it does not describe: {str(entry)[:80]}") from None
 
@@ -276,33 +266,11 @@ class ShardInfo:
                 "params": self.params, "size": self.size, "sha256": self.sha256}
 
 
-def _upgrade_v1(table: pa.Table) -> pa.Table:
-    """A version-1 highway table with version-2 columns: image -> image_front, ego -> x y yaw s d, and the
-    collision / off_road flags version 1 did not record (False)."""
-    names = table.column_names
-    out = {}
-    n = table.num_rows
-    for name in names:
-        if name == "image":
-            out["image_front"] = table.column(name)
-        elif name == "ego":
-            ego = np.asarray(table.column(name).to_pylist(), dtype=np.float64).reshape(n, 5)
-            for i, k in enumerate(("x", "y", "yaw", "s", "d")):
-                out[k] = pa.array(ego[:, i])
-        else:
-            out[name] = table.column(name)
-    for k in ("collision", "off_road"):
-        out[k] = pa.array(np.zeros(n, dtype=bool))
-    if "t" in out:
-        out["t"] = out["t"].cast(pa.float64())
-    return pa.table(out)
-
-
 class ShardReader:
     """Random and sequential access to one shard, with its last row group kept."""
 
-    def __init__(self, path: Path, decl: WorldDeclaration, version: int = VERSION):
-        self.path, self.decl, self.version = Path(path), decl, version
+    def __init__(self, path: Path, decl: WorldDeclaration):
+        self.path, self.decl = Path(path), decl
         self.schema = schema_for(decl)
         try:
             self._file = pq.ParquetFile(self.path, memory_map=True)
@@ -312,10 +280,8 @@ class ShardReader:
             raise DatasetError(f"shard {self.path} is corrupt or truncated: {str(e).splitlines()[0]}") from None
         meta = self._file.metadata
         names = self._file.schema_arrow.names
-        if version == VERSION and names != self.schema.names:
+        if names != self.schema.names:
             raise DatasetError(f"shard {self.path} does not have the columns of a {decl.name} dataset")
-        if version == 1 and "image" not in names:
-            raise DatasetError(f"shard {self.path} does not have the columns of a version-1 dataset")
         sizes = [meta.row_group(i).num_rows for i in range(meta.num_row_groups)]
         self._starts = np.cumsum([0] + sizes)
         self._cached: tuple[int, pa.Table] | None = None
@@ -323,31 +289,13 @@ class ShardReader:
     def __len__(self) -> int:
         return int(self._starts[-1])
 
-    def _source_columns(self, columns) -> list[str] | None:
-        if columns is None or self.version == VERSION:
-            return None if columns is None else list(columns)
-        src = []
-        for c in columns:
-            if c == "image_front":
-                src.append("image")
-            elif c in ("x", "y", "yaw", "s", "d"):
-                src.append("ego")
-            elif c not in ("collision", "off_road"):
-                src.append(c)
-        return list(dict.fromkeys(src))
-
-    def _finish(self, table: pa.Table, columns) -> pa.Table:
-        if self.version == 1:
-            table = _upgrade_v1(table)
-        return table if columns is None else table.select(list(columns))
-
     def row_group(self, g: int, columns=None) -> pa.Table:
         try:
-            table = self._file.read_row_group(g, columns=self._source_columns(columns))
+            table = self._file.read_row_group(g, columns=None if columns is None else list(columns))
         except (pa.ArrowException, OSError) as e:
             raise DatasetError(f"shard {self.path} is corrupt or truncated (row group {g}): "
                                f"{str(e).splitlines()[0]}") from None
-        return self._finish(table, columns)
+        return table
 
     def row(self, i: int) -> tuple[tuple, dict]:
         """Step i: (images, one RGB array per camera; {column: value} of every other column)."""
@@ -366,10 +314,10 @@ class ShardReader:
         """Every step's labels (the named columns, default all but the images); images not read."""
         columns = label_columns(self.decl) if columns is None else tuple(columns)
         try:
-            table = self._file.read(columns=self._source_columns(columns))
+            table = self._file.read(columns=list(columns))
         except (pa.ArrowException, OSError) as e:
             raise DatasetError(f"shard {self.path} is corrupt or truncated: {str(e).splitlines()[0]}") from None
-        return self._finish(table, columns)
+        return table
 
     def iter_row_groups(self, columns=None):
         for g in range(len(self._starts) - 1):
@@ -414,7 +362,7 @@ class Dataset:
                 raise DatasetError(f"shard {path} is missing") from None
             if size != shard.size:
                 raise DatasetError(f"shard {path} is damaged: {size} bytes, the manifest says {shard.size}")
-        return ShardReader(path, self.declaration, self.version)
+        return ShardReader(path, self.declaration)
 
     def missing_columns(self, names) -> list[str]:
         """Which of `names` this dataset lacks."""

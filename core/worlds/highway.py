@@ -7,7 +7,7 @@ declaration types.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -203,10 +203,3 @@ HIGHWAY = WorldDeclaration(
     # drove worse on both design suites (docs/aggregation.md)
     decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")),
 )
-
-# The highway as datasets of format version 1 recorded it: the same record without the rear labels (they came
-# later), so such a dataset still reads with every column it has.
-HIGHWAY_WITHOUT_REAR = replace(
-    HIGHWAY, labels=tuple(lab for lab in HIGHWAY.labels if lab.name not in REAR),
-    truth=tuple(q for q in HIGHWAY.truth if q.name not in REAR),
-    label_sets=tuple((n, v) for n, v in HIGHWAY.label_sets if not set(v) & set(REAR)))

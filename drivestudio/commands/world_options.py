@@ -2,10 +2,10 @@
 
 A world's Plugin names, per verb, the settings of its configuration that the verb shows (`verb_settings`, dotted
 paths such as `camera.width`); each becomes a flag with the setting's help, unit, range and default, read back into
-a configuration by `config`; every other setting is given as `--set NAME=VALUE`. A flag two worlds share (--seed, --width, ...) is added once and belongs to both. Every
-flag has default None, so that `given` can tell which flags of a world the user set and a configuration keeps its
-own default for the others. A world may add options of its own that are not settings (a generation plan's lists)
-with `add`.
+a configuration by `config`; every other setting is given as `--set NAME=VALUE`. A flag two worlds share (--seed)
+is added once and belongs to both. Every flag has default None, so that `given` can tell which flags of a world the
+user set and a configuration keeps its own default for the others. A world may add options of its own that are not
+settings (a generation plan's lists) with `add`.
 """
 from __future__ import annotations
 

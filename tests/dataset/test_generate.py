@@ -180,23 +180,25 @@ def test_a_manifest_that_is_not_json_gets_one_line(reference, run_cli, tmp_path)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, verb
 
 
-def test_a_version_1_dataset_still_reads(run_cli, tmp_path):
-    """A dataset written by the previous release (format 1: one `image` column, `ego` as a list) reads as
-    version 2: the same images and labels, ego split into x, y, yaw, s, d."""
+def test_a_version_1_dataset_or_checkpoint_is_refused_in_one_line(run_cli, tmp_path):
+    """Format version 1 (drivestudio 0.1, before worlds were declared) is no longer read: a dataset or a checkpoint
+    of it is refused in one line, exit 2, saying what to do, and nothing is written."""
     import shutil
-    v1 = Path(__file__).parent / "fixtures" / "v1"
-    ds = Dataset(v1)
-    assert ds.version == 1 and ds.world == "highway" and ds.frames() == 10
-    images, rec = ds.reader(ds.shards[0]).row(3)
-    raw = pq.read_table(v1 / ds.shards[0].file).to_pylist()[3]
-    assert rec["s"] == raw["ego"][3] and rec["d"] == raw["ego"][4] and rec["dist_MM"] == raw["dist_MM"]
-    assert rec["collision"] is False and images[0].shape == (210, 280, 3)
-    from perception.datasets import FrameDataset
-    assert len(FrameDataset(v1, split="all")) == 10
-    copy = tmp_path / "v1"
-    shutil.copytree(v1, copy)
-    r = run_cli("stats", copy, "--out", tmp_path / "s")
-    assert r.returncode == 0 and "| frames | 10 |" in r.stdout
+
+    import torch
+    old = tmp_path / "old"
+    shutil.copytree(Path(__file__).parent / "fixtures" / "highway-10", old)
+    manifest = json.loads((old / "manifest.json").read_text())
+    (old / "manifest.json").write_text(json.dumps({**manifest, "version": 1}))
+    r = run_cli("stats", old, "--out", tmp_path / "s")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "format version 1 (drivestudio 0.1), which is no longer read; generate it again" in r.stderr
+    assert not (tmp_path / "s").exists()
+    torch.save({"format": "drivestudio-perception", "version": 1, "spec": {}, "state_dict": {}}, tmp_path / "m.pt")
+    r = run_cli("evaluate", "--data", Path(__file__).parent / "fixtures" / "highway-10", "--model", tmp_path / "m.pt",
+                "--out", tmp_path / "e")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "checkpoint of format version 1 (drivestudio 0.1), which is no longer read; train it again" in r.stderr
 
 
 @pytest.mark.parametrize("args, message", [

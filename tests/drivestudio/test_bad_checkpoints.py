@@ -18,7 +18,7 @@ from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 
 REPO = Path(__file__).resolve().parents[2]
-V1 = REPO / "tests" / "dataset" / "fixtures" / "v1"
+SMALL = REPO / "tests" / "dataset" / "fixtures" / "highway-10"
 
 
 def _save(path: Path, model: Regressor) -> None:
@@ -77,12 +77,12 @@ def test_drive_shm_refuses_a_bad_checkpoint_before_attaching(bad, run_cli, kind)
 
 def _verbs(ckpt: str, out: Path) -> dict[str, list[str]]:
     return {
-        "evaluate": ["evaluate", "--data", str(V1), "--model", ckpt, "--out", str(out / "eval")],
-        "overlay": ["overlay", "--data", str(V1), "--model", ckpt, "--out", str(out / "overlays")],
+        "evaluate": ["evaluate", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "eval")],
+        "overlay": ["overlay", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "overlays")],
         "export": ["export", "--model", ckpt, "--onnx", str(out / "m.onnx")],
         "benchmark": ["benchmark", "--model", ckpt, "--out", str(out / "bench"), "--quiet"],
-        "aggregate": ["aggregate", "--data", str(V1), "--model", ckpt, "--out", str(out / "agg"), "--rounds", "1"],
-        "train --init": ["train", "--data", str(V1), "--model", "alexnet", "--init", ckpt, "--out",
+        "aggregate": ["aggregate", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "agg"), "--rounds", "1"],
+        "train --init": ["train", "--data", str(SMALL), "--model", "alexnet", "--init", ckpt, "--out",
                          str(out / "t.pt")],
     }
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-V1 = REPO / "tests" / "dataset" / "fixtures" / "v1"
+SMALL = REPO / "tests" / "dataset" / "fixtures" / "highway-10"
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def fixture(tmp_path_factory) -> Path:
     """data/ (a small highway dataset), model.pt (a GIST checkpoint), track.json, scenario.json, a FIFO, a socket,
     a symbolic link to /dev/null, a regular file called file.txt."""
     root = tmp_path_factory.mktemp("bad-input")
-    shutil.copytree(V1, root / "data")
+    shutil.copytree(SMALL, root / "data")
     from drivestudio.cli import main
     assert main(["train", "--data", str(root / "data"), "--model", "gist", "--out", str(root / "model.pt")]) == 0
     shutil.copy(REPO / "docs" / "examples" / "three-lane.json", root / "scenario.json")

@@ -16,7 +16,7 @@ from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 
 REPO = Path(__file__).resolve().parents[2]
-V1 = str(REPO / "tests" / "dataset" / "fixtures" / "v1")
+SMALL = str(REPO / "tests" / "dataset" / "fixtures" / "highway-10")
 
 
 def _refused(capsys, argv: list[str], words: str) -> None:
@@ -38,7 +38,7 @@ def _refused(capsys, argv: list[str], words: str) -> None:
     (["--model", "z2color", "--modes", ""], "--modes '' names no mode"),
 ])
 def test_train_refuses_options_its_trainer_would_ignore(tmp_path, capsys, extra, words):
-    _refused(capsys, ["train", "--data", V1, "--out", str(tmp_path / "m.pt"), *extra], words)
+    _refused(capsys, ["train", "--data", SMALL, "--out", str(tmp_path / "m.pt"), *extra], words)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -61,7 +61,7 @@ def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path
                         ("sidewalk.pt", Regressor(make_spec("z2color", SIDEWALK)))):
         save_checkpoint(tmp_path / name, {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
     out = tmp_path / "report"
-    _refused(capsys, ["evaluate", "--data", V1, "--model", str(tmp_path / "highway.pt"), "--model",
+    _refused(capsys, ["evaluate", "--data", SMALL, "--model", str(tmp_path / "highway.pt"), "--model",
                       str(tmp_path / "sidewalk.pt"), "--out", str(out)],
              "sidewalk.pt is a model of the sidewalk world, not of the highway world")
     assert not out.exists()
@@ -73,7 +73,7 @@ def test_train_opens_the_first_of_several_data_folders_for_its_checks(tmp_path, 
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", SIDEWALK))
     save_checkpoint(tmp_path / "sidewalk.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
-    _refused(capsys, ["train", "--data", f"{V1},{V1}", "--model", "z2color", "--out", str(tmp_path / "m.pt"),
+    _refused(capsys, ["train", "--data", f"{SMALL},{SMALL}", "--model", "z2color", "--out", str(tmp_path / "m.pt"),
                       "--init", str(tmp_path / "sidewalk.pt"), "--batch-size", "60"],
              "sidewalk.pt is a model of the sidewalk world, not of the highway world")
     assert not (tmp_path / "m.pt").exists()
@@ -86,13 +86,13 @@ def test_train_opens_the_first_of_several_data_folders_for_its_checks(tmp_path, 
     (["--out", "{tmp}/pngs", "--seed", "4"], "--seed goes with --select random"),
 ])
 def test_overlay_refuses_options_it_would_ignore(tmp_path, capsys, extra, words):
-    _refused(capsys, ["overlay", "--data", V1, *[e.format(tmp=tmp_path) for e in extra]], words)
+    _refused(capsys, ["overlay", "--data", SMALL, *[e.format(tmp=tmp_path) for e in extra]], words)
     assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("verb, blocked", [
-    (["train", "--data", V1, "--model", "gist", "--out", "{tmp}/m.pt"], "m.pt.loss.png"),
-    (["evaluate", "--data", V1, "--model", "{tmp}/model.pt", "--out", "{tmp}"], "mae.png"),
+    (["train", "--data", SMALL, "--model", "gist", "--out", "{tmp}/m.pt"], "m.pt.loss.png"),
+    (["evaluate", "--data", SMALL, "--model", "{tmp}/model.pt", "--out", "{tmp}"], "mae.png"),
     (["benchmark", "--model", "oracle", "--out", "{tmp}", "--quiet"], "leaderboard.md"),
 ])
 def test_every_file_a_verb_will_write_is_checked_before_work(tmp_path, capsys, verb, blocked):
@@ -108,6 +108,6 @@ def test_every_file_a_verb_will_write_is_checked_before_work(tmp_path, capsys, v
 
 
 def test_a_batch_that_cannot_fit_in_memory_is_refused_before_allocating(tmp_path, capsys):
-    _refused(capsys, ["train", "--data", V1, "--model", "alexnet", "--batch-size", "65536", "--out",
+    _refused(capsys, ["train", "--data", SMALL, "--model", "alexnet", "--batch-size", "65536", "--out",
                       str(tmp_path / "m.pt")], "--batch-size 65536: its inputs (3 x 210 x 280 a sample) alone need")
     assert list(tmp_path.iterdir()) == []

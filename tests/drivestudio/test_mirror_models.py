@@ -71,8 +71,8 @@ def test_drive_renders_the_side_views_for_a_model_that_learned_them_and_only_the
     assert resolved_inset(models["sides"], mirror=True, side_views=True) == "mirror+sides"
     assert resolved_inset(models["mirror"]) == "mirror"
     assert resolved_inset("oracle", side_views=True) == "mirror+sides"    # side_views brings the mirror with it
-    with pytest.raises(UsageError, match="^--set mirror=true: .* learned frames with the rear-view mirror and the side views; "
-                                         "drive it with --set side_views=true$"):
+    with pytest.raises(UsageError, match="^--set mirror=true: .* learned frames with the rear-view mirror and the "
+                                         "side views; drive it with --set side_views=true$"):
         resolved_inset(models["sides"], mirror=True)
     with pytest.raises(UsageError, match="^--set side_views=true: .* learned frames with the rear-view mirror; "
                                          "drive it with --set mirror=true$"):
@@ -135,7 +135,8 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     from perception.merge import Source, merge
     from perception.shards import Dataset, DatasetError
 
-    for name, extra in (("plain", []), ("mirror", ["--set", "mirror=true", "--lanes", "2,4"]), ("sides", ["--set", "side_views=true"])):
+    for name, extra in (("plain", []), ("mirror", ["--set", "mirror=true", "--lanes", "2,4"]),
+                        ("sides", ["--set", "side_views=true"])):
         run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
                                    "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
                              capture_output=True, text=True, timeout=180)

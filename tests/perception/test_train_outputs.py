@@ -15,7 +15,7 @@ from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
 from perception.train_outputs import side_outputs
 
-V1 = str(Path(__file__).resolve().parents[1] / "dataset" / "fixtures" / "v1")
+SMALL = str(Path(__file__).resolve().parents[1] / "dataset" / "fixtures" / "highway-10")
 SIDES = [".loss.csv", ".loss.png", ".state"]
 
 
@@ -31,8 +31,9 @@ def _tree(root: Path) -> list[str]:
 def sidewalk_data(tmp_path_factory):
     """Six episodes of 20 steps: two of each mode, so that a retraining can hold one of each out."""
     out = tmp_path_factory.mktemp("outputs") / "data"
-    assert main(["generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "20", "--set", "stereo.width=168",
-                 "--set", "stereo.height=94", "--paths", "park", "--workers", "1", "--quiet", "--seed", "5",
+    assert main(["generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "20",
+                 "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park", "--workers", "1",
+                 "--quiet", "--seed", "5",
                  "--out", str(out)]) == 0
     return out
 
@@ -54,7 +55,7 @@ def test_train_refuses_a_folder_at_a_multinet_side_output(sidewalk_data, tmp_pat
 
 
 @pytest.mark.parametrize("model, data, side", [("z2color", "SIDEWALK", ".loss.png"), ("z2color", "SIDEWALK", ".state"),
-                                               ("gist", V1, ".loss.csv"), ("gist", V1, ".loss.png")])
+                                               ("gist", SMALL, ".loss.csv"), ("gist", SMALL, ".loss.png")])
 def test_the_trainer_called_as_a_library_checks_them_before_any_work(sidewalk_data, tmp_path, model, data, side):
     from perception.train import train
     from perception.training import config_from

@@ -21,9 +21,9 @@ def _refused(capsys, argv: list[str], words: str) -> None:
 @pytest.fixture(scope="module")
 def sidewalk_data(tmp_path_factory):
     out = tmp_path_factory.mktemp("modes") / "data"
-    assert main(["generate", "--world", "sidewalk", "--frames", "60", "--episode-frames", "30", "--set", "stereo.width=168",
-                 "--set", "stereo.height=94", "--paths", "park", "--workers", "1", "--quiet", "--seed", "5",
-                 "--out", str(out)]) == 0
+    assert main(["generate", "--world", "sidewalk", "--frames", "60", "--episode-frames", "30",
+                 "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park", "--workers", "1",
+                 "--quiet", "--seed", "5", "--out", str(out)]) == 0
     return out
 
 
@@ -43,7 +43,8 @@ def test_the_declaration_reads_none_as_all_and_refuses_a_list_naming_no_mode():
 def test_generate_refuses_modes_naming_no_mode(tmp_path, capsys, text):
     out = tmp_path / "data"
     _refused(capsys, ["generate", "--world", "sidewalk", "--modes", text, "--frames", "30", "--episode-frames",
-                      "30", "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park", "--workers", "1", "--quiet",
+                      "30", "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park",
+                      "--workers", "1", "--quiet",
                       "--out", str(out)], f"--modes {text!r} names no mode")
     assert not out.exists()
 

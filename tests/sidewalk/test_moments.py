@@ -12,7 +12,8 @@ from perception.shards import Dataset, image_column
 from tests.helpers import make
 
 GENERATE = ["generate", "--world", "sidewalk", "--frames", "90",
-            "--episode-frames", "30", "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park,procedural:3",
+            "--episode-frames", "30", "--set", "stereo.width=168", "--set", "stereo.height=94",
+            "--paths", "park,procedural:3",
             "--workers", "2", "--quiet", "--seed", "5"]
 
 

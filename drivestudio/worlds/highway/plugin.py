@@ -72,8 +72,8 @@ class Plugin(base.Plugin):
             return config
         inset, asked = checkpoint_inset(model), config.inset
         if asked and asked != inset:
-            raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it "
-                             f"{f'with {_inset_options(inset)}' if inset else 'without the mirror (--set mirror=false)'}")
+            how = f"with {_inset_options(inset)}" if inset else "without the mirror (--set mirror=false)"
+            raise UsageError(f"{_inset_options(asked)}: {model} learned frames {_inset_words(inset)}; drive it {how}")
         mirror, side_views = INSET_FLAGS[inset]
         return replace(config, mirror=mirror, side_views=side_views)
 
