@@ -576,16 +576,10 @@ def _stale_or_busy(name: str) -> str | None:
         seg.close()
 
 
-# where protocol version 1 kept the world's state and pid (so that version-1 leftovers can be reclaimed too)
-_V1_WORLD_STATE, _V1_WORLD_PID = 68 // 4, 72 // 4
-
-
 def world_of(seg: Segment) -> tuple[int, bool]:
-    """(world pid, closed?) of a bridge segment of protocol version 1 or 2 (pid 0 for another version)."""
-    version = seg.u32[_U32["version"]]
-    if version == 1:
-        return int(seg.i32[_V1_WORLD_PID]), seg.u32[_V1_WORLD_STATE] == WORLD_CLOSED
-    if version == VERSION:
+    """(world pid, closed?) of a bridge segment; one of another protocol version reads as closed (pid 0): its
+    fields are not ours to read, and no world of this version can be using it."""
+    if seg.u32[_U32["version"]] == VERSION:
         return int(seg.i32[_U32["world_pid"]]), seg.u32[_U32["world_state"]] == WORLD_CLOSED
     return 0, True
 
