@@ -278,7 +278,7 @@ def test_a_rows_filters_reach_its_driver_and_its_driver_process(blind):
     assert not any(a.startswith("--smoothing") or a.startswith("--gap-hold") for a in cmd)
 
 
-def test_the_cli_refuses_bad_input_in_one_line_before_driving(tmp_path, blind):
+def test_the_cli_refuses_bad_input_in_one_line_before_driving(tmp_path, blind, run_cli):
     suite = write_suite(tmp_path / "s.json", [ROUTE_A])
     sidewalk = tmp_path / "z2color.pt"
     from core import worlds as declared
@@ -297,14 +297,14 @@ def test_the_cli_refuses_bad_input_in_one_line_before_driving(tmp_path, blind):
         (["--workers", "0"], "must be an integer from 1"),
     ]
     for args, message in cases:
-        r = ds("benchmark", "--suite", suite, "--out", tmp_path / "out", *args)
+        r = run_cli("benchmark", "--suite", suite, "--out", tmp_path / "out", *args)
         assert r.returncode == 2, (args, r.stderr)
         assert message in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
     assert not (tmp_path / "out").exists()     # refused before any work
 
 
-def test_help_explains_the_verb():
-    r = ds("benchmark", "--help")
+def test_help_explains_the_verb(run_cli):
+    r = run_cli("benchmark", "--help")
     assert r.returncode == 0
     for word in ("--suite", "--workers", "--shm", "--model", "smoothing", "0.60^collisions", "clips", "oracle",
                  "leaderboard.csv"):
