@@ -38,13 +38,12 @@ from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
 
 from core.declaration import DeclarationError, WorldDeclaration
-from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import write_curves
@@ -52,6 +51,7 @@ from perception.models import Regressor, family, make_spec
 from perception.moments import Moments
 from perception.optimizers import make_optimizer as optimizer
 from perception.train_outputs import state_path
+from perception.trainer import Occasion, Plan
 from perception.training import bf16_native, open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
@@ -413,53 +413,94 @@ def resume(run: MultiNetRun, log=print):
     return progress, model, opt, best
 
 
-# --- the loop ------------------------------------------------------------------------------------------------------
-def train_multinet(cfg, log=print) -> dict:
-    """Train Z2Color (MultiNet, or MTL on one mode) on cfg.data for cfg.epochs epochs x cfg.trials trials."""
-    done = None
-    if Path(cfg.out).exists() and not Path(str(cfg.out) + ".state").exists():
-        done = load_checkpoint(cfg.out, model=cfg.model)
-        if done["spec"]["options"].get("mtl") != cfg.mtl:   # an MTL net is not MultiNet, nor another mode's net
-            was = done["spec"]["options"].get("mtl")
-            raise CheckpointError(f"{cfg.out} is a finished {'MTL net of mode ' + was if was else 'MultiNet'}, not "
-                                  f"{'the MTL net of mode ' + cfg.mtl if cfg.mtl else 'MultiNet'}; use another --out")
-    first = next((r for r in str(cfg.data).split(",") if r), cfg.data)
-    run_modes(cfg, open_data(replace(cfg, data=first))[1])   # before anything is read or written
-    if done is not None:
-        log(f"{cfg.out} is trained already ({done['train'].get('trials', 1)} trial(s)): nothing to do (remove it, or "
-            "give another --out, to train again)")
-        return done["train"]
-    run = resolve(cfg, log)
-    progress, model, opt, best = resume(run, log)
-    log(run.describe())
-    t_start = time.perf_counter() - progress.seconds
-    try:
-        with exit_on_sigterm(poll=True):
-            while progress.trial < run.trials:
-                if model is None or opt is None:
-                    model, opt = new_network(run, progress.trial)
-                while progress.epoch < run.epochs:
-                    row = train_epoch(run, model, opt, progress.trial, progress.epoch + 1)
-                    row |= evaluate_loss(model, run.moments, run.held, run.device, amp=run.amp)
-                    progress.history.append(row)
-                    progress.epoch, progress.seconds = row["epoch"], time.perf_counter() - t_start
-                    if progress.best is None or row["val_loss"] < progress.best["val_loss"]:
-                        progress.best = {"trial": row["trial"], "epoch": row["epoch"], "val_loss": row["val_loss"]}
-                        best = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
-                    print(f"{run.title}, trial {row['trial']}/{run.trials}, epoch {row['epoch']}/{run.epochs}: train "
-                          f"loss {row['train_loss']:.5f}, validation loss {row['val_loss']:.5f} "
-                          f"({row['moments_per_s']:.0f} moments/s)", file=sys.stderr, flush=True)
-                    save_state(run, progress, model, opt)
-                    save_best(run, progress, best)
-                progress.trial, progress.epoch, model, opt = progress.trial + 1, 0, None, None
-    except (KeyboardInterrupt, Terminated):   # the state of the last whole epoch is saved already
-        log(f"interrupted: {run.state_path} holds the run after trial {progress.trial + 1}, epoch {progress.epoch}; "
-            "run the same command to continue")
-        raise
-    progress.seconds = time.perf_counter() - t_start
-    save_best(run, progress, best, finished=True)
-    run.state_path.unlink(missing_ok=True)
-    b = progress.best or {}
-    log(f"saved {run.out}: the network of trial {b.get('trial')}, epoch {b.get('epoch')} (validation loss "
-        f"{b.get('val_loss', math.nan):.5f}); curves in {run.out}.loss.csv and .loss.png")
-    return {"history": progress.history, "best": progress.best, "finished": True}
+# --- the trainer --------------------------------------------------------------------------------------------------
+class MultiNetTrainer:
+    """Z2Color's trainer (perception/trainer.py's protocol): MultiNet, or the MTL net of one mode, for `epochs`
+    epochs of each of `trials` trials. A step is one epoch of one trial, validated and saved when it ends."""
+
+    reads: ClassVar[frozenset[str]] = frozenset({
+        "epochs", "batch_size", "lr", "optimizer", "amp", "modes", "mtl", "trials", "mode_moments", "steer_share",
+        "init"})
+
+    def __init__(self, cfg, log=print):
+        self.cfg, self.log = cfg, log
+        self.model: Regressor | None = None
+        self.opt: torch.optim.Optimizer | None = None
+        self.best: dict | None = None            # the weights of the best epoch so far
+        self.row: dict = {}                      # the epoch just trained
+        self.t_start = time.perf_counter()
+
+    def plan(self) -> Plan:
+        """The run resolved (its data read and cached, and split); nothing to do when `out` is a finished network
+        of the same kind."""
+        cfg = self.cfg
+        done = None
+        if Path(cfg.out).exists() and not Path(str(cfg.out) + ".state").exists():
+            done = load_checkpoint(cfg.out, model=cfg.model)
+            if done["spec"]["options"].get("mtl") != cfg.mtl:   # an MTL net is not MultiNet, nor another mode's net
+                was = done["spec"]["options"].get("mtl")
+                raise CheckpointError(f"{cfg.out} is a finished {'MTL net of mode ' + was if was else 'MultiNet'}, "
+                                      f"not {'the MTL net of mode ' + cfg.mtl if cfg.mtl else 'MultiNet'}; use "
+                                      "another --out")
+        first = next((r for r in str(cfg.data).split(",") if r), cfg.data)
+        run_modes(cfg, open_data(replace(cfg, data=first))[1])   # before anything is read or written
+        if done is not None:
+            self.log(f"{cfg.out} is trained already ({done['train'].get('trials', 1)} trial(s)): nothing to do "
+                     "(remove it, or give another --out, to train again)")
+            return Plan(done=done["train"])
+        self.run = resolve(cfg, self.log)
+        return Plan(steps=self.run.trials * self.run.epochs, validate_every=1)
+
+    def restore(self) -> Iterator[tuple[int, tuple[int, int]]]:
+        """The saved state of an unfinished run, if any; the epochs still to train, as (trial, epoch)."""
+        run = self.run
+        self.progress, self.model, self.opt, self.best = resume(run, self.log)
+        self.log(run.describe())
+        self.t_start = time.perf_counter() - self.progress.seconds
+        first_trial, epochs_done = self.progress.trial, self.progress.epoch
+        return ((trial * run.epochs + epoch, (trial, epoch)) for trial in range(first_trial, run.trials)
+                for epoch in range(epochs_done + 1 if trial == first_trial else 1, run.epochs + 1))
+
+    def step(self, work: tuple[int, int]) -> bool:
+        """One epoch of balanced batches (work: the trial and the epoch, from 1); a trial starts a fresh network."""
+        trial, epoch = work
+        if trial != self.progress.trial:
+            self.progress.trial, self.progress.epoch, self.model, self.opt = trial, 0, None, None
+        if self.model is None or self.opt is None:
+            self.model, self.opt = new_network(self.run, trial)
+        self.row = train_epoch(self.run, self.model, self.opt, trial, epoch)
+        return False   # it saves after every epoch
+
+    def validate(self) -> None:
+        """The held-out loss of the epoch into the history; the best network so far kept."""
+        run, progress, model = self.run, self.progress, self.model
+        assert model is not None   # step() trained it
+        row = self.row | evaluate_loss(model, run.moments, run.held, run.device, amp=run.amp)
+        progress.history.append(row)
+        progress.epoch, progress.seconds = row["epoch"], time.perf_counter() - self.t_start
+        if progress.best is None or row["val_loss"] < progress.best["val_loss"]:
+            progress.best = {"trial": row["trial"], "epoch": row["epoch"], "val_loss": row["val_loss"]}
+            self.best = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+        print(f"{run.title}, trial {row['trial']}/{run.trials}, epoch {row['epoch']}/{run.epochs}: train "
+              f"loss {row['train_loss']:.5f}, validation loss {row['val_loss']:.5f} "
+              f"({row['moments_per_s']:.0f} moments/s)", file=sys.stderr, flush=True)
+
+    def save(self, occasion: Occasion) -> dict:
+        """After an epoch: the run's state and the best network; at the end, the best network alone (the state
+        goes); on an interruption nothing, since the state of the last whole epoch is saved already."""
+        run, progress = self.run, self.progress
+        if occasion == "interrupt":
+            self.log(f"interrupted: {run.state_path} holds the run after trial {progress.trial + 1}, epoch "
+                     f"{progress.epoch}; run the same command to continue")
+        elif occasion != "end":
+            assert self.model is not None and self.opt is not None   # step() trained them
+            save_state(run, progress, self.model, self.opt)
+            save_best(run, progress, self.best)
+        else:
+            progress.seconds = time.perf_counter() - self.t_start
+            save_best(run, progress, self.best, finished=True)
+            run.state_path.unlink(missing_ok=True)
+            b = progress.best or {}
+            self.log(f"saved {run.out}: the network of trial {b.get('trial')}, epoch {b.get('epoch')} (validation "
+                     f"loss {b.get('val_loss', math.nan):.5f}); curves in {run.out}.loss.csv and .loss.png")
+        return {"history": progress.history, "best": progress.best, "finished": occasion == "end"}

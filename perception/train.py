@@ -1,31 +1,61 @@
-"""`drivestudio train`: the trainer a model family names ("sgd": perception/train_sgd.py, "closed-form": GIST's
-fit in perception/gist_fit.py, "multinet": Z2Color's in perception/multinet.py), for any world whose declaration
-the family fits. What the trainers share is perception/training.py's."""
+"""`drivestudio train`: one driver for every trainer (the protocol of perception/trainer.py). The trainer is the one
+a model family names ("sgd": perception/train_sgd.py, "closed-form": GIST's fit in perception/gist_fit.py,
+"multinet": Z2Color's in perception/multinet.py), for any world whose declaration the family fits. What the
+trainers share is perception/training.py's."""
 from __future__ import annotations
 
+from core.signals import Terminated, exit_on_sigterm
+from core.signals import check as check_signals
 from perception.distributed import distributed_env, join_distributed
-from perception.gist_fit import fit_gist
+from perception.gist_fit import GistTrainer
 from perception.models import family
-from perception.multinet import train_multinet
+from perception.multinet import MultiNetTrainer
 from perception.train_outputs import check_train_outputs
-from perception.train_sgd import SGDRun
+from perception.train_sgd import SGDTrainer
+from perception.trainer import Trainer
 from perception.training import TrainConfig, TrainingError, open_data, resolve_device
+
+TRAINERS: dict[str, type] = {"sgd": SGDTrainer, "multinet": MultiNetTrainer, "closed-form": GistTrainer}
 
 
 def train(cfg: TrainConfig, log=print) -> dict:
     """Train (or continue training) `cfg.model` on `cfg.data`; returns the final checkpoint's `train` record."""
-    trainer = family(cfg.model).trainer
-    check_train_outputs(cfg.out, trainer)   # every file it writes, before the data is read
-    if trainer != "sgd" and distributed_env() is not None:
-        raise TrainingError(f"--model {cfg.model} trains in one process ({trainer}); torchrun runs the SGD families "
+    kind = family(cfg.model).trainer
+    check_train_outputs(cfg.out, kind)   # every file it writes, before the data is read
+    if kind != "sgd" and distributed_env() is not None:
+        raise TrainingError(f"--model {cfg.model} trains in one process ({kind}); torchrun runs the SGD families "
                             "(alexnet, vgg16, ...) on several")
-    if trainer == "closed-form":
-        return fit_gist(cfg, log)
-    if trainer == "multinet":
-        return train_multinet(cfg, log)
+    if kind != "sgd":
+        return run(TRAINERS[kind](cfg, log))
     data, decl, labels = open_data(cfg)
     dist, device = join_distributed(resolve_device(cfg.device))
     try:
-        return SGDRun(cfg, data, decl, labels, device, dist, log if dist.main else (lambda *a, **k: None)).run()
+        return run(SGDTrainer(cfg, data, decl, labels, device, dist, log if dist.main else (lambda *a, **k: None)))
     finally:
         dist.close()
+
+
+def run(trainer: Trainer) -> dict:
+    """Any trainer's run: its plan, its checkpoint continued, then its steps one after another. It validates every
+    `validate_every` steps and at the last; it saves after each validation but the last (the end's save follows
+    that one), between validations when the trainer's clock says so, and on Ctrl-C or SIGTERM. Returns the
+    checkpoint's train record."""
+    plan = trainer.plan()
+    if plan.done is not None:   # the checkpoint has every step already: nothing is written
+        return plan.done
+    steps = trainer.restore()
+    try:
+        with exit_on_sigterm(poll=True):
+            for n, work in steps:
+                check_signals()
+                due = trainer.step(work)
+                if n % plan.validate_every == 0 or n == plan.steps:
+                    trainer.validate()
+                    if n < plan.steps:
+                        trainer.save("validation")
+                elif due:
+                    trainer.save("clock")
+            return trainer.save("end")
+    except (KeyboardInterrupt, Terminated):
+        trainer.save("interrupt")
+        raise

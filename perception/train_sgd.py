@@ -1,5 +1,6 @@
-"""The SGD trainer of the regressors (AlexNet, VGG-16, any family whose trainer is "sgd"): one readable loop in
-the manner of nanoGPT's train.py, configured by perception/training.py's TrainConfig.
+"""The SGD trainer of the regressors (AlexNet, VGG-16, MobileNet, any family whose trainer is "sgd"), configured by
+perception/training.py's TrainConfig: a step of perception/trainer.py's protocol is one optimiser step on a batch,
+and the driver's loop (perception/train.py) runs them, in the manner of nanoGPT's train.py.
 
 The checkpoint at `out` is written atomically at every validation, every `checkpoint_every` seconds, at the end
 and on Ctrl-C or SIGTERM; running the same training again continues from it (same data order, same optimiser
@@ -16,9 +17,10 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import cast
+from typing import ClassVar, cast
 
 import numpy as np
 import torch
@@ -26,8 +28,6 @@ from tqdm import tqdm
 
 from core.children import worker_initializer
 from core.declaration import WorldDeclaration
-from core.signals import Terminated, exit_on_sigterm
-from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import curve_paths, write_curves
 from perception.datasets import FrameStream, collate_channels_last
@@ -46,6 +46,7 @@ from perception.models import (
 )
 from perception.optimizers import make_optimizer as optimizer
 from perception.shards import Dataset, DatasetError
+from perception.trainer import Occasion, Plan
 from perception.training import (
     LOSSES,
     TrainConfig,
@@ -60,8 +61,8 @@ from perception.weight_average import WeightAverage
 
 
 @dataclass
-class Plan:
-    """What this run does, from the config, the family's paper defaults and the checkpoint it continues."""
+class Setup:
+    """The run's numbers and model, from the config, the family's paper defaults and the checkpoint it continues."""
 
     iterations: int
     batch_size: int
@@ -75,7 +76,7 @@ class Plan:
 
 
 def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, stream: FrameStream,
-             dist: Distributed, log) -> Plan:
+             dist: Distributed, log) -> Setup:
     """The run's numbers and the model spec; a checkpoint at `out` is checked against the options first."""
     paper = family(cfg.model).defaults
     batch_size = cfg.batch_size or paper["batch_size"]
@@ -97,9 +98,9 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     if not out.exists() and cfg.init:
         init = initial_checkpoint(cfg, decl, labels)   # fine-tuning keeps the loss the model learned under
         loss = cfg.loss or init.get("train", {}).get("config", {}).get("loss") or "euclidean"
-        return Plan(iterations, batch_size, lr, optimizer, loss, ema, init["spec"], None, init)
+        return Setup(iterations, batch_size, lr, optimizer, loss, ema, init["spec"], None, init)
     if not out.exists():
-        return Plan(iterations, batch_size, lr, optimizer, loss, ema, new_spec(cfg, decl, labels, dist, log), None)
+        return Setup(iterations, batch_size, lr, optimizer, loss, ema, new_spec(cfg, decl, labels, dist, log), None)
     ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
     check_spec(ckpt["spec"], str(out))
     if "optimizer" not in ckpt:
@@ -111,7 +112,7 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
         log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
             f"batch {old.get('batch_size')}); the settings of this run are ignored")
         lr, batch_size = old.get("lr", lr), old.get("batch_size", batch_size)
-    return Plan(iterations, batch_size, lr, optimizer, loss, ema, ckpt["spec"], ckpt)
+    return Setup(iterations, batch_size, lr, optimizer, loss, ema, ckpt["spec"], ckpt)
 
 
 def earlier_frames(decl: WorldDeclaration, history: int) -> int:
@@ -182,13 +183,13 @@ def new_spec(cfg: TrainConfig, decl: WorldDeclaration, labels, dist: Distributed
     return make_spec(cfg.model, decl, labels, mean=mean, std=std, instants=instants, **options)
 
 
-def build_model(cfg: TrainConfig, plan: Plan, device: torch.device, log) -> Regressor:
+def build_model(cfg: TrainConfig, setup: Setup, device: torch.device, log) -> Regressor:
     """The model: the checkpoint's weights, a trunk of ImageNet weights, or a fresh initialisation."""
-    model = Regressor(plan.spec)
-    if plan.ckpt is not None:   # with a moving average, "state_dict" holds the average, not the trained weights
-        model.load_state_dict(plan.ckpt.get("training_state_dict", plan.ckpt["state_dict"]))
-    elif plan.init is not None:
-        model.load_state_dict(plan.init["state_dict"])
+    model = Regressor(setup.spec)
+    if setup.ckpt is not None:   # with a moving average, "state_dict" holds the average, not the trained weights
+        model.load_state_dict(setup.ckpt.get("training_state_dict", setup.ckpt["state_dict"]))
+    elif setup.init is not None:
+        model.load_state_dict(setup.init["state_dict"])
         log(f"{cfg.model}: starting from the weights of {cfg.init}")
     elif cfg.weights:
         n = load_trunk(model, cfg.weights)
@@ -222,140 +223,174 @@ def _one_thread(worker_id: int) -> None:  # decoding workers leave the cores to 
     torch.set_num_threads(1)
 
 
-class SGDRun:
-    """One training run: the model, its optimiser and schedule, the state a checkpoint carries, and the loop."""
+class SGDTrainer:
+    """The SGD trainer (perception/trainer.py's protocol): the model, its optimiser and schedule, the state a
+    checkpoint carries. A step is one optimiser step on a batch."""
+
+    reads: ClassVar[frozenset[str]] = frozenset({
+        "iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss", "ema", "momentum",
+        "weight_decay", "amp", "workers", "shuffle_buffer", "val_every", "checkpoint_every", "val_frames", "log_every",
+        "weights", "init", "cache", "channels_last", "emphasis"})
 
     def __init__(self, cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, device: torch.device,
                  dist: Distributed, log):
-        self.cfg, self.data, self.labels, self.device, self.dist, self.log = cfg, data, labels, device, dist, log
+        self.cfg, self.data, self.decl, self.labels, self.device, self.dist, self.log = \
+            cfg, data, decl, labels, device, dist, log
         self.out = Path(cfg.out)
+        self.state: dict = {"iteration": 0, "epoch": 0, "step_in_epoch": 0, "history": [], "seconds": 0.0}
+        self.val: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None   # images, modes, targets
+        self.losses: list[float] = []            # the training losses since the last row of the curve
+        self.t_start = self.t_row = time.perf_counter()
+        self.last_save = time.monotonic()
+        self.bar = tqdm(total=0, disable=True)      # the progress bar, from restore()
+
+    # --- the protocol ------------------------------------------------------------------------------------------
+    def plan(self) -> Plan:
+        """The run's numbers and the model, its optimiser and schedule; nothing to do when the checkpoint at `out`
+        has every iteration already."""
+        cfg, data, dist, log = self.cfg, self.data, self.dist, self.log
         torch.manual_seed(cfg.seed)
-        self.moment = history_moment(decl, cfg.history)
-        self.stream = FrameStream(cfg.data, "train", labels, shuffle=True, seed=cfg.seed,
+        self.moment = history_moment(self.decl, cfg.history)
+        self.stream = FrameStream(cfg.data, "train", self.labels, shuffle=True, seed=cfg.seed,
                                   buffer=min(cfg.shuffle_buffer, data.frames("train")), rank=dist.rank,
                                   world_size=dist.world_size, moment=self.moment,
                                   cache=frame_cache(data, dist, log) if cfg.cache else None, emphasis=cfg.emphasis)
-        self.plan = plan = plan_run(cfg, data, decl, labels, self.stream, dist, log)
-        self.model = build_model(cfg, plan, device, log)
-        self.channels_last = cfg.channels_last and device.type == "cpu"
+        self.setup = setup = plan_run(cfg, data, self.decl, self.labels, self.stream, dist, log)
+        if setup.ckpt is not None and setup.ckpt["train"]["iteration"] >= setup.iterations:
+            log(f"{self.out} has already trained {setup.ckpt['train']['iteration']} of {setup.iterations} "
+                "iterations: nothing to do (raise --iterations to train further)")
+            return Plan(done=setup.ckpt["train"])
+        self.model = build_model(cfg, setup, self.device, log)
+        self.channels_last = cfg.channels_last and self.device.type == "cpu"
         if self.channels_last:   # oneDNN's convolutions are faster on channels-last weights and inputs
             self.model.to(memory_format=torch.channels_last)
             self.stream.channels_last = True   # batches come channels-last: step's conversion copies nothing
         self.net: torch.nn.Module = self.model   # what the steps call: the model or its DistributedDataParallel
         if dist.active:
             self.net = torch.nn.parallel.DistributedDataParallel(
-                self.model, device_ids=[device.index] if device.type == "cuda" else None)
+                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
         self.params = [p for p in self.model.parameters() if p.requires_grad]
-        self.opt = make_optimizer(plan.optimizer, self.params, plan.lr, cfg)
+        self.opt = make_optimizer(setup.optimizer, self.params, setup.lr, cfg)
         self.sched = torch.optim.lr_scheduler.StepLR(self.opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
-        self.average = WeightAverage(self.model, plan.ema) if plan.ema else None
+        self.average = WeightAverage(self.model, setup.ema) if setup.ema else None
         self.amp_dtype = None
-        if cfg.amp and device.type == "cuda":
+        if cfg.amp and self.device.type == "cuda":
             self.amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
         self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp_dtype == torch.float16)
-        self.state: dict = {"iteration": 0, "epoch": 0, "step_in_epoch": 0, "history": [], "seconds": 0.0}
-        self.val: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None   # images, modes, targets
-        self.losses: list[float] = []            # the training losses since the last row of the curve
-        self.t_start = self.t_row = time.perf_counter()
+        return Plan(steps=setup.iterations, validate_every=cfg.val_every)
+
+    def restore(self) -> Iterator[tuple[int, tuple]]:
+        """Continue the checkpoint's optimiser, schedule and RNG; the batches still to train on."""
+        ckpt, out = self.setup.ckpt, self.out
+        if ckpt is not None:
+            self.opt.load_state_dict(ckpt["optimizer"])
+            self.sched.load_state_dict(ckpt["scheduler"])
+            if self.average is not None:
+                self.average.load(ckpt["state_dict"], ckpt["train"].get("averaged_steps", 0))
+            if "scaler" in ckpt and self.scaler.is_enabled():
+                self.scaler.load_state_dict(ckpt["scaler"])
+            if "rng" in ckpt:
+                torch.set_rng_state(ckpt["rng"])
+            self.state.update({k: ckpt["train"][k] for k in self.state})
+            if ckpt["train"].get("world_size", 1) != self.dist.world_size:
+                self.log(f"note: {out} was trained by {ckpt['train'].get('world_size', 1)} process(es), this run "
+                         f"has {self.dist.world_size}: the data order from here on differs from an uninterrupted run")
+            if ckpt["data"]["frames"] != data_summary(self.data)["frames"]:
+                self.log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
+                         f"continuing on {self.cfg.data} with {data_summary(self.data)['frames']}")
+            self.log(f"continuing {out} from iteration {self.state['iteration']} of {self.setup.iterations}")
+        self.load_validation()
+        self.announce()
+        loader = self.loader()
+        self.bar = tqdm(total=self.setup.iterations, initial=self.state["iteration"], unit="it", dynamic_ncols=True,
+                        file=sys.stderr, mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=self.cfg.model,
+                        disable=not self.dist.main)
+        self.losses = []
+        self.t_row = time.perf_counter()
+        self.t_start = time.perf_counter() - self.state["seconds"]
         self.last_save = time.monotonic()
-        self.bar = tqdm(total=0, disable=True)      # the progress bar of run()
+        return self.batches(loader)
 
-    # --- state -------------------------------------------------------------------------------------------------
-    def restore(self) -> bool:
-        """Continue the checkpoint's optimiser, schedule and RNG; False when it has trained enough already."""
-        ckpt, out = self.plan.ckpt, self.out
-        if ckpt is None:
-            return True
-        self.opt.load_state_dict(ckpt["optimizer"])
-        self.sched.load_state_dict(ckpt["scheduler"])
-        if self.average is not None:
-            self.average.load(ckpt["state_dict"], ckpt["train"].get("averaged_steps", 0))
-        if "scaler" in ckpt and self.scaler.is_enabled():
-            self.scaler.load_state_dict(ckpt["scaler"])
-        if "rng" in ckpt:
-            torch.set_rng_state(ckpt["rng"])
-        self.state.update({k: ckpt["train"][k] for k in self.state})
-        if ckpt["train"].get("world_size", 1) != self.dist.world_size:
-            self.log(f"note: {out} was trained by {ckpt['train'].get('world_size', 1)} process(es), this run has "
-                     f"{self.dist.world_size}: the data order from here on differs from an uninterrupted run")
-        if ckpt["data"]["frames"] != data_summary(self.data)["frames"]:
-            self.log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
-                     f"continuing on {self.cfg.data} with {data_summary(self.data)['frames']}")
-        if self.state["iteration"] >= self.plan.iterations:
-            self.log(f"{out} has already trained {self.state['iteration']} of {self.plan.iterations} iterations: "
-                     "nothing to do (raise --iterations to train further)")
-            return False
-        self.log(f"continuing {out} from iteration {self.state['iteration']} of {self.plan.iterations}")
-        return True
+    def step(self, work: tuple) -> bool:
+        """One optimiser step on a batch (work: its index in the epoch and the batch), counted; a row of the loss
+        curve when one is due. Whether a save is due by the clock: with several ranks, whether any rank is, agreed
+        before backward."""
+        index, (x, m, y) = work
+        loss, due = self.optimise(x, m, y)
+        st, it_max = self.state, self.setup.iterations
+        st["iteration"] += 1
+        st["step_in_epoch"] = index + 1
+        it = st["iteration"]
+        self.losses.append(loss)
+        self.bar.update(1)
+        if it % self.cfg.log_every == 0 or it == it_max or it % self.cfg.val_every == 0:
+            st["history"].append(self.curve_row(it))
+        if due is None:   # one process: due when the last save is older than checkpoint_every
+            due = time.monotonic() - self.last_save > self.cfg.checkpoint_every
+        return due
 
-    def load_validation(self) -> None:
-        if self.data.frames("val") and self.dist.main:   # rank 0 validates
-            self.val = load_frames(self.cfg.data, "val", self.labels, self.cfg.val_frames, moment=self.moment)
-        elif not self.data.frames("val"):
-            self.log(f"note: {self.cfg.data} has no validation split (episodes 8, 18, ...); training without "
-                     "validation")
-
-    def save(self, final: bool = False) -> None:
-        if not self.dist.main:
-            return
-        cfg, plan = self.cfg, self.plan
-        config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
-        config.update(iterations=plan.iterations, batch_size=plan.batch_size, lr=plan.lr, optimizer=plan.optimizer,
-                      loss=plan.loss, ema=plan.ema)
-        payload: dict = {"spec": plan.spec, "state_dict": self.used().state_dict(), "optimizer": self.opt.state_dict(),
-                   "scheduler": self.sched.state_dict(), "rng": torch.get_rng_state(),
-                   "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
-                   "data": data_summary(self.data)}
-        if self.average is not None:   # the weights it trains, to continue from; the average is what is used
-            payload["training_state_dict"] = self.model.state_dict()
-            payload["train"]["averaged_steps"] = self.average.steps
-        if self.dist.active:
-            payload["train"]["world_size"] = self.dist.world_size
-        if self.scaler.is_enabled():
-            payload["scaler"] = self.scaler.state_dict()
-        save_checkpoint(self.out, payload)
-        title = f"{describe(plan.spec)} on {self.data.root.name}: {plan.loss} loss, {plan.optimizer}, " \
-                f"lr {plan.lr:g}, batch {plan.batch_size}"
-        write_curves(self.out, self.state["history"], title=title)
-
-    def used(self) -> Regressor:
-        """The model the run validates and saves: the moving average of the weights where there is one."""
-        return self.model if self.average is None else cast(Regressor, self.average.module)
-
-    def validate_into(self, row: dict) -> None:
-        if self.val is None:
+    def validate(self) -> None:
+        """The validation loss and MAE into this iteration's row of the curve (rank 0 validates)."""
+        row = self.state["history"][-1]
+        if self.val is None or not self.dist.main:
             return
         images, modes, targets = self.val
-        v = validate(self.used(), images, modes, targets, self.device, loss=self.plan.loss)
+        v = validate(self.used(), images, modes, targets, self.device, loss=self.setup.loss)
         row["val_loss"] = v["val_loss"]
         row.update({f"val_mae_{n}": m for n, m in v["val_mae"].items()})
         shown = ", ".join(f"{n} {m:.3g}" for n, m in list(v["val_mae"].items())[:4])
         tqdm.write(f"iteration {self.state['iteration']}: train loss {row.get('train_loss', float('nan')):.4f}, "
                    f"val loss {v['val_loss']:.4f}, val MAE {shown}", file=sys.stderr)
 
-    # --- the loop ----------------------------------------------------------------------------------------------
-    def announce(self) -> None:
-        cfg, plan, dist = self.cfg, self.plan, self.dist
-        self.log(f"training {describe(plan.spec)} ({sum(p.numel() for p in self.params):,} trainable parameters) "
-                 f"on {len(self.stream)} frames of {cfg.data}"
-                 + (f" (its decisive frames {cfg.emphasis} times each)" if cfg.emphasis != 1 else "")
-                 + f" on {self.device}: {plan.iterations} iterations of "
-                 f"{plan.batch_size}, {plan.loss} loss, {plan.optimizer} lr {plan.lr:g} x{cfg.lr_gamma} every "
-                 f"{cfg.lr_step}"
-                 + (f", {self.amp_dtype}" if self.amp_dtype else "")
-                 + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {plan.batch_size} samples "
-                    f"each per iteration, {plan.batch_size * dist.world_size} in all" if dist.active else ""))
+    def save(self, occasion: Occasion) -> dict:
+        """The checkpoint and the curves (rank 0 writes; the other ranks wait for it, but on an interruption)."""
+        st = self.state
+        if occasion in ("clock", "interrupt"):   # a validation's row has timed the run already
+            st["seconds"] = time.perf_counter() - self.t_start
+        if occasion == "interrupt":
+            self.bar.close()
+            self.write(final=False)   # rank 0 only: the replicas are equal after every step
+            self.log(f"interrupted: saved {self.out} at iteration {st['iteration']}; run the same command to "
+                     "continue")
+            return st
+        self.write(final=occasion == "end")
+        self.dist.barrier()   # the other ranks wait for rank 0's validation and checkpoint
+        self.last_save = time.monotonic()
+        if occasion != "clock":
+            self.t_row = time.perf_counter()   # validation and saving are not training time
+        if occasion != "end":
+            return st
+        self.bar.close()
+        self.log(f"saved {self.out} ({st['iteration']} iterations, {st['seconds'] / 60:.1f} min); "
+                 f"loss curves in {', '.join(str(p) for p in curve_paths(self.out))}")
+        return {**st, "finished": True}
 
-    def loader(self) -> torch.utils.data.DataLoader:
-        kw: dict = dict(batch_size=self.plan.batch_size, num_workers=self.cfg.workers, drop_last=True,
-                        pin_memory=self.device.type == "cuda")
-        if self.cfg.workers:
-            kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
-        if self.stream.channels_last:
-            kw.update(collate_fn=collate_channels_last)
-        return torch.utils.data.DataLoader(self.stream, **kw)
+    # --- the steps' parts --------------------------------------------------------------------------------------
+    def batches(self, loader) -> Iterator[tuple[int, tuple]]:
+        """The batches still to train on, epoch after epoch from where the checkpoint left off: (the iterations
+        done once it is trained on, (its index in the epoch, the batch))."""
+        st, dist, setup = self.state, self.dist, self.setup
+        while st["iteration"] < setup.iterations:
+            self.stream.set_epoch(st["epoch"])
+            skip = st["step_in_epoch"]
+            # several processes step together: an epoch ends for all at the fewest batches any rank has
+            steps = dist.minimum(self.stream.batches(setup.batch_size, self.cfg.workers)) if dist.active else None
+            if steps == 0:
+                raise DatasetError(f"a process has no whole batch of {setup.batch_size} in epoch {st['epoch']}: "
+                                   f"too few training episodes of {self.cfg.data} for {dist.world_size} processes "
+                                   f"and {max(self.cfg.workers, 1)} loader workers each")
+            for index, batch in enumerate(loader):
+                if steps is not None and index >= steps:
+                    break
+                if index < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
+                    continue
+                yield st["iteration"] + 1, (index, batch)
+                if st["iteration"] >= setup.iterations:
+                    return
+            st["epoch"] += 1
+            st["step_in_epoch"] = 0
 
-    def step(self, x, m, y) -> tuple[float, bool | None]:
+    def optimise(self, x, m, y) -> tuple[float, bool | None]:
         """One optimiser step on a batch: (the loss, mean over ranks; with several ranks, whether any is due to
         save, agreed before backward)."""
         dev = self.device
@@ -364,7 +399,7 @@ class SGDRun:
             x = x.contiguous(memory_format=torch.channels_last)
         with torch.autocast(dev.type, dtype=self.amp_dtype or torch.float32, enabled=self.amp_dtype is not None):
             pred = self.net(x, m)
-        loss = LOSSES[self.plan.loss](pred, y)
+        loss = LOSSES[self.setup.loss](pred, y)
         value, due = loss, None
         if self.dist.active:   # the mean loss over ranks, and whether any rank is due to save, before backward
             late = time.monotonic() - self.last_save > self.cfg.checkpoint_every
@@ -372,7 +407,7 @@ class SGDRun:
             value, due = torch.tensor(mean_loss), due_any > 0
         if not torch.isfinite(value):
             raise TrainingError(f"the loss diverged ({value.item()}) at iteration {self.state['iteration']}; "
-                                f"lower --lr (now {self.plan.lr:g}) or use --optimizer adam")
+                                f"lower --lr (now {self.setup.lr:g}) or use --optimizer adam")
         self.opt.zero_grad(set_to_none=True)
         self.scaler.scale(loss).backward()
         self.scaler.step(self.opt)
@@ -382,38 +417,10 @@ class SGDRun:
             self.average.update(self.model)
         return value.item(), due
 
-    def after_step(self, step: int, loss: float, due: bool | None) -> None:
-        """Count the iteration (step: its index in the epoch); log a row of the curve, validate and save when due."""
-        st, it_max = self.state, self.plan.iterations
-        st["iteration"] += 1
-        st["step_in_epoch"] = step + 1
-        it = st["iteration"]
-        self.losses.append(loss)
-        self.bar.update(1)
-        if it % self.cfg.log_every == 0 or it == it_max or it % self.cfg.val_every == 0:
-            row = self.curve_row(it)
-            if it % self.cfg.val_every == 0 or it == it_max:
-                if self.dist.main:
-                    self.validate_into(row)
-                st["history"].append(row)
-                self.save(final=it == it_max)
-                self.dist.barrier()   # the other ranks wait for rank 0's validation and checkpoint
-                self.last_save = time.monotonic()
-                self.t_row = time.perf_counter()  # validation and saving are not training time
-            else:
-                st["history"].append(row)
-        if due is None:   # one process: due when the last save is older than checkpoint_every
-            due = time.monotonic() - self.last_save > self.cfg.checkpoint_every
-        if due and it < it_max:
-            st["seconds"] = time.perf_counter() - self.t_start
-            self.save()   # a kill between validations loses at most checkpoint_every seconds
-            self.dist.barrier()
-            self.last_save = time.monotonic()
-
     def curve_row(self, it: int) -> dict:
         now = time.perf_counter()
         self.state["seconds"] = now - self.t_start
-        per_it = self.plan.batch_size * self.dist.world_size
+        per_it = self.setup.batch_size * self.dist.world_size
         row = {"iteration": it, "epoch": round(it * per_it / len(self.stream), 3),
                "train_loss": float(np.mean(self.losses)), "lr": self.opt.param_groups[0]["lr"],
                "samples_per_s": round(len(self.losses) * per_it / max(now - self.t_row, 1e-9), 2),
@@ -423,54 +430,59 @@ class SGDRun:
                              fps=f"{row['samples_per_s']:.0f}", refresh=False)
         return row
 
-    def epoch(self, loader) -> None:
-        """The batches of one epoch (from where a checkpoint left it), until the iterations are done."""
-        st, dist = self.state, self.dist
-        self.stream.set_epoch(st["epoch"])
-        skip = st["step_in_epoch"]
-        # several processes step together: an epoch ends for all at the fewest batches any rank has
-        steps = dist.minimum(self.stream.batches(self.plan.batch_size, self.cfg.workers)) if dist.active else None
-        if steps == 0:
-            raise DatasetError(f"a process has no whole batch of {self.plan.batch_size} in epoch {st['epoch']}: too "
-                               f"few training episodes of {self.cfg.data} for {dist.world_size} processes and "
-                               f"{max(self.cfg.workers, 1)} loader workers each")
-        for step, (x, m, y) in enumerate(loader):
-            check_signals()
-            if steps is not None and step >= steps:
-                break
-            if step < skip:  # resuming: replay the epoch's order up to where the checkpoint left it
-                continue
-            self.after_step(step, *self.step(x, m, y))
-            if st["iteration"] >= self.plan.iterations:
-                return
-        st["epoch"] += 1
-        st["step_in_epoch"] = 0
+    def load_validation(self) -> None:
+        if self.data.frames("val") and self.dist.main:   # rank 0 validates
+            self.val = load_frames(self.cfg.data, "val", self.labels, self.cfg.val_frames, moment=self.moment)
+        elif not self.data.frames("val"):
+            self.log(f"note: {self.cfg.data} has no validation split (episodes 8, 18, ...); training without "
+                     "validation")
 
-    def run(self) -> dict:
-        if not self.restore():
-            return self.plan.ckpt["train"] if self.plan.ckpt else self.state
-        self.load_validation()
-        self.announce()
-        loader = self.loader()
-        self.bar = tqdm(total=self.plan.iterations, initial=self.state["iteration"], unit="it", dynamic_ncols=True,
-                        file=sys.stderr, mininterval=1.0 if sys.stderr.isatty() else 30.0, desc=self.cfg.model,
-                        disable=not self.dist.main)
-        self.losses = []
-        self.t_row = time.perf_counter()
-        self.t_start = time.perf_counter() - self.state["seconds"]
-        self.last_save = time.monotonic()
-        try:
-            with exit_on_sigterm(poll=True):
-                while self.state["iteration"] < self.plan.iterations:
-                    self.epoch(loader)
-        except (KeyboardInterrupt, Terminated):
-            self.bar.close()
-            self.state["seconds"] = time.perf_counter() - self.t_start
-            self.save()   # rank 0 only: the replicas are equal after every step
-            self.log(f"interrupted: saved {self.out} at iteration {self.state['iteration']}; run the same command "
-                     "to continue")
-            raise
-        self.bar.close()
-        self.log(f"saved {self.out} ({self.state['iteration']} iterations, {self.state['seconds'] / 60:.1f} min); "
-                 f"loss curves in {', '.join(str(p) for p in curve_paths(self.out))}")
-        return {**self.state, "finished": True}
+    def announce(self) -> None:
+        cfg, setup, dist = self.cfg, self.setup, self.dist
+        self.log(f"training {describe(setup.spec)} ({sum(p.numel() for p in self.params):,} trainable parameters) "
+                 f"on {len(self.stream)} frames of {cfg.data}"
+                 + (f" (its decisive frames {cfg.emphasis} times each)" if cfg.emphasis != 1 else "")
+                 + f" on {self.device}: {setup.iterations} iterations of "
+                 f"{setup.batch_size}, {setup.loss} loss, {setup.optimizer} lr {setup.lr:g} x{cfg.lr_gamma} every "
+                 f"{cfg.lr_step}"
+                 + (f", {self.amp_dtype}" if self.amp_dtype else "")
+                 + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {setup.batch_size} samples "
+                    f"each per iteration, {setup.batch_size * dist.world_size} in all" if dist.active else ""))
+
+    def loader(self) -> torch.utils.data.DataLoader:
+        kw: dict = dict(batch_size=self.setup.batch_size, num_workers=self.cfg.workers, drop_last=True,
+                        pin_memory=self.device.type == "cuda")
+        if self.cfg.workers:
+            kw.update(worker_init_fn=_one_thread, prefetch_factor=4)
+        if self.stream.channels_last:
+            kw.update(collate_fn=collate_channels_last)
+        return torch.utils.data.DataLoader(self.stream, **kw)
+
+    def write(self, final: bool) -> None:
+        """The checkpoint and the curves, by rank 0."""
+        if not self.dist.main:
+            return
+        cfg, setup = self.cfg, self.setup
+        config = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
+        config.update(iterations=setup.iterations, batch_size=setup.batch_size, lr=setup.lr,
+                      optimizer=setup.optimizer, loss=setup.loss, ema=setup.ema)
+        payload: dict = {"spec": setup.spec, "state_dict": self.used().state_dict(),
+                         "optimizer": self.opt.state_dict(), "scheduler": self.sched.state_dict(),
+                         "rng": torch.get_rng_state(),
+                         "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
+                         "data": data_summary(self.data)}
+        if self.average is not None:   # the weights it trains, to continue from; the average is what is used
+            payload["training_state_dict"] = self.model.state_dict()
+            payload["train"]["averaged_steps"] = self.average.steps
+        if self.dist.active:
+            payload["train"]["world_size"] = self.dist.world_size
+        if self.scaler.is_enabled():
+            payload["scaler"] = self.scaler.state_dict()
+        save_checkpoint(self.out, payload)
+        title = f"{describe(setup.spec)} on {self.data.root.name}: {setup.loss} loss, {setup.optimizer}, " \
+                f"lr {setup.lr:g}, batch {setup.batch_size}"
+        write_curves(self.out, self.state["history"], title=title)
+
+    def used(self) -> Regressor:
+        """The model the run validates and saves: the moving average of the weights where there is one."""
+        return self.model if self.average is None else cast(Regressor, self.average.module)

@@ -1,4 +1,4 @@
-"""What every trainer shares (the SGD loop of perception/train_sgd.py, GIST's closed-form fit of
+"""What every trainer shares (the SGD trainer of perception/train_sgd.py, GIST's closed-form fit of
 perception/gist_fit.py, Z2Color's of perception/multinet.py): the run's configuration, its targets, the device,
 the data and its validation frames, the Euclidean loss and the per-output MAE.
 

@@ -200,15 +200,14 @@ def test_a_finished_multinet_is_not_handed_back_as_an_mtl_net(tmp_path):
     from core import worlds as _worlds
     from perception.checkpoint import CheckpointError, save_checkpoint
     from perception.models import Regressor, make_spec
-    from perception.multinet import train_multinet
+    from perception.train import train
     from perception.training import TrainConfig
     model = Regressor(make_spec("z2color", _worlds.get("sidewalk"), modal=True))
     out = tmp_path / "multinet.pt"
     save_checkpoint(out, {"spec": model.spec, "state_dict": model.state_dict(), "train": {"trials": 1}})
     _torch.manual_seed(0)
     with _pytest.raises(CheckpointError, match="is a finished MultiNet, not the MTL net of mode direct"):
-        train_multinet(TrainConfig(data=str(tmp_path), model="z2color", out=str(out), mtl="direct"),
-                       log=lambda *a: None)
+        train(TrainConfig(data=str(tmp_path), model="z2color", out=str(out), mtl="direct"), log=lambda *a: None)
 
 
 @pytest.mark.parametrize("avx512_bf16, amx, native", [(False, False, False), (True, False, True), (False, True, True)])
