@@ -5,8 +5,6 @@ benchmark renders it for that row only, `--mirror` with a model that learned non
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -21,7 +19,6 @@ from perception.models import Regressor, frame_inset, make_spec
 from perception.train_sgd import check_inset
 from sim.highway.config import WorldConfig
 
-DS = [sys.executable, "-m", "drivestudio"]
 MIRRORED = HIGHWAY.with_camera("front", 210, 280, "mirror")
 SIDES = HIGHWAY.with_camera("front", 210, 280, "mirror+sides")
 
@@ -102,17 +99,16 @@ def test_the_benchmark_renders_the_mirror_for_that_row(models):
     assert "with mirror" in check_model(str(models["mirror"])).label
 
 
-def test_drive_with_a_mirror_model_runs_with_the_mirror(models, tmp_path):
-    run = subprocess.run(DS + ["drive", "--model", str(models["mirror"]), "--track", "oval", "--lanes", "2",
-                               "--cars", "2", "--seconds", "1", "--in-process", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=180)
+def test_drive_with_a_mirror_model_runs_with_the_mirror(models, tmp_path, run_cli):
+    run = run_cli("drive", "--model", models["mirror"], "--track", "oval", "--lanes", "2", "--cars", "2",
+                  "--seconds", "1", "--in-process", "--out", tmp_path)
     assert run.returncode == 0, run.stderr
     assert json.loads((tmp_path / "metrics.json").read_text())["mirror"] is True
 
 
-def test_mirror_with_a_model_that_learned_none_is_one_line_and_exit_2(models, tmp_path):
-    run = subprocess.run(DS + ["drive", "--model", str(models["plain"]), "--set", "mirror=true", "--seconds", "1",
-                               "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=120)
+def test_mirror_with_a_model_that_learned_none_is_one_line_and_exit_2(models, tmp_path, run_cli):
+    run = run_cli("drive", "--model", models["plain"], "--set", "mirror=true", "--seconds", "1",
+                  "--out", tmp_path / "run")
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0 and "without the rear-view mirror" in run.stderr
     assert not (tmp_path / "run").exists()
@@ -130,16 +126,15 @@ def test_training_goes_on_only_with_frames_like_the_models_own(models):
         check_inset("p.pt", make_spec("gist", HIGHWAY), MIRRORED)
 
 
-def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_without(tmp_path):
+def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_without(tmp_path, run_cli):
     """...and aggregation rounds drive the lane counts of the expert data they are merged with."""
     from perception.merge import Source, merge
     from perception.shards import Dataset, DatasetError
 
     for name, extra in (("plain", []), ("mirror", ["--set", "mirror=true", "--lanes", "2,4"]),
                         ("sides", ["--set", "side_views=true"])):
-        run = subprocess.run(DS + ["generate", "--out", str(tmp_path / name), "--frames", "24", "--episode-frames",
-                                   "12", "--workers", "1", "--cars", "4", "--quiet", *extra],
-                             capture_output=True, text=True, timeout=180)
+        run = run_cli("generate", "--out", tmp_path / name, "--frames", "24", "--episode-frames", "12",
+                      "--workers", "1", "--cars", "4", "--quiet", *extra)
         assert run.returncode == 0, run.stderr
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
