@@ -9,7 +9,8 @@ import numpy as np
 from core.settings import setting
 from core.worlds.highway import FRAME
 
-RENDERERS = ("tiny", "egl")   # how sim/highway/bullet_scene.py draws: TinyRenderer or the EGL plugin
+# how frames are drawn (sim/highway/renderer.py): PyBullet's TinyRenderer or EGL plugin, the compiled rasteriser
+RENDERERS = ("tiny", "egl", "numba")
 
 @dataclass(frozen=True)
 class CameraConfig:

@@ -46,12 +46,10 @@ with _quiet():
     from pybullet_utils.bullet_client import BulletClient
 
 from sim.camera import RENDERERS, CameraConfig  # noqa: E402  (below pybullet's quietened import, which must come first)
-from sim.highway.car_models import PAINTS, PART_COLOURS, car_models  # noqa: E402
+from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models  # noqa: E402
 from sim.highway.errors import RendererError  # noqa: E402
 from sim.highway.mesh import MeshData  # noqa: E402
 from sim.scene import Chunk, Look  # noqa: E402
-
-CAR_PARTS = ("paint", "glass", "tyres", "taillights", "headlights")  # base first, then links
 
 
 def _egl_plugin_file() -> str | None:
@@ -121,7 +119,7 @@ class BulletScene:
         self._chunk_visible = np.zeros(len(chunks), dtype=bool)
 
         # cars: shapes shared per model, bodies created per car slot on demand
-        self._model_shapes = [{part: self._shape(m.parts[part], (1, 1, 1, 1)) for part in CAR_PARTS}
+        self._model_shapes = [{part: self._shape(m.parts[part], (1, 1, 1, 1)) for part in PARTS}
                               for m in car_models()]
         self._cars: list[dict] = []
 
@@ -138,7 +136,7 @@ class BulletScene:
 
     def _new_car_body(self, model: int) -> int:
         shapes = self._model_shapes[model]
-        links = [shapes[p] for p in CAR_PARTS[1:]]
+        links = [shapes[p] for p in PARTS[1:]]   # the base is the paint, the links the others
         k = len(links)
         return self._bc.createMultiBody(
             baseVisualShapeIndex=shapes["paint"], linkMasses=[0] * k, linkCollisionShapeIndices=[-1] * k,
@@ -149,7 +147,7 @@ class BulletScene:
     def _set_car_alpha(self, car: dict, alpha: float) -> None:
         paint = PAINTS[car["paint"] % len(PAINTS)]
         self._bc.changeVisualShape(car["body"], -1, rgbaColor=list(paint) + [alpha])
-        for i, part in enumerate(CAR_PARTS[1:]):
+        for i, part in enumerate(PARTS[1:]):
             self._bc.changeVisualShape(car["body"], i, rgbaColor=list(PART_COLOURS[part][:3]) + [alpha])
         car["visible"] = alpha > 0
 

@@ -14,6 +14,7 @@ import trimesh
 
 from sim.highway.mesh import MeshData
 
+PARTS = ("paint", "glass", "tyres", "taillights", "headlights")   # every model's, the painted one first
 PART_COLOURS = {  # RGBA of the parts that do not take the car's paint
     "glass": (0.10, 0.12, 0.16, 1.0),
     "tyres": (0.05, 0.05, 0.05, 1.0),

@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 from core.settings import MAX_SEED, setting
 from core.worlds.highway import MAX_LANES
 from sim.camera import RENDERERS, CameraConfig
+from sim.highway.errors import RendererError
 from sim.highway.vehicle import VehicleParams
 from sim.mirror import inset_name
+from sim.render.available import renderer_problem
 
 MAX_CARS = 300   # AI cars SUMO drives at most
 
@@ -25,7 +27,8 @@ class WorldConfig:
     dt: float = 0.1                 # [s] one world step (10 Hz, as DeepDriving's loop)
     seed: int = setting(0, "seed of the scene and the traffic", low=0, high=MAX_SEED)
     render: bool = True
-    renderer: str = setting("tiny", "PyBullet renderer: TinyRenderer or the EGL plugin", choices=RENDERERS)
+    renderer: str = setting("tiny", "how frames are drawn: PyBullet's TinyRenderer (tiny) or EGL plugin (egl), or the "
+                            "compiled rasteriser (numba); docs/rendering.md", choices=RENDERERS)
     camera: CameraConfig = field(default_factory=CameraConfig)
     mirror: bool = setting(False, "paste a rear-view mirror into the top of the frame (docs/rendering.md)")
     side_views: bool = setting(False, "with the mirror (implied): the views out of both side windows below it, where "
@@ -35,6 +38,11 @@ class WorldConfig:
     start_speed: float = setting(15.0, "host car's speed at the start", unit="m/s", low=0.0, high=60.0)
     start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
     sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
+
+    def __post_init__(self) -> None:
+        problem = renderer_problem(self.renderer)   # before any work: a renderer this machine lacks is refused here
+        if problem is not None:
+            raise RendererError(f"renderer {self.renderer}: {problem}")
 
     @property
     def inset(self) -> str:

@@ -2,8 +2,12 @@
 
 1. backdrop: sky above the horizon, open grass below (precomputed once);
 2. ground: asphalt, verges, markings and grass patches, painted as exact projected polygons;
-3. objects: cars, trees, poles, buildings, guard rails, drawn by PyBullet (TinyRenderer or EGL) and
-   laid over wherever PyBullet drew something; every object stands on the ground, so it is in front of it.
+3. objects: cars, trees, poles, buildings, guard rails, every one standing on the ground, so in front of it.
+
+How the layers are drawn is the world's `renderer` (sim/camera.py RENDERERS): "tiny" and "egl" paint the ground with
+OpenCV (sim/ground_painter.py) and draw the objects with PyBullet (TinyRenderer or its EGL plugin), laid over wherever
+PyBullet drew something; "numba" draws both layers with the compiled rasteriser (sim/render/raster.py), by the same
+rules.
 
 Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped. With a rear-view
 mirror (sim/mirror.py) the same three layers are drawn a second time, small, from the mirror's rear camera, and
@@ -16,6 +20,7 @@ import numpy as np
 
 from sim.camera import CameraConfig
 from sim.ground_painter import GroundPainter
+from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
 from sim.mirror import RearMirror, SideViews
@@ -27,25 +32,30 @@ CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 class Renderer:
     def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny",
                  mirror: bool = False, sides: bool = False):
-        from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
         self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)
         chunks = build_scenery(track, seed)
         self._centres = np.array([c.centre for c in chunks]).reshape(-1, 2)
         self._radii = np.array([c.radius for c in chunks])
-        self._painter = GroundPainter(chunks, self.look, camera, GROUND_MATERIALS)
-        self._objects = BulletScene(chunks, self.look, camera, renderer)
-        self._backdrop = self._make_backdrop(camera)
         self.mirror = RearMirror(camera.height, camera.width) if mirror or sides else None   # sides need it
-        if self.mirror is not None:
-            rear = self.mirror.camera
-            self._rear_painter = GroundPainter(chunks, self.look, rear, GROUND_MATERIALS)
-            self._rear_backdrop = self._make_backdrop(rear)
         self.sides = SideViews(camera.height, camera.width) if sides else None
-        if self.sides is not None:
-            side = self.sides.camera
-            self._side_painter = GroundPainter(chunks, self.look, side, GROUND_MATERIALS)
-            self._side_backdrop = self._make_backdrop(side)
+        self._backdrops = {cam: self._make_backdrop(cam) for cam in self._cameras()}
+        self._raster = self._objects = None
+        self._painters: dict[CameraConfig, GroundPainter] = {}
+        if renderer == "numba":
+            from sim.render.raster import Part, Rasteriser  # lazy: numba loads (and compiles) for this renderer only
+            models = [[Part(m.parts[p].vertices, m.parts[p].faces, m.parts[p].normals,
+                            None if p == "paint" else PART_COLOURS[p][:3]) for p in PARTS] for m in car_models()]
+            self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models)
+        else:
+            from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
+            self._objects = BulletScene(chunks, self.look, camera, renderer)
+            self._painters = {cam: GroundPainter(chunks, self.look, cam, GROUND_MATERIALS) for cam in self._cameras()}
+
+    def _cameras(self) -> list[CameraConfig]:
+        """The front camera and those of the insets."""
+        return [self.camera] + ([self.mirror.camera] if self.mirror else []) + ([self.sides.camera] if self.sides
+                                                                                   else [])
 
     def _make_backdrop(self, cam: CameraConfig) -> np.ndarray:
         look = self.look
@@ -71,30 +81,40 @@ class Renderer:
 
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
         """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in."""
-        frame = self._view(self.camera, self._painter, self._backdrop, x, y, yaw, cars)
+        frame = self._view(self.camera, x, y, yaw, cars)
         if self.mirror is not None:
-            rear = self._view(self.mirror.camera, self._rear_painter, self._rear_backdrop, x, y, yaw + np.pi, cars)
-            self.mirror.composite(frame, rear)
+            self.mirror.composite(frame, self._view(self.mirror.camera, x, y, yaw + np.pi, cars))
         if self.sides is not None:
-            cam, painter, backdrop = self.sides.camera, self._side_painter, self._side_backdrop
-            left = self._view(cam, painter, backdrop, x, y, yaw + np.pi / 2, cars)
-            right = self._view(cam, painter, backdrop, x, y, yaw - np.pi / 2, cars)
-            self.sides.composite(frame, left, right)
+            cam = self.sides.camera
+            self.sides.composite(frame, self._view(cam, x, y, yaw + np.pi / 2, cars),
+                                 self._view(cam, x, y, yaw - np.pi / 2, cars))
         return frame
 
-    def _view(self, camera: CameraConfig, painter: GroundPainter, backdrop: np.ndarray, x: float, y: float,
-              yaw: float, cars: CarStates) -> np.ndarray:
+    def _visible(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates):
+        """The chunks and the cars in the view wedge of `camera`."""
+        xy = np.stack([cars.x, cars.y], axis=1)
+        return (self.in_view(self._centres, self._radii, x, y, yaw, camera),
+                self.in_view(xy, np.full(len(cars), CAR_RADIUS), x, y, yaw, camera))
+
+    def _view(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
         """One camera's image: backdrop, ground, then the objects in its view wedge."""
-        visible = self.in_view(self._centres, self._radii, x, y, yaw, camera)
-        car_visible = self.in_view(np.stack([cars.x, cars.y], axis=1), np.full(len(cars), CAR_RADIUS), x, y, yaw,
-                                   camera)
+        visible, car_visible = self._visible(camera, x, y, yaw, cars)
+        frame = self._backdrops[camera].copy()
+        if self._raster is not None:
+            from sim.render.raster import Cars  # loaded with the rasteriser (above); this names its argument
+            on = np.flatnonzero(car_visible)
+            paints = np.array(PAINTS)[np.asarray(cars.paints, dtype=np.int64)[on] % len(PAINTS)].reshape(-1, 3)
+            self._raster.draw(frame, camera, x, y, yaw, visible,
+                              Cars(cars.x[on], cars.y[on], cars.yaw[on], np.asarray(cars.models)[on], paints))
+            return frame
+        assert self._objects is not None
         self._objects.set_visible_chunks(visible)
         self._objects.set_cars(np.stack([cars.x, cars.y, cars.yaw], axis=1), cars.models, cars.paints, car_visible)
-        frame = backdrop.copy()
-        painter.paint(frame, visible, x, y, yaw)
+        self._painters[camera].paint(frame, visible, x, y, yaw)
         rgb, drawn = self._objects.render(x, y, yaw, camera)
         cv2.copyTo(rgb, drawn, frame)
         return frame
 
     def close(self) -> None:
-        self._objects.close()
+        if self._objects is not None:
+            self._objects.close()

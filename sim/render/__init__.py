@@ -1,0 +1,8 @@
+"""Fast renderers of a world's scene (docs/rendering.md), besides PyBullet's, which stays the reference:
+
+    raster.py, raster_ground.py, raster_objects.py   renderer "numba": a rasteriser compiled with numba that
+                                                      paints the ground as OpenCV and draws the objects as
+                                                      TinyRenderer, rule for rule
+    lighting.py                                       colours as TinyRenderer holds them
+    available.py                                      whether this process can run each of them
+"""

@@ -1,0 +1,18 @@
+"""Whether this process can run a renderer: asked when a world's configuration names one, so that a renderer the
+machine lacks is refused in one line before any work (sim/highway/config.py)."""
+from __future__ import annotations
+
+import functools
+import importlib
+
+
+@functools.cache
+def renderer_problem(name: str) -> str | None:
+    """Why renderer `name` (sim/camera.py RENDERERS) cannot draw in this process, in one line; None when it can.
+    PyBullet's own renderers report their problems when their scene is made (sim/highway/bullet_scene.py)."""
+    if name == "numba":
+        try:
+            importlib.import_module("numba")   # loaded here, once, as the renderer will load it
+        except ImportError as e:
+            return f"numba cannot be imported ({e}); pip install numba"
+    return None

@@ -1,0 +1,215 @@
+"""Objects drawn as PyBullet's TinyRenderer draws them, compiled with numba: each body's triangles transformed in
+float32 by its model, view and projection matrices, back faces culled in world space, triangles that cross the eye's
+plane clipped at the near plane, every pixel whose corner lies inside or on a triangle's edge sampled (TinyRenderer
+samples a pixel at its corner, not its centre), depth tested with later bodies winning ties, and lit per pixel
+without shadows or specular light: int(ambient c + diffuse max(0, n.l) c) for a base colour c of whole levels
+(base_colour). Drawn into an image whose rows go top down, as PyBullet returns them.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+DEGENERATE = 1e-2   # TinyRenderer drops a triangle whose doubled screen area is no more than this [px^2]
+
+
+@njit(cache=True)
+def _mul(m, x, y, z, w):
+    """m (4, 4) float32 times the column (x, y, z, w), row by row in float32, as TinyRenderer's matrices multiply."""
+    o0 = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3] * w
+    o1 = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3] * w
+    o2 = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3] * w
+    o3 = m[3, 0] * x + m[3, 1] * y + m[3, 2] * z + m[3, 3] * w
+    return o0, o1, o2, o3
+
+
+@njit(cache=True)
+def matmul(a, b):
+    """a @ b for (4, 4) float32 matrices, each entry a dot product summed in order, as TinyRenderer's."""
+    out = np.empty((4, 4), dtype=np.float32)
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j] + a[i, 3] * b[3, j]
+    return out
+
+
+@njit(cache=True)
+def _screen(clip, w, h):
+    """The viewport of TinyRenderer in float32: x' = w/2 x + w/2 w, y' = h/2 y + h/2 w, each divided by w; as
+    (x0, x1, x2), (y0, y1, y2)."""
+    hw, hh = np.float32(w / 2.0), np.float32(h / 2.0)
+    return ((hw * clip[0, 0] + hw * clip[0, 3]) / clip[0, 3], (hw * clip[1, 0] + hw * clip[1, 3]) / clip[1, 3],
+            (hw * clip[2, 0] + hw * clip[2, 3]) / clip[2, 3]), \
+        ((hh * clip[0, 1] + hh * clip[0, 3]) / clip[0, 3], (hh * clip[1, 1] + hh * clip[1, 3]) / clip[1, 3],
+         (hh * clip[2, 1] + hh * clip[2, 3]) / clip[2, 3])
+
+
+@njit(cache=True)
+def _edges(sx, sy):
+    """What TinyRenderer's barycentric() computes of a screen triangle once, in double precision: C-A and B-A in x
+    and y, and their cross product uz."""
+    ax, ay = float(sx[0]), float(sy[0])
+    cax, bax, cay, bay = float(sx[2]) - ax, float(sx[1]) - ax, float(sy[2]) - ay, float(sy[1]) - ay
+    return ax, ay, cax, bax, cay, bay, cax * bay - bax * cay
+
+
+@njit(cache=True)
+def _barycentric(e, px, py):
+    """TinyRenderer's barycentric() of the pixel corner (px, py) in the triangle of _edges `e`: the cross product of
+    (C-A, B-A, A-P) in x and in y."""
+    ax, ay, cax, bax, cay, bay, uz = e
+    apx, apy = ax - px, ay - py
+    ux = bax * apy - apx * bay
+    uy = apx * cay - cax * apy
+    return 1.0 - (ux + uy) / uz, uy / uz, ux / uz
+
+
+@njit(cache=True)
+def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diffuse, near, far):
+    """One triangle of clip-space corners clip (3, 4) into img and zbuf; `whole` is the triangle it was clipped
+    from (itself when not `clipped`), whose corners carry the world normals (3, 3); base: its colour (3,)."""
+    h, w = img.shape[0], img.shape[1]
+    zero = np.float32(0.0)
+    sx, sy = _screen(clip, w, h)
+    wx, wy = _screen(whole, w, h) if clipped else (sx, sy)
+    xmin = max(zero, min(sx[0], min(sx[1], sx[2])))
+    xmax = min(np.float32(w - 1), max(sx[0], max(sx[1], sx[2])))
+    ymin = max(zero, min(sy[0], min(sy[1], sy[2])))
+    ymax = min(np.float32(h - 1), max(sy[0], max(sy[1], sy[2])))
+    if xmin > xmax or ymin > ymax:
+        return
+    flat = normals[0, 0] == normals[1, 0] == normals[2, 0] and normals[0, 1] == normals[1, 1] == normals[2, 1] \
+        and normals[0, 2] == normals[1, 2] == normals[2, 2]
+    c0, c1, c2 = base[0], base[1], base[2]
+    r = g = b = np.uint8(0)
+    if flat:
+        r, g, b = _shade(normals[0, 0], normals[0, 1], normals[0, 2], light, ambient, diffuse, c0, c1, c2)
+    z0, z1, z2 = float(clip[0, 2]), float(clip[1, 2]), float(clip[2, 2])
+    w0, w1, w2 = float(clip[0, 3]), float(clip[1, 3]), float(clip[2, 3])
+    # every pixel of the bounding box is TinyRenderer's candidate; a row's span of candidates that can be inside (the
+    # barycentric coordinates are linear in x), widened by a pixel, is tested exactly and the rest skipped
+    e = _edges(sx, sy)
+    ax, ay, cax, bax, cay, bay, uz = e
+    if abs(uz) <= DEGENERATE:
+        return
+    sign = 1.0 if uz > 0 else -1.0
+    x0, x1 = int(xmin), int(np.floor(xmax))
+    for py in range(int(ymin), int(np.floor(ymax)) + 1):
+        apy = ay - py
+        lo, hi = float(x0), float(x1)
+        # ux = bay x + (bax apy - ax bay), uy = -cay x + (ax cay - cax apy), uz - ux - uy: each of sign >= 0
+        for slope, at0 in ((bay, bax * apy - ax * bay), (-cay, ax * cay - cax * apy),
+                           (cay - bay, uz - (bax * apy - ax * bay) - (ax * cay - cax * apy))):
+            a, c = slope * sign, at0 * sign
+            if a > 0:
+                lo = max(lo, -c / a - 1.0)
+            elif a < 0:
+                hi = min(hi, -c / a + 1.0)
+        for px in range(max(x0, int(np.floor(lo))), min(x1, int(np.ceil(hi))) + 1):
+            b0, b1, b2 = _barycentric(e, float(px), float(py))
+            if b0 < 0 or b1 < 0 or b2 < 0:
+                continue
+            q0, q1, q2 = b0 / w0, b1 / w1, b2 / w2
+            qs = q0 + q1 + q2
+            q0, q1, q2 = q0 / qs, q1 / qs, q2 / qs
+            depth = -1.0 * (z0 * q0 + z1 * q1 + z2 * q2)
+            row = h - 1 - py
+            if float(zbuf[row, px]) > depth:
+                continue
+            if not clipped and (depth < -far or depth > near):
+                continue   # TinyRenderer's own near and far planes, for triangles it did not clip
+            if not flat:
+                if clipped:   # the normals are interpolated over the triangle the clipped one came from
+                    b0, b1, b2 = _barycentric(_edges(wx, wy), float(px), float(py))
+                    q0, q1, q2 = b0 / float(whole[0, 3]), b1 / float(whole[1, 3]), b2 / float(whole[2, 3])
+                    qs = q0 + q1 + q2
+                    q0, q1, q2 = q0 / qs, q1 / qs, q2 / qs
+                f0, f1, f2 = np.float32(q0), np.float32(q1), np.float32(q2)
+                nx = normals[0, 0] * f0 + normals[1, 0] * f1 + normals[2, 0] * f2
+                ny = normals[0, 1] * f0 + normals[1, 1] * f1 + normals[2, 1] * f2
+                nz = normals[0, 2] * f0 + normals[1, 2] * f1 + normals[2, 2] * f2
+                r, g, b = _shade(nx, ny, nz, light, ambient, diffuse, c0, c1, c2)
+            zbuf[row, px] = depth
+            img[row, px, 0] = r
+            img[row, px, 1] = g
+            img[row, px, 2] = b
+
+
+@njit(cache=True)
+def _shade(nx, ny, nz, light, ambient, diffuse, c0, c1, c2):
+    """TinyRenderer's colour for a (not yet unit) normal: int(ambient c + (diffuse max(0, n.l)) c), at most 255."""
+    n = np.float32(np.sqrt(nx * nx + ny * ny + nz * nz))
+    nx, ny, nz = nx / n, ny / n, nz / n
+    d = max(np.float32(0.0), nx * light[0] + ny * light[1] + nz * light[2])
+    k = diffuse * d
+    r = min(int(ambient * c0 + k * c0), 255)
+    g = min(int(ambient * c1 + k * c1), 255)
+    b = min(int(ambient * c2 + k * c2), 255)
+    return np.uint8(r), np.uint8(g), np.uint8(b)
+
+
+@njit(cache=True)
+def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, paint, view, projection, eye, light,
+              ambient, diffuse):
+    """Triangles first..end of verts (n, 3, 3), normals (n, 3, 3), colours (n, 3) (base colours; a triangle with
+    `painted` true takes `paint` instead), placed by `model` (4, 4) and seen through `view` and `projection` (4, 4)
+    from `eye` (3,) [m], all float32."""
+    pvm = matmul(projection, matmul(view, model))
+    near = projection[2, 3] / (projection[2, 2] - np.float32(1.0))   # as TinyRenderer's shader finds its planes
+    far = projection[2, 3] / (projection[2, 2] + np.float32(1.0))
+    clip = np.empty((3, 4), dtype=np.float32)
+    nrm = np.empty((3, 3), dtype=np.float32)
+    world = np.empty((3, 3), dtype=np.float32)
+    fan = np.empty((6, 4), dtype=np.float32)
+    tri = np.empty((3, 4), dtype=np.float32)
+    one, zero = np.float32(1.0), np.float32(0.0)
+    for t in range(first, end):
+        for k in range(3):
+            x, y, z = verts[t, k, 0], verts[t, k, 1], verts[t, k, 2]
+            clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3] = _mul(pvm, x, y, z, one)
+            world[k, 0], world[k, 1], world[k, 2], _ = _mul(model, x, y, z, one)
+            nrm[k, 0], nrm[k, 1], nrm[k, 2], _ = _mul(model, normals[t, k, 0], normals[t, k, 1], normals[t, k, 2],
+                                                      zero)
+        ax, ay, az = world[1, 0] - world[0, 0], world[1, 1] - world[0, 1], world[1, 2] - world[0, 2]
+        bx, by, bz = world[2, 0] - world[0, 0], world[2, 1] - world[0, 1], world[2, 2] - world[0, 2]
+        nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        if (world[0, 0] - eye[0]) * nx + (world[0, 1] - eye[1]) * ny + (world[0, 2] - eye[2]) * nz >= zero:
+            continue   # a back face
+        base = paint if painted[t] else colours[t]
+        behind = (clip[0, 3] < zero) + (clip[1, 3] < zero) + (clip[2, 3] < zero)
+        if behind == 3:
+            continue
+        if behind == 0:
+            _raster(img, zbuf, clip, clip, False, nrm, base, light, ambient, diffuse, near, far)
+            continue
+        m = 0   # clip every edge at the near plane (z > -w), then draw the fan
+        for k in range(3):
+            j = (k + 1) % 3
+            a_in = clip[k, 3] > zero and clip[k, 2] > -clip[k, 3]
+            b_in = clip[j, 3] > zero and clip[j, 2] > -clip[j, 3]
+            if not a_in and not b_in:
+                continue
+            d0, d1 = clip[k, 2] + clip[k, 3], clip[j, 2] + clip[j, 3]
+            # both ends of every edge kept: the fan's repeated points make empty triangles, dropped
+            f = one / (d1 - d0) if not (a_in and b_in) else one
+            for i in range(4):
+                new = (clip[k, i] * d1 - clip[j, i] * d0) * f
+                fan[m, i] = clip[k, i] if a_in else new
+                fan[m + 1, i] = clip[j, i] if b_in else new
+            m += 2
+        if m < 3:
+            continue
+        for i in range(1, m - 1):
+            tri[0], tri[1], tri[2] = fan[0], fan[i], fan[i + 1]
+            _raster(img, zbuf, tri, clip, True, nrm, base, light, ambient, diffuse, near, far)
+
+
+@njit(cache=True)
+def draw_bodies(img, zbuf, verts, normals, colours, painted, firsts, ends, models, paints, view, projection, eye,
+                light, ambient, diffuse):
+    """Bodies in order: body k is triangles firsts[k]..ends[k] placed by models[k] (4, 4), its painted triangles
+    in paints[k] (3,) (draw_body)."""
+    for k in range(len(firsts)):
+        if ends[k] > firsts[k]:
+            draw_body(img, zbuf, verts, normals, colours, painted, firsts[k], ends[k], models[k], paints[k], view,
+                      projection, eye, light, ambient, diffuse)
