@@ -9,8 +9,8 @@ import numpy as np
 from core.settings import setting
 from core.worlds.highway import FRAME
 
-# how frames are drawn (sim/highway/renderer.py): PyBullet's TinyRenderer or EGL plugin, the compiled rasteriser
-RENDERERS = ("tiny", "egl", "numba")
+# how frames are drawn (sim/highway/renderer.py): PyBullet's TinyRenderer or EGL plugin, the compiled rasteriser, OpenGL
+RENDERERS = ("tiny", "egl", "numba", "gl")
 
 @dataclass(frozen=True)
 class CameraConfig:

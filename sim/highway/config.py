@@ -27,8 +27,8 @@ class WorldConfig:
     dt: float = 0.1                 # [s] one world step (10 Hz, as DeepDriving's loop)
     seed: int = setting(0, "seed of the scene and the traffic", low=0, high=MAX_SEED)
     render: bool = True
-    renderer: str = setting("tiny", "how frames are drawn: PyBullet's TinyRenderer (tiny) or EGL plugin (egl), or the "
-                            "compiled rasteriser (numba); docs/rendering.md", choices=RENDERERS)
+    renderer: str = setting("tiny", "how frames are drawn: PyBullet's TinyRenderer (tiny) or EGL plugin (egl), the "
+                            "compiled rasteriser (numba), OpenGL (gl); docs/rendering.md", choices=RENDERERS)
     camera: CameraConfig = field(default_factory=CameraConfig)
     mirror: bool = setting(False, "paste a rear-view mirror into the top of the frame (docs/rendering.md)")
     side_views: bool = setting(False, "with the mirror (implied): the views out of both side windows below it, where "

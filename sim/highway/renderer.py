@@ -7,7 +7,7 @@
 How the layers are drawn is the world's `renderer` (sim/camera.py RENDERERS): "tiny" and "egl" paint the ground with
 OpenCV (sim/ground_painter.py) and draw the objects with PyBullet (TinyRenderer or its EGL plugin), laid over wherever
 PyBullet drew something; "numba" draws both layers with the compiled rasteriser (sim/render/raster.py), by the same
-rules.
+rules; "gl" draws every layer of every view with OpenGL (sim/render/gl_scene.py).
 
 Chunks of scenery and cars outside the view wedge or beyond the cull distance are skipped. With a rear-view
 mirror (sim/mirror.py) the same three layers are drawn a second time, small, from the mirror's rear camera, and
@@ -23,7 +23,7 @@ from sim.ground_painter import GroundPainter
 from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
-from sim.mirror import RearMirror, SideViews
+from sim.mirror import BORDER, RearMirror, SideViews
 from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
@@ -40,9 +40,12 @@ class Renderer:
         self.mirror = RearMirror(camera.height, camera.width) if mirror or sides else None   # sides need it
         self.sides = SideViews(camera.height, camera.width) if sides else None
         self._backdrops = {cam: self._make_backdrop(cam) for cam in self._cameras()}
-        self._raster = self._objects = None
+        self._gl = self._raster = self._objects = None
         self._painters: dict[CameraConfig, GroundPainter] = {}
-        if renderer == "numba":
+        if renderer == "gl":
+            from sim.highway.gl_scene import HighwayGL  # lazy: moderngl and an OpenGL context, for this renderer only
+            self._gl = HighwayGL(chunks, self.look, GROUND_MATERIALS, self._base_frame())
+        elif renderer == "numba":
             from sim.render.raster import Part, Rasteriser  # lazy: numba loads (and compiles) for this renderer only
             models = [[Part(m.parts[p].vertices, m.parts[p].faces, m.parts[p].normals,
                             None if p == "paint" else PART_COLOURS[p][:3]) for p in PARTS] for m in car_models()]
@@ -67,6 +70,16 @@ class Renderer:
         col = np.where(rows < horizon, sky, ground).astype(np.uint8)
         return np.ascontiguousarray(np.broadcast_to(col[:, None, :], (cam.height, cam.width, 3)))
 
+    def _base_frame(self) -> np.ndarray:
+        """The frame before any ground or object is drawn: every view's backdrop, the insets' borders."""
+        frame = self._backdrops[self.camera].copy()
+        if self.mirror is not None:
+            self.mirror.composite(frame, self._backdrops[self.mirror.camera])
+        if self.sides is not None:
+            side = self._backdrops[self.sides.camera]
+            self.sides.composite(frame, side, side)
+        return frame
+
     def in_view(self, centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float,
                 camera: CameraConfig | None = None) -> np.ndarray:
         """Which bounding circles (centres (n, 2), radii (n,) [m]) reach into the view wedge of `camera` (default:
@@ -81,6 +94,8 @@ class Renderer:
 
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
         """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in."""
+        if self._gl is not None:
+            return self._gl.render(self._gl_views(x, y, yaw, cars))
         frame = self._view(self.camera, x, y, yaw, cars)
         if self.mirror is not None:
             self.mirror.composite(frame, self._view(self.mirror.camera, x, y, yaw + np.pi, cars))
@@ -115,6 +130,27 @@ class Renderer:
         cv2.copyTo(rgb, drawn, frame)
         return frame
 
+    def _gl_views(self, x: float, y: float, yaw: float, cars: CarStates) -> list:
+        """The views of the GL renderer, the insets first (each kept from the views after it), the front last."""
+        from sim.highway.gl_scene import glass  # loaded with the GL scene (above)
+        gl = self._gl
+        assert gl is not None
+
+        def view(cam, heading, rect, mirrored=False, keep=None):
+            groups, car_visible = self._visible(cam, x, y, heading, cars)
+            return gl.view(cam, x, y, heading, rect, groups, cars, car_visible, mirrored, keep)
+
+        views = []
+        if self.mirror is not None:
+            views.append(view(self.mirror.camera, yaw + np.pi, glass(self.mirror.rect, BORDER), True,
+                              self.mirror.rect))
+        if self.sides is not None:
+            for rect, turn in zip(self.sides.rects, (np.pi / 2, -np.pi / 2)):
+                views.append(view(self.sides.camera, yaw + turn, glass(rect, BORDER), keep=rect))
+        views.append(view(self.camera, yaw, (0, 0, self.camera.height, self.camera.width)))
+        return views
+
     def close(self) -> None:
-        if self._objects is not None:
-            self._objects.close()
+        for part in (self._gl, self._objects):
+            if part is not None:
+                part.close()

@@ -15,4 +15,7 @@ def renderer_problem(name: str) -> str | None:
             importlib.import_module("numba")   # loaded here, once, as the renderer will load it
         except ImportError as e:
             return f"numba cannot be imported ({e}); pip install numba"
+    if name == "gl":
+        from sim.render.gl_context import gl_problem  # lazy: moderngl and EGL, for this renderer only
+        return gl_problem()
     return None

@@ -1,4 +1,4 @@
-"""The compiled rasteriser's scene (renderer "numba", docs/rendering.md#the-compiled-rasteriser): a world's chunks
+"""The compiled rasteriser's scene (renderer "numba", docs/rendering.md#the-fast-renderers): a world's chunks
 of ground and objects and its car models packed into arrays once, then one camera's view drawn into an image per
 call. The ground is painted as sim/ground_painter.py paints it (sim/render/raster_ground.py), the objects drawn as
 PyBullet's TinyRenderer draws them (sim/render/raster_objects.py), so the frames are those of renderer "tiny"

@@ -46,7 +46,7 @@ def test_the_highway_starts_at_the_speed_every_consumer_starts_at():
     ("lanes", 0, "must be an integer from 1 to 4"),
     ("start_speed", math.nan, "must be a finite number"),
     ("start_speed", 61.0, "from 0 to 60 m/s"),
-    ("renderer", "ray", "invalid choice: 'ray' \\(choose from tiny, egl, numba\\)"),
+    ("renderer", "ray", "invalid choice: 'ray' \\(choose from tiny, egl, numba, gl\\)"),
     ("mirror", "yes", "must be true or false"),
 ])
 def test_a_value_out_of_its_setting_is_refused_in_one_line(path, value, why):

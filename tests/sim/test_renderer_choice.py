@@ -3,6 +3,9 @@ world is made (--set renderer=NAME, WorldConfig, the Gymnasium environment's key
 is refused in one line before any work, and a dataset records which renderer drew it."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -22,7 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_fast_renderers_are_choices_of_the_setting_and_tiny_stays_the_default():
-    assert {"tiny", "egl", "numba"} == set(RENDERERS) and WorldConfig().renderer == "tiny"
+    assert {"tiny", "egl", "numba", "gl"} == set(RENDERERS) and WorldConfig().renderer == "tiny"
 
 
 def test_set_renderer_draws_the_frame_with_it(run_cli, tmp_path):
@@ -43,7 +46,17 @@ def test_a_renderer_this_machine_lacks_is_refused_in_one_line_before_any_work(ru
         WorldConfig(renderer="numba")
 
 
-@pytest.mark.parametrize("renderer", ["numba"])
+def test_gl_without_an_egl_driver_is_refused_in_one_line():
+    """A fresh process whose EGL finds no driver: --set renderer=gl exits 2 with one line saying what to install."""
+    env = {**os.environ, "__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent.json"}
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "render", "-o", "never.png", "--track", "oval",
+                        "--set", "renderer=gl"], cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "renderer gl: no headless OpenGL" in r.stderr and "libegl1" in r.stderr
+    assert not (REPO / "never.png").exists()
+
+
+@pytest.mark.parametrize("renderer", ["numba", "gl"])
 def test_the_gymnasium_environment_takes_the_renderer(renderer):
     if renderer_problem(renderer):
         pytest.skip(renderer_problem(renderer))
@@ -57,7 +70,7 @@ def test_the_gymnasium_environment_takes_the_renderer(renderer):
         env.close()
 
 
-@pytest.mark.parametrize("renderer", ["numba"])
+@pytest.mark.parametrize("renderer", ["numba", "gl"])
 def test_a_dataset_records_the_renderer_that_drew_it(renderer, tmp_path):
     if renderer_problem(renderer):
         pytest.skip(renderer_problem(renderer))
