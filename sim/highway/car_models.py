@@ -12,6 +12,7 @@ from functools import cache
 import numpy as np
 import trimesh
 
+from sim.highway.footprints import FOOTPRINTS
 from sim.highway.mesh import MeshData
 
 PARTS = ("paint", "glass", "tyres", "taillights", "headlights")   # every model's, the painted one first
@@ -103,10 +104,12 @@ def _make(name, length, width, height, nose, tail, belt, cabin, clearance=0.22, 
 @cache
 def car_models() -> tuple[CarModel, ...]:
     return (
-        _make("sedan", 4.6, 1.82, 1.45, nose=0.25, tail=0.1, belt=0.95, cabin=(-1.35, 0.95, -0.85, 0.15)),
-        _make("hatchback", 4.1, 1.76, 1.5, nose=0.25, tail=0.05, belt=0.95, cabin=(-1.95, 0.75, -1.75, 0.0)),
-        _make("suv", 4.7, 1.92, 1.78, nose=0.15, tail=0.05, belt=1.15, cabin=(-2.2, 0.9, -2.1, 0.2)),
-        _make("van", 4.9, 1.98, 2.05, nose=0.2, tail=0.0, belt=1.1, cabin=(-2.4, 1.6, -2.4, 1.2),
+        _make("sedan", *FOOTPRINTS["sedan"], 1.45, nose=0.25, tail=0.1, belt=0.95,
+              cabin=(-1.35, 0.95, -0.85, 0.15)),
+        _make("hatchback", *FOOTPRINTS["hatchback"], 1.5, nose=0.25, tail=0.05, belt=0.95,
+              cabin=(-1.95, 0.75, -1.75, 0.0)),
+        _make("suv", *FOOTPRINTS["suv"], 1.78, nose=0.15, tail=0.05, belt=1.15, cabin=(-2.2, 0.9, -2.1, 0.2)),
+        _make("van", *FOOTPRINTS["van"], 2.05, nose=0.2, tail=0.0, belt=1.1, cabin=(-2.4, 1.6, -2.4, 1.2),
               wheel_r=0.35),
-        _make("coupe", 4.4, 1.86, 1.22, nose=0.2, tail=0.1, belt=0.82, cabin=(-1.1, 0.7, -0.6, 0.0)),
+        _make("coupe", *FOOTPRINTS["coupe"], 1.22, nose=0.2, tail=0.1, belt=0.82, cabin=(-1.1, 0.7, -0.6, 0.0)),
     )
