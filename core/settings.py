@@ -108,6 +108,8 @@ def check_value(entry: Entry, value: Any, what: str | None = None) -> Any:
             unit = f" {s.unit}" if s.unit else ""
             raise SettingError(f"{name} must be {'an integer' if entry.kind is int else 'a number'} from "
                                f"{s.low:g} to {s.high:g}{unit}, got {value!r}")
+    if entry.kind is str and not isinstance(value, str):
+        raise SettingError(f"{name} must be a text, got {value!r}")
     if s.choices and value not in s.choices:
         raise SettingError(f"{name}: invalid choice: {value!r} (choose from {', '.join(s.choices)})")
     return value

@@ -4,6 +4,7 @@ below drivestudio/commands/."""
 from __future__ import annotations
 
 import functools
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,8 +14,13 @@ if TYPE_CHECKING:
     from perception.predictor import Predictor
 
 
+DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")   # the torch devices a verb takes
+
+
 def check_device(name: str) -> str:
-    """The device name, or UsageError when it names a GPU this machine does not have."""
+    """The device name, or UsageError when it is not one of DEVICE or names a GPU this machine does not have."""
+    if not isinstance(name, str) or not DEVICE.fullmatch(name):
+        raise UsageError(f"--device must be cpu, cuda, cuda:N or auto, got {name!r}")
     if name.startswith("cuda") or name == "mps":
         import torch  # lazy: torch takes seconds to import, and most verbs never need a GPU check
         if name.startswith("cuda") and not torch.cuda.is_available():

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import re
 import time
 from pathlib import Path
 
@@ -10,12 +9,11 @@ from core.files import make_dir
 from core.inputs import check_keys, read_json
 from core.settings import check, entries, from_json
 from drivestudio import worlds
+from drivestudio.checkpoints import DEVICE
 from drivestudio.commands.numbers import seed as seed_type
+from drivestudio.commands.run_settings import defaults_text
 from drivestudio.commands.world_options import WorldOptions, refuse_other_worlds
 from drivestudio.errors import UsageError
-
-DEVICE = re.compile(r"(auto|cpu|cuda|cuda:\d{1,2}|mps)")
-
 
 HELP_WORLD = ["highway"]   # the world whose options --help lists (cli.main sets it from the command line's --world)
 
@@ -59,16 +57,9 @@ def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool
 
 def add_set_option(group, plugin: worlds.Plugin, shown: set[str]) -> None:
     """--set NAME=VALUE: any setting of the world's configuration, those without a flag of their own listed."""
-    rest = [f"{path}={_text(e.default)}{e.setting.unit and ' ' + e.setting.unit}"
-            for path, e in entries(plugin.config_type).items() if path not in shown]
     group.add_argument("--set", action="append", metavar="NAME=VALUE",
                        help=f"a setting of the {plugin.name} world's configuration, repeatable; the others, with "
-                            f"their defaults: {', '.join(rest)} (docs/configuration.md)")
-
-
-def _text(value) -> str:
-    """A default as `--set` reads it back."""
-    return "none" if value is None else str(value).lower() if isinstance(value, bool) else str(value)
+                            f"their defaults: {defaults_text(plugin.config_type, shown)} (docs/configuration.md)")
 
 
 def plugin_for(args) -> worlds.Plugin:
