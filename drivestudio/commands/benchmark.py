@@ -7,6 +7,7 @@
     benchmark --model runs/ex.pt@pass_memory=15,rear_memory=10   ... or remembers the cars out of view
     benchmark --model runs/ppo-highway.zip                       a trained policy on the exact affordances
     benchmark --suite my-suite.json --workers 2 --shm --out DIR
+    benchmark --model oracle-extended --scenarios assets/scenarios   scripted scenarios: pass or fail per scenario
     benchmark --model runs/a.pt --model runs/b.pt --backend ray  every (route, model) pair a task on the Ray cluster
                                                                  of RAY_ADDRESS (docs/scaling.md)
 
@@ -25,6 +26,10 @@ and the indicator whose error was largest in those 5 s. docs/benchmark.md define
 Writes to --out: leaderboard.md, leaderboard.csv (one row per model), routes.csv (per model and route),
 leaderboard.json (everything, clips included) and clips/. The suite, the models and the output folder are
 checked before anything is driven (one line and exit status 2 on bad input).
+
+--scenarios drives scripted scenarios (docs/scenarios.md: cars placed around the host that cut in, brake, stop) as
+the routes, and adds whether each model passed each one: scenarios.csv and a table in leaderboard.md. Every
+collision's clip gets a scenario beside it (CLIP.scenario.json) that replays its last seconds.
 
 A suite file: {"name": ..., "description": ..., "routes": [{"name": "r1", "track": "procedural:11", "lanes": 3,
 "cars": 30, "seed": 11, "start_lane": 1, "seconds": 240}, ...]}; "track" is a preset, procedural:SEED or a
@@ -53,6 +58,9 @@ def register(sub) -> None:
                         "rear_memory=S, or a policy (a saved Stable-Baselines3 .zip, or policy:MODULE:NAME); repeat "
                         "for more rows (default: the oracle alone; the oracle row is always added as the upper bound)")
     p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
+    p.add_argument("--scenarios", metavar="FILE_OR_FOLDER",
+                   help="scripted scenarios to drive instead of a suite: a scenario file, or a folder of them "
+                        "(assets/scenarios/ ships one); pass or fail per scenario beside the driving score")
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,
                    help=f"routes driven at once, one process each (default: cores, {os.cpu_count() or 1})")
@@ -75,14 +83,17 @@ def run(args) -> int:
     # lazy: the benchmark loads only when it runs, not for --help
     from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
     from drivestudio.worlds.highway.benchmark.report import BOARD_FILES, CLIPS, write_board  # lazy: as above
+    from drivestudio.worlds.highway.benchmark.scenarios import SCENARIOS_CSV, load_scenarios  # lazy: as above
 
+    if args.suite is not None and args.scenarios is not None:
+        raise UsageError("--suite and --scenarios each name what is driven: give one")
     if args.out is not None:   # the folder and every file the run will write into it, before any work
         check_output_dir(args.out)
         check_output_dir(Path(args.out) / CLIPS, "clips folder")
-        for name in BOARD_FILES:
+        for name in BOARD_FILES + ((SCENARIOS_CSV,) if args.scenarios is not None else ()):
             check_output(Path(args.out) / name, None, "leaderboard file")
     check_device(args.device)
-    suite = load_suite(args.suite)
+    suite = load_suite(args.suite) if args.scenarios is None else load_scenarios(args.scenarios)
     if args.routes is not None:
         names = [n.strip() for n in args.routes.split(",") if n.strip()]
         if not names:

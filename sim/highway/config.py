@@ -38,6 +38,8 @@ class WorldConfig:
     start_speed: float = setting(15.0, "host car's speed at the start", unit="m/s", low=0.0, high=60.0)
     start_lane: int | None = None   # host car's lane after reset, 0 = leftmost (None: drawn from the seed)
     sumo: str = "auto"              # "libsumo", "traci" or "auto": libsumo while free (sim/highway/sumo_connection.py)
+    scenario: str | None = setting(None, "a scripted scenario file: its route, cars and events replace track, lanes, "
+                                   "cars, seed and the start (docs/scenarios.md)")
 
     def __post_init__(self) -> None:
         problem = renderer_problem(self.renderer)   # before any work: a renderer this machine lacks is refused here

@@ -77,6 +77,10 @@ def scenario_from_dict(obj, base_dir: Path | None = None, lanes: int | None = No
     positions, which are checked against the track."""
     if not isinstance(obj, dict):
         raise ScenarioError(f"a scenario must be a JSON object with {', '.join(SCENARIO_KEYS)}, got {show(obj)}")
+    if "version" in obj:
+        raise ScenarioError("this is a scripted scenario (it has a 'version'): it is driven, by benchmark --scenarios, "
+                            "drive or studio --scenario, or Gymnasium's scenario=; probe and render read static "
+                            "scenarios (docs/scenarios.md)")
     check_keys(obj, SCENARIO_KEYS, "scenario", ScenarioError)
     if "track" not in obj:
         raise ScenarioError("scenario: missing 'track' (a track object, a preset name, procedural:SEED or a "

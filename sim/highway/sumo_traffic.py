@@ -7,19 +7,25 @@ step, so AI cars brake behind it and change lanes around it. Poses come back wit
 docs/affordances.md: SUMO's position is the front bumper and its angle is a compass heading; SUMO's lane 0
 is the rightmost.
 
+A scripted scenario's cars (actors, sim/highway/scripted.py) are SUMO vehicles too, placed first, at exactly the
+given places (no insertion check holds them back), and driven by commands: a speed set every step, a lane change
+carried out whatever is beside (sim/highway/director.py says when), until one is handed back to SUMO's own models.
+
 The first SumoTraffic of a process runs SUMO inside it (libsumo, the fastest); any other open at the same time
 runs its own `sumo` process over TraCI (sim/highway/sumo_connection.py). The same seed gives the same traffic
 either way, so any number of worlds can run in one process.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from sim.highway.car_models import car_models
+from sim.highway.car_models import PAINTS, car_models
 from sim.highway.config import MAX_CARS
 from sim.highway.errors import TrafficError
 from sim.highway.sumo_connection import TRANSPORTS, SumoConnection
-from sim.highway.sumo_network import SumoNetwork, network_for
+from sim.highway.sumo_network import SPEED_LIMIT, SumoNetwork, network_for
 from sim.highway.traffic import CarStates, assign_looks
 from sim.track import Track
 
@@ -30,6 +36,15 @@ LAPS_PER_ROUTE = 4        # routes are renewed before a car reaches their end, s
 RENEW_EVERY = 50          # steps between route renewals
 EGO_ID = "ego"
 EGO_SIZE = (4.6, 1.9)     # [m] length, width (sim.highway.vehicle.VehicleParams)
+ACTOR_CLEARANCE = 20.0    # [m] no AI car starts closer than this to an actor of its lane
+# SUMO's speed modes (bit 0 safe speed, 1 acceleration limit, 2 deceleration limit, 3-4 junctions): an actor keeps
+# its distance to the car ahead but changes speed as fast as its script says; a blind one follows its script
+# whatever is ahead; a released one drives by SUMO's own car-following (its default, 31)
+ACTOR_SPEED_MODE, BLIND_SPEED_MODE, OWN_SPEED_MODE = 0b11001, 0, 31
+# lane-change modes: a scripted actor changes lanes only when told, whatever is beside it (bits 8-9 zero); a
+# released one by SUMO's own lane-change model (its default, 1621)
+SCRIPTED_LANE_CHANGE_MODE, OWN_LANE_CHANGE_MODE = 0, 0b011001010101
+HOLD_LANE = 3600.0        # [s] a commanded lane change holds the actor in its new lane this long (the scenario's end)
 
 # (name, accel [m/s^2], decel [m/s^2], tau [s], imperfection sigma, lcSpeedGain, lcKeepRight)
 DRIVER_STYLES = (
@@ -50,12 +65,23 @@ def car_count_problem(track: Track, n_cars) -> str | None:
     return None
 
 
+@dataclass(frozen=True)
+class ActorStart:
+    """Where a scenario's actor starts: its centre's s [m], lane (0 = leftmost), speed [m/s] and car model."""
+
+    s: float
+    lane: int
+    speed: float
+    model: int = 0
+    blind: bool = False   # follows its script whatever is ahead
+
+
 class SumoTraffic:
     _started = False
     _conn: SumoConnection | None = None
 
     def __init__(self, track: Track, n_cars: int, seed: int = 0, dt: float = 0.1, ego: np.ndarray | None = None,
-                 ego_speed: float = 0.0, transport: str = "auto"):
+                 ego_speed: float = 0.0, transport: str = "auto", actors: tuple[ActorStart, ...] = ()):
         problem = car_count_problem(track, n_cars)
         if problem:
             raise TrafficError(problem)
@@ -64,8 +90,13 @@ class SumoTraffic:
         self.track, self.n_cars, self.seed, self.dt = track, int(n_cars), int(seed), float(dt)
         self.net: SumoNetwork = network_for(track)
         self._transport = transport
-        self._ids = [f"ai{i}" for i in range(self.n_cars)]
-        self.models, self.paints = assign_looks(self.n_cars, seed)
+        self.actors = tuple(actors)
+        # the actors come first: car i < len(actors) of states() is actor i
+        self._ids = [f"actor{i}" for i in range(len(actors))] + [f"ai{i}" for i in range(self.n_cars)]
+        models, paints = assign_looks(self.n_cars, seed)
+        actor_paints = np.random.default_rng([int(seed), 0xAC7]).integers(0, len(PAINTS), len(actors))
+        self.models = np.concatenate([np.array([a.model for a in actors], dtype=models.dtype), models])
+        self.paints = np.concatenate([actor_paints.astype(paints.dtype), paints])
         dims = np.array([(m.length, m.width) for m in car_models()])
         self.length, self.width = dims[self.models, 0], dims[self.models, 1]
         self._steps = 0
@@ -79,6 +110,8 @@ class SumoTraffic:
                 "--no-step-log", "true", "--no-warnings", "true", "--duration-log.disable", "true",
                 "--time-to-teleport", "-1", "--collision.action", "warn", "--collision.mingap-factor", "0",
                 "--lanechange.duration", "2.0", "--default.speeddev", "0"]
+        if self.actors:   # a scenario places its cars where it says, however close (it checked they do not overlap)
+            args += ["--insertion-checks", "none"]
         try:
             self._conn = SumoConnection(args, self._transport)
         except TrafficError:
@@ -135,9 +168,11 @@ class SumoTraffic:
                        departPos=f"{pos:.2f}", departSpeed=f"{max(0.0, ego_speed):.2f}")
         ls.vehicle.setSpeedMode(EGO_ID, 0)        # we move it; SUMO must not second-guess
         ls.vehicle.setLaneChangeMode(EGO_ID, 0)
+        self._add_actors()
         slots = self._start_slots(rng, ego_s)
-        for i, vid in enumerate(self._ids):
-            s, lane = slots[i]
+        first = len(self.actors)
+        for i, vid in enumerate(self._ids[first:], start=first):
+            s, lane = slots[i - first]
             style = int(rng.integers(0, len(DRIVER_STYLES)))
             # a fifth of the cars are slow; the rest spread up to the limit, so overtaking happens
             factor = rng.uniform(0.45, 0.6) if rng.uniform() < 0.2 else rng.uniform(0.6, 1.0)
@@ -149,12 +184,33 @@ class SumoTraffic:
             ls.vehicle.setParameter(vid, "laneChangeModel.lcSpeedGain", str(DRIVER_STYLES[style][5]))
             ls.vehicle.setParameter(vid, "laneChangeModel.lcKeepRight", str(DRIVER_STYLES[style][6]))
         ls.simulationStep()
-        if EGO_ID not in ls.vehicle.getIDList():
+        present = ls.vehicle.getIDList()
+        if EGO_ID not in present:
             raise TrafficError("SUMO could not insert the host car at its start position")
+        missing = [vid for vid in self._ids[:len(self.actors)] if vid not in present]
+        if missing:
+            raise TrafficError(f"SUMO could not place the scenario's car {missing[0]}")
         # lane position -> s: each edge is all straight or all arc, so one ratio per lane converts exactly
         ends = list(self.net.starts[1:]) + [tr.length]
         self._lane_scale = np.array([[ls.lane.getLength(f"{e}_{j}") / (b - a) for j in range(tr.lanes)]
                                      for e, a, b in zip(self.net.edges, self.net.starts, ends)])
+
+    def _add_actors(self) -> None:
+        """The scenario's cars, at their places and speeds, each a vehicle type of its model that does not dawdle
+        (SUMO's imperfection 0), so that what it does is what its script says."""
+        ls, tr = self._ls, self.track
+        for i, a in enumerate(self.actors):
+            t = f"actor-m{a.model}"
+            if t not in ls.vehicletype.getIDList():
+                ls.vehicletype.copy(f"m{a.model}normal", t)
+                ls.vehicletype.setImperfection(t, 0.0)
+            vid = self._ids[i]
+            edge, pos = self._edge_at((a.s + self.length[i] / 2) % tr.length)
+            ls.vehicle.add(vid, f"loop{edge}", typeID=t, departLane=str(tr.lanes - 1 - a.lane), departPos=f"{pos:.2f}",
+                           departSpeed=f"{a.speed:.4f}")
+            ls.vehicle.setLaneChangeMode(vid, SCRIPTED_LANE_CHANGE_MODE)
+            ls.vehicle.setSpeedMode(vid, BLIND_SPEED_MODE if a.blind else ACTOR_SPEED_MODE)
+            ls.vehicle.setSpeed(vid, a.speed)
 
     def _start_slots(self, rng: np.random.Generator, ego_s: float) -> list[tuple[float, int]]:
         """Start positions (s [m], lane): a grid around the host car, as at a TORCS race start, half ahead and
@@ -166,8 +222,18 @@ class SumoTraffic:
         for j in range(n):
             offset = ((j + 0.5 + 0.3 * rng.uniform(-1, 1)) / n - 0.5) * window
             offset += EGO_CLEARANCE if offset >= 0 else -EGO_CLEARANCE
-            slots.append((float((ego_s + offset) % tr.length), j % tr.lanes))
+            slots.append(self._clear_of_actors(float((ego_s + offset) % tr.length), j % tr.lanes))
         return slots
+
+    def _clear_of_actors(self, s: float, lane: int) -> tuple[float, int]:
+        """A start slot moved on along its lane, in steps of ACTOR_CLEARANCE, until no actor of that lane is within
+        ACTOR_CLEARANCE of it (unchanged without actors)."""
+        tr = self.track
+        for _ in range(int(tr.length // ACTOR_CLEARANCE)):
+            if all(a.lane != lane or abs(float(tr.gap(a.s, s))) >= ACTOR_CLEARANCE for a in self.actors):
+                break
+            s = (s + ACTOR_CLEARANCE) % tr.length
+        return s, lane
 
     # --- per step ------------------------------------------------------------------------------------------------
     def _move_ego(self, ego: np.ndarray, speed: float) -> None:
@@ -218,14 +284,35 @@ class SumoTraffic:
         hint = None if self._last_s is None else self._last_s[idx]
         s, d = tr.frenet(x, y, s_hint=hint)
         if self._last_s is None:
-            self._last_s = np.zeros(self.n_cars)
+            self._last_s = np.zeros(len(self._ids))
         self._last_s[idx] = s
         return CarStates(x, y, yaw, np.atleast_1d(s), np.atleast_1d(d), self.length[idx], self.width[idx],
                          self.models[idx], self.paints[idx], speed)
 
     def lane_index(self, i: int) -> int:
-        """Our lane (0 = leftmost) that SUMO has AI car i on."""
+        """Our lane (0 = leftmost) that SUMO has car i (of states()' order, actors first) on."""
         return self.track.lanes - 1 - int(self._ls.vehicle.getLaneIndex(self._ids[i]))
+
+    # --- commands to a scenario's actors (sim/highway/director.py) -----------------------------------------------
+    def set_speed(self, i: int, speed: float) -> None:
+        """Actor i drives at `speed` [m/s] from the next step on (slower only to keep its distance, unless blind);
+        an actor SUMO drove is taken back under the script."""
+        v = self._ls.vehicle
+        v.setSpeedMode(self._ids[i], BLIND_SPEED_MODE if self.actors[i].blind else ACTOR_SPEED_MODE)
+        v.setLaneChangeMode(self._ids[i], SCRIPTED_LANE_CHANGE_MODE)
+        v.setSpeed(self._ids[i], max(0.0, float(speed)))
+
+    def change_lane(self, i: int, lane: int) -> None:
+        """Actor i moves into our lane `lane` (0 = leftmost) over SUMO's lane-change duration, whatever is beside."""
+        self._ls.vehicle.changeLane(self._ids[i], self.track.lanes - 1 - int(lane), HOLD_LANE)
+
+    def release(self, i: int, speed: float) -> None:
+        """Actor i drives by SUMO's own car-following and lane changing from now on, wanting `speed` [m/s]."""
+        v, vid = self._ls.vehicle, self._ids[i]
+        v.setSpeedFactor(vid, max(0.01, float(speed)) / SPEED_LIMIT)
+        v.setSpeed(vid, -1.0)
+        v.setSpeedMode(vid, OWN_SPEED_MODE)
+        v.setLaneChangeMode(vid, OWN_LANE_CHANGE_MODE)
 
     @property
     def transport(self) -> str:

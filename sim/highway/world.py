@@ -2,6 +2,10 @@
 
 world.step(action) -> Observation(frame, truth, t). The same object serves dataset generation, the
 shared-memory server, the Gymnasium environment and the CLI's probe/render.
+
+A static scenario (sim/highway/scenario.py, given as `scenario=`) places constant-speed cars for probe and render; a
+scripted one (the configuration's `scenario` file, sim/highway/scripted.py) sets the route and the host's start and
+drives its cars through SUMO by its events (sim/highway/scenario_run.py): every reset replays it, at its own seed.
 """
 from __future__ import annotations
 
@@ -15,6 +19,8 @@ from sim.collision import overlaps
 from sim.highway.config import WorldConfig
 from sim.highway.renderer import Renderer
 from sim.highway.scenario import Scenario
+from sim.highway.scenario_run import ScenarioRun
+from sim.highway.scripted import ScriptedScenario, load_scripted
 from sim.highway.sumo_traffic import SumoTraffic
 from sim.highway.traffic import CarStates, ScriptedTraffic
 from sim.highway.truth import GroundTruth, ground_truth, truth_record
@@ -54,7 +60,12 @@ class World:
     """The highway world. `declaration` is HIGHWAY with the camera size of this world's configuration."""
 
     def __init__(self, config: WorldConfig | None = None, scenario: Scenario | None = None):
-        self.config = config = config or WorldConfig()
+        config = config or WorldConfig()
+        self.script: ScriptedScenario | None = None
+        if scenario is None and config.scenario is not None:
+            self.script = load_scripted(config.scenario)
+            config = self.script.configure(config)
+        self.config = config
         cam = config.camera
         self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width, config.inset)
         self.dt = config.dt
@@ -62,6 +73,8 @@ class World:
         if scenario is not None:
             self.track: Track = scenario.track
             self.seed = scenario.seed
+        elif self.script is not None:
+            self.track, self.seed = self.script.track, self.script.seed
         else:
             self.track = load_track(config.track, lanes=config.lanes, lane_width=config.lane_width)
             self.seed = config.seed
@@ -69,6 +82,8 @@ class World:
         self._renderer: Renderer | None = None
         self._renderer_seed: int | None = None
         self._traffic: ScriptedTraffic | SumoTraffic | None = None   # None once closed
+        self._run: ScenarioRun | None = None
+        self.last_cars = CarStates.empty()   # the cars of the last observation
         self.ego = VehicleState()
         self.t = 0.0
         self.reset(self.seed)
@@ -85,6 +100,11 @@ class World:
             cars = self.scenario.cars
             self._traffic = ScriptedTraffic(self.track, [c.s for c in cars], [c.d for c in cars],
                                             [c.speed for c in cars], seed=self.seed)
+        elif self.script is not None:
+            self.seed = self.script.seed
+            self._run = ScenarioRun(self.script, self.config)
+            self.ego = self._run.host_start()
+            self._traffic = self._run.traffic(self.ego_pose(), self.ego.speed)
         else:
             rng = np.random.default_rng([self.seed, 0xE60])
             lane = int(rng.integers(0, self.track.lanes))
@@ -138,6 +158,8 @@ class World:
         """Advance one step under `action`: an Action, or [steer, accel, brake] as the declaration orders it."""
         if not isinstance(action, Action):
             action = Action.from_array(action)
+        if self._run is not None:   # the events due now, on the state the driver just saw
+            self._run.before_step(self.t, self.ego, self.last_cars, self._live_traffic())
         t0 = time.perf_counter()
         self.ego = step_vehicle(self.ego, action, self.config.dt, self.track, self.config.vehicle)
         t1 = time.perf_counter()
@@ -145,12 +167,19 @@ class World:
         self.timings["physics"] += t1 - t0
         self.timings["traffic"] += time.perf_counter() - t1
         self.t += self.config.dt
-        return self.observe(render)
+        obs = self.observe(render)
+        if self._run is not None:
+            self._run.observe(obs, self.last_cars)
+        return obs
+
+    def scenario_report(self) -> dict | None:
+        """A scripted scenario's events carried out and its verdict so far (None without one)."""
+        return None if self._run is None else self._run.report()
 
     def observe(self, render: bool | None = None) -> Observation:
         t0 = time.perf_counter()
         ego = self.ego_pose()
-        cars = self._live_traffic().states()
+        cars = self.last_cars = self._live_traffic().states()
         p = self.config.vehicle
         truth = ground_truth(self.track, ego, self.ego.heading, self.ego.speed, cars.poses(), cars.length,
                              cars.speed, p.length)

@@ -43,7 +43,8 @@ class Plugin(base.Plugin):
     verbs = ("probe", "benchmark", "suite", "aggregate", "recipe", "ppo")
 
     # the settings each verb shows as flags; every other one is `--set NAME=VALUE`
-    verb_settings = {verb: ("track", "lanes", "cars", "seed") for verb in ("render", "drive", "serve")}
+    verb_settings = {"render": ("track", "lanes", "cars", "seed"),
+                     **{verb: ("track", "lanes", "cars", "seed", "scenario") for verb in ("drive", "serve")}}
 
     config_type = WorldConfig
 
@@ -61,7 +62,11 @@ class Plugin(base.Plugin):
 
     # --- worlds ----------------------------------------------------------------------------------------------------
     def settle(self, config: WorldConfig) -> WorldConfig:
-        """The side views come with the mirror they sit below."""
+        """The side views come with the mirror they sit below; a scripted scenario's route replaces the track, lanes,
+        cars, seed and start (its file read and checked now: one line, before any work)."""
+        if config.scenario is not None:
+            from sim.highway.scripted import load_scripted  # lazy: the track library, only with a scenario
+            config = load_scripted(config.scenario).configure(config)
         return replace(config, mirror=config.mirror or config.side_views)
 
     def fit_driver(self, config: WorldConfig, spec: DriverSpec) -> WorldConfig:

@@ -164,7 +164,8 @@ def world_for(route: Route, renderer: str = "tiny", inset: str = ""):
     from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
     from sim.mirror import inset_options  # lazy: with the world
     return World(WorldConfig(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
-                             cars=route.cars, renderer=renderer, start_lane=route.start_lane, **inset_options(inset)))
+                             cars=route.cars, renderer=renderer, start_lane=route.start_lane,
+                             scenario=route.scenario or None, **inset_options(inset)))
 
 
 # --- drivers --------------------------------------------------------------------------------------------------
@@ -230,6 +231,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
         end = last.end or "finished"
         clips = recorder.finish(last)
         report = metrics.report()
+        scenario = world.scenario_report()
     finally:
         world.close()
     if progress is not None:   # what was not reported yet: the last steps, and the rest of a route that ended early
@@ -237,7 +239,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
     return {"route": route.name, "model": model.key, "end": end, "seconds": route.seconds,
             "driven_s": round(report["simulated_time_s"], 3), "metrics": report, "clips": clips,
             "clips_skipped": recorder.skipped, "wall_s": round(time.perf_counter() - t0, 2),
-            "controller_agreed": recorder.agreed}
+            "controller_agreed": recorder.agreed, "scenario": scenario}
 
 
 def _run_over_bridge(route_world, world, model: ModelSpec, opts: RunOptions, seconds: float, metrics, on_step):

@@ -15,6 +15,7 @@ import csv
 import io
 import math
 
+from drivestudio.worlds.highway.benchmark import scenarios
 from drivestudio.worlds.highway.benchmark.route import completion
 from drivestudio.worlds.highway.filters import FILTERS
 
@@ -76,7 +77,7 @@ def route_row(result: dict, oracle: dict | None) -> dict:
             "marking_time_s": m["marking_time_s"], "marking_episodes": m["marking_episodes"],
             "in_lane_share": m["in_lane_share"], "loop_rate_hz": m["loop_rate_hz"], "wall_s": result["wall_s"],
             "clips": result["clips"], "clips_skipped": result["clips_skipped"],
-            "controller_agreed": result["controller_agreed"]}
+            "controller_agreed": result["controller_agreed"], "scenario": result.get("scenario")}
 
 
 def overall(rows: list[dict]) -> dict:
@@ -146,7 +147,10 @@ def markdown(board: dict, clip_root: str = "clips") -> str:
     for e in board["models"]:
         o = e["overall"]
         out.append(f"| {e['model']} | " + " | ".join(_cell(f, o.get(k)) for k, _, f in COLUMNS) + " |")
-    out += ["", "## Per route", ""]
+    out.append("")
+    if scenarios.has_scenarios(board):
+        out += scenarios.markdown(board)
+    out += ["## Per route", ""]
     for e in board["models"]:
         out += [f"### {e['model']}", "", "| route | " + " | ".join(h for _, h, _ in ROUTE_COLUMNS) + " |",
                 "|---|" + "---|" * len(ROUTE_COLUMNS)]

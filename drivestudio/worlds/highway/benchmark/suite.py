@@ -53,10 +53,13 @@ class Route:
     seconds: float
     track_ref: str = ""      # what load_track reads (a track file's path made absolute)
     length_m: float = 0.0    # [m] one lap of the track
+    scenario: str = ""       # a scripted scenario's file (scenarios.py): it sets the route's start and drives its cars
 
     def as_dict(self) -> dict:
         d = asdict(self)
         d.pop("track_ref")
+        if not d["scenario"]:   # a suite's route: the fields of the suite file
+            d.pop("scenario")
         return d
 
 
