@@ -49,6 +49,7 @@ from sim.camera import RENDERERS, CameraConfig  # noqa: E402  (below pybullet's 
 from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models  # noqa: E402
 from sim.highway.errors import RendererError  # noqa: E402
 from sim.highway.mesh import MeshData  # noqa: E402
+from sim.render.available import share_egl  # noqa: E402
 from sim.scene import Chunk, Look  # noqa: E402
 
 
@@ -91,6 +92,9 @@ class BulletScene:
         self._tmp: Path | None = None
         self._plugin = None
         if renderer == "egl":
+            clash = share_egl("egl")
+            if clash is not None:
+                raise RendererError(clash)
             plugin_file = _egl_plugin_file()
             if plugin_file is None:
                 raise RendererError("the EGL renderer plugin is not available in this pybullet build")

@@ -21,9 +21,11 @@ import numpy as np
 from sim.camera import CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
+from sim.highway.errors import RendererError
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
 from sim.mirror import BORDER, RearMirror, SideViews
+from sim.render.available import share_egl
 from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
@@ -44,12 +46,15 @@ class Renderer:
         self._painters: dict[CameraConfig, GroundPainter] = {}
         if renderer == "gl":
             from sim.highway.gl_scene import HighwayGL  # lazy: moderngl and an OpenGL context, for this renderer only
+            clash = share_egl("gl")
+            if clash is not None:
+                raise RendererError(clash)
             self._gl = HighwayGL(chunks, self.look, GROUND_MATERIALS, self._base_frame())
         elif renderer == "numba":
             from sim.render.raster import Part, Rasteriser  # lazy: numba loads (and compiles) for this renderer only
             models = [[Part(m.parts[p].vertices, m.parts[p].faces, m.parts[p].normals,
                             None if p == "paint" else PART_COLOURS[p][:3]) for p in PARTS] for m in car_models()]
-            self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models)
+            self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models, PAINTS)
         else:
             from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
             self._objects = BulletScene(chunks, self.look, camera, renderer)
@@ -118,9 +123,8 @@ class Renderer:
         if self._raster is not None:
             from sim.render.raster import Cars  # loaded with the rasteriser (above); this names its argument
             on = np.flatnonzero(car_visible)
-            paints = np.array(PAINTS)[np.asarray(cars.paints, dtype=np.int64)[on] % len(PAINTS)].reshape(-1, 3)
-            self._raster.draw(frame, camera, x, y, yaw, visible,
-                              Cars(cars.x[on], cars.y[on], cars.yaw[on], np.asarray(cars.models)[on], paints))
+            self._raster.draw(frame, camera, x, y, yaw, visible, Cars(cars.x[on], cars.y[on], cars.yaw[on],
+                                                                      cars.models[on], cars.paints[on]))
             return frame
         assert self._objects is not None
         self._objects.set_visible_chunks(visible)

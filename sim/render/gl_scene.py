@@ -37,6 +37,11 @@ class GLScene:
         """models: vertex rows of each model's triangles; base: the frame (h, w, 3) uint8 before any view; light:
         unit vector towards the light; ambient, diffuse: its coefficients (TinyRenderer's)."""
         self._ctx = ctx = gl_context()
+        with ctx:
+            self._build(ctx, groups, models, base, light, ambient, diffuse)
+
+    def _build(self, ctx, groups: list[Group], models: list[np.ndarray], base: np.ndarray, light, ambient: float,
+               diffuse: float) -> None:
         parts = [g.triangles for g in groups] + list(models) + [g.lines for g in groups]
         firsts = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
         n, k = len(groups), len(models)
@@ -95,6 +100,12 @@ class GLScene:
 
     def render(self, views: list[View]) -> np.ndarray:
         """The frame with `views` drawn in order, (h, w, 3) uint8 RGB."""
+        # current only while drawing, then the one before again: another EGL context of this process (PyBullet's
+        # EGL plugin) may be made current between frames
+        with self._ctx:
+            return self._render(views)
+
+    def _render(self, views: list[View]) -> np.ndarray:
         ctx, fbo, prog = self._ctx, self._fbo, self._program
         instances, commands, spans = self._commands_of(views)
         for buf, data in ((self._instances, instances), (self._commands, commands)):
@@ -135,6 +146,10 @@ class GLScene:
         fbo.use()   # moderngl applies a framebuffer's colour mask when it is bound
 
     def release(self) -> None:
+        with self._ctx:
+            self._release()
+
+    def _release(self) -> None:
         for obj in (self._vao, self._program, self._vertices, self._instances, self._commands, self._fbo,
                     self._base_fbo, self._base, self._colour, self._depth):
             obj.release()

@@ -150,10 +150,11 @@ def _shade(nx, ny, nz, light, ambient, diffuse, c0, c1, c2):
 
 @njit(cache=True)
 def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, paint, view, projection, eye, light,
-              ambient, diffuse):
+              ambient, diffuse, still):
     """Triangles first..end of verts (n, 3, 3), normals (n, 3, 3), colours (n, 3) (base colours; a triangle with
     `painted` true takes `paint` instead), placed by `model` (4, 4) and seen through `view` and `projection` (4, 4)
-    from `eye` (3,) [m], all float32."""
+    from `eye` (3,) [m], all float32. `still`: the model is the identity (the scenery), which leaves every point and
+    normal as it is, so they are not multiplied by it."""
     pvm = matmul(projection, matmul(view, model))
     near = projection[2, 3] / (projection[2, 2] - np.float32(1.0))   # as TinyRenderer's shader finds its planes
     far = projection[2, 3] / (projection[2, 2] + np.float32(1.0))
@@ -164,17 +165,25 @@ def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, pa
     tri = np.empty((3, 4), dtype=np.float32)
     one, zero = np.float32(1.0), np.float32(0.0)
     for t in range(first, end):
-        for k in range(3):
+        for k in range(3):   # world space first: a back face needs nothing more
             x, y, z = verts[t, k, 0], verts[t, k, 1], verts[t, k, 2]
-            clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3] = _mul(pvm, x, y, z, one)
-            world[k, 0], world[k, 1], world[k, 2], _ = _mul(model, x, y, z, one)
-            nrm[k, 0], nrm[k, 1], nrm[k, 2], _ = _mul(model, normals[t, k, 0], normals[t, k, 1], normals[t, k, 2],
-                                                      zero)
+            if still:
+                world[k, 0], world[k, 1], world[k, 2] = x, y, z
+            else:
+                world[k, 0], world[k, 1], world[k, 2], _ = _mul(model, x, y, z, one)
         ax, ay, az = world[1, 0] - world[0, 0], world[1, 1] - world[0, 1], world[1, 2] - world[0, 2]
         bx, by, bz = world[2, 0] - world[0, 0], world[2, 1] - world[0, 1], world[2, 2] - world[0, 2]
         nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
         if (world[0, 0] - eye[0]) * nx + (world[0, 1] - eye[1]) * ny + (world[0, 2] - eye[2]) * nz >= zero:
             continue   # a back face
+        for k in range(3):
+            clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3] = _mul(pvm, verts[t, k, 0], verts[t, k, 1],
+                                                                  verts[t, k, 2], one)
+            if still:
+                nrm[k, 0], nrm[k, 1], nrm[k, 2] = normals[t, k, 0], normals[t, k, 1], normals[t, k, 2]
+            else:
+                nrm[k, 0], nrm[k, 1], nrm[k, 2], _ = _mul(model, normals[t, k, 0], normals[t, k, 1],
+                                                          normals[t, k, 2], zero)
         base = paint if painted[t] else colours[t]
         behind = (clip[0, 3] < zero) + (clip[1, 3] < zero) + (clip[2, 3] < zero)
         if behind == 3:
@@ -202,14 +211,3 @@ def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, pa
         for i in range(1, m - 1):
             tri[0], tri[1], tri[2] = fan[0], fan[i], fan[i + 1]
             _raster(img, zbuf, tri, clip, True, nrm, base, light, ambient, diffuse, near, far)
-
-
-@njit(cache=True)
-def draw_bodies(img, zbuf, verts, normals, colours, painted, firsts, ends, models, paints, view, projection, eye,
-                light, ambient, diffuse):
-    """Bodies in order: body k is triangles firsts[k]..ends[k] placed by models[k] (4, 4), its painted triangles
-    in paints[k] (3,) (draw_body)."""
-    for k in range(len(firsts)):
-        if ends[k] > firsts[k]:
-            draw_body(img, zbuf, verts, normals, colours, painted, firsts[k], ends[k], models[k], paints[k], view,
-                      projection, eye, light, ambient, diffuse)

@@ -56,6 +56,21 @@ def test_gl_without_an_egl_driver_is_refused_in_one_line():
     assert not (REPO / "never.png").exists()
 
 
+def test_egl_and_gl_do_not_share_a_process():
+    """PyBullet's EGL plugin and OpenGL's context collide: the second of the two in one process is refused in one
+    line, never a crash (a process of its own: this one may hold either)."""
+    code = ("from sim.highway.renderer import Renderer\nfrom sim.highway.errors import RendererError\n"
+            "from sim.highway.traffic import CarStates\nfrom sim.track import load_track\n"
+            "t = load_track('oval', lanes=2)\nRenderer(t, 0, renderer='egl').render(0.0, 0.0, 0.0, CarStates.empty())\n"
+            "try:\n    Renderer(t, 0, renderer='gl')\nexcept RendererError as e:\n    print(e)\n")
+    if renderer_problem("gl"):
+        pytest.skip(renderer_problem("gl"))
+    r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip().endswith("renderer gl cannot draw in a process where renderer egl has (their EGL "
+                                     "contexts collide); use one of them, or another process"), r.stdout
+
+
 @pytest.mark.parametrize("renderer", ["numba", "gl"])
 def test_the_gymnasium_environment_takes_the_renderer(renderer):
     if renderer_problem(renderer):
