@@ -3,6 +3,7 @@
 gym.make("drivestudio/Highway-v0", ...) and the Chen controller, unless asked for more.
 
     PYTHONPATH=TREE python bench/_gym_worlds_worker.py --steps 300 [--worlds 2] [--observation affordances]
+                                                     [--renderer numba]
 
 K worlds (--worlds) step in turn in this one process, each driven by the Chen controller on its true indicators,
 reset (next seed) when its episode ends; resets are timed apart. Prints one JSON line: steps, seconds, steps/s of
@@ -28,8 +29,11 @@ def main() -> None:
     ap.add_argument("--worlds", type=int, default=1)
     ap.add_argument("--warmup", type=int, default=20)
     ap.add_argument("--observation", default=None, help="camera (the default) or affordances (newer trees)")
+    ap.add_argument("--renderer", default=None, help="the world's renderer (default: the environment's)")
     args = ap.parse_args()
     extra = {} if args.observation is None else {"observation": args.observation}
+    if args.renderer is not None:
+        extra["renderer"] = args.renderer
     envs = [gym.make("drivestudio/Highway-v0", track="oval", lanes=3, cars=12, **extra) for _ in range(args.worlds)]
     seeds = list(range(args.worlds))
     infos, ctrls = [], []

@@ -1,81 +1,108 @@
-"""Frames/s of rendering + ground truth: 3-lane preset, 12 cars in view, one process (issue 2's target: 100).
+"""Frames/s of rendering + ground truth, every renderer with and without the insets, in one run (issue 48).
 
-The host car drives along the track at 15 m/s while 12 scripted cars keep pace in the three lanes 8-80 m
-ahead, so every frame has 12 cars in view and the scenery streams past as in a real run.
+The host car drives along a 3-lane track at 15 m/s while 12 scripted cars keep pace in the three lanes 8-74 m
+ahead, so every frame has 12 cars in view and the scenery streams past as in a real run. With the mirror, 4 more
+cars follow the host; with the side views (and the mirror), 2 more drive level with it, one on each side.
 
-    python bench/bench_render.py [--track oval] [--frames 2000] [--renderer tiny|egl] [--mirror] [--side-views]
-                                 [--json F]
+    python bench/bench_render.py [--track oval] [--frames 1000] [--rounds 3] [--renderers tiny,egl,numba,gl]
+                                 [--insets none,mirror,sides] [--json F]
 
---mirror adds the rear-view mirror (sim/mirror.py): a second, small view drawn per frame, with 4 scripted cars
-behind the host as well. --side-views adds the views out of both side windows (and the mirror): two more small
-views, with 2 more cars level with the host, one on each side.
+Each round runs every renderer in a process of its own (bench/_render_worker.py; PyBullet's EGL plugin and OpenGL
+do not share one), in turn, the order reversed every other round, so that each sees the same machine; a figure is
+the median of the rounds. Two figures a run: frames a second of wall time, and frames a second of the process's CPU
+time (all its threads), which other work on a shared machine inflates less. OpenGL's software rasteriser (Mesa's
+llvmpipe, under renderers egl and gl) draws on the calling thread alone (LP_NUM_THREADS=0 unless set), so every
+figure is one core's. A renderer this machine cannot run is left out, with the reason.
 """
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
-import time
+import os
+import platform
+import statistics
+import subprocess
+import sys
 from pathlib import Path
 
-import numpy as np
-
-from core.worlds.highway import Action
 from sim.camera import RENDERERS
-from sim.highway.scenario import scenario_from_dict
-from sim.highway.world import World, WorldConfig
+
+REPO = Path(__file__).resolve().parents[1]
+WORKER = Path(__file__).resolve().parent / "_render_worker.py"
+INSETS = ("none", "mirror", "sides")
+
+
+def cpu_model() -> str:
+    """The processor's model name, as lscpu gives it."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def run(renderer: str, insets: list[str], frames: int, track: str) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(REPO), "LP_NUM_THREADS": os.environ.get("LP_NUM_THREADS", "0")}
+    r = subprocess.run([sys.executable, str(WORKER), "--renderer", renderer, "--insets", ",".join(insets),
+                        "--frames", str(frames), "--track", track], env=env, cwd=REPO, capture_output=True,
+                       text=True, timeout=3600)
+    if r.returncode != 0:
+        tail = (r.stderr.strip().splitlines() or ["no output"])[-1]
+        return {"renderer": renderer, "runs": {}, "skipped": f"the run failed: {tail}"}
+    return json.loads(r.stdout.strip().splitlines()[-1])
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--track", default="oval")
-    ap.add_argument("--frames", type=int, default=2000)
-    ap.add_argument("--renderer", default="tiny", choices=RENDERERS)
-    ap.add_argument("--mirror", action="store_true", help="with the rear-view mirror, and 4 cars behind")
-    ap.add_argument("--side-views", action="store_true",
-                    help="with the mirror and the side views, 4 cars behind and 2 level with the host")
+    ap.add_argument("--frames", type=int, default=1000, help="frames of each renderer and insets in each round")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--renderers", default=",".join(RENDERERS), help="comma-separated, of " + ", ".join(RENDERERS))
+    ap.add_argument("--insets", default=",".join(INSETS), help="comma-separated, of " + ", ".join(INSETS))
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
-    speed = 15.0
-    cars = [{"s": 8.0 + 6.0 * i, "d": (4.0, 0.0, -4.0)[i % 3], "speed": speed} for i in range(12)]
-    args.mirror = args.mirror or args.side_views
-    if args.mirror:   # the same 12 ahead (the lap is long enough that none of them is behind) and 4 behind
-        cars += [{"s": -10.0 - 8.0 * i, "d": (4.0, -4.0)[i % 2], "speed": speed} for i in range(4)]
-    if args.side_views:
-        cars += [{"s": 0.5, "d": d, "speed": speed} for d in (4.0, -4.0)]
-    scenario = scenario_from_dict({"track": args.track, "lanes": 3, "seed": 1,
-                                   "ego": {"s": 0.0, "d": 0.0, "speed": speed}, "cars": cars})
-    config = WorldConfig(renderer=args.renderer, cars=0, mirror=args.mirror, side_views=args.side_views)
-    with World(config, scenario=scenario) as world:
-        obs = world.observe()
-        in_view = []
-        for _ in range(20):  # warm caches (and load a compiled renderer)
-            obs = world.step(Action())
-        world.timings = dict.fromkeys(world.timings, 0.0)   # the breakdown below is of the timed frames only
-        t0 = time.perf_counter()
-        for _ in range(args.frames):
-            ind = obs.truth.indicators
-            # hold the centre lane: steer on the true angle and offset (keeps cars in the same place in view)
-            steer = float(np.clip((ind[0] - obs.truth.ego[4] / 8) / 0.541052, -1, 1))
-            obs = world.step(Action(steer, 0.2 if obs.truth.speed < speed else 0.0, 0.0))
-            in_view.append(int(np.sum(world.track.gap(world.ego.s, obs.truth.cars[:, 3]) > 0)))
-        dt = time.perf_counter() - t0
-        t = world.timings
-    insets = (", mirror" if args.mirror else "") + (", side views" if args.side_views else "")
-    print(f"track {args.track}, 3 lanes, renderer {args.renderer}{insets}, "
-          f"{args.frames} frames of "
-          f"{obs.frame.shape[1]}x{obs.frame.shape[0]}, cars ahead per frame: {np.mean(in_view):.1f}")
-    print(f"render + ground truth: {args.frames / dt:.1f} frames/s ({dt / args.frames * 1e3:.2f} ms/frame; "
-          f"render {t['render'] / args.frames * 1e3:.2f} ms, "
-          f"truth {t['truth'] / args.frames * 1e3:.2f} ms,"
-          f" physics {t['physics'] / args.frames * 1e3:.2f} ms)")
+    renderers = [r for r in args.renderers.split(",") if r]
+    insets = [i for i in args.insets.split(",") if i]
+    bad = [r for r in renderers if r not in RENDERERS] + [i for i in insets if i not in INSETS]
+    if bad or not renderers or not insets:
+        ap.error(f"unknown renderers or insets: {', '.join(bad) or 'none given'}")
+    machine = {"cpu": cpu_model(), "cores": os.cpu_count(), "lp_num_threads": os.environ.get("LP_NUM_THREADS", "0"),
+               "load": round(os.getloadavg()[0], 2), "date": datetime.date.today().isoformat()}
+    rounds: dict[tuple[str, str], list[dict]] = {}
+    skipped: dict[str, str] = {}
+    for k in range(args.rounds):
+        for r in (renderers if k % 2 == 0 else renderers[::-1]):
+            if r in skipped:
+                continue
+            res = run(r, insets, args.frames, args.track)
+            if "skipped" in res:
+                skipped[r] = res["skipped"]
+            for inset, fig in res["runs"].items():
+                rounds.setdefault((r, inset), []).append(fig)
+        print(f"round {k + 1} of {args.rounds}: " + ", ".join(f"{r}/{i} {v[-1]['frames_per_s']:.0f}"
+                                                             for (r, i), v in rounds.items()), flush=True)
+    runs = []
+    for r in renderers:
+        for i in insets:
+            if (r, i) in rounds:
+                rs = rounds[r, i]
+                runs.append({"renderer": r, "insets": i, **{f: statistics.median(x[f] for x in rs) for f in rs[0]},
+                             "rounds_frames_per_s": [round(x["frames_per_s"], 1) for x in rs]})
+    print(f"{args.track}, 3 lanes, 280x210, {args.frames} frames x {args.rounds} rounds (medians); {machine['cpu']}, "
+          f"{machine['cores']} cores, LP_NUM_THREADS={machine['lp_num_threads']}, load {machine['load']} at the start, "
+          f"{machine['date']}")
+    print(f"{'renderer':8s} {'insets':6s} {'frames/s':>8s} {'per CPU s':>9s} {'render ms':>9s} {'truth ms':>8s}")
+    for x in runs:
+        print(f"{x['renderer']:8s} {x['insets']:6s} {x['frames_per_s']:8.0f} {x['frames_per_cpu_s']:9.0f} "
+              f"{x['render_ms']:9.2f} {x['truth_ms']:8.2f}")
+    for r, why in skipped.items():
+        print(f"{r}: not run ({why})")
     if args.json:
-        args.json.write_text(json.dumps({
-            "track": args.track, "renderer": args.renderer, "mirror": args.mirror, "side_views": args.side_views,
-            "frames": args.frames,
-            "size": [int(obs.frame.shape[1]), int(obs.frame.shape[0])], "cars_ahead": float(np.mean(in_view)),
-            "frames_per_s": args.frames / dt, "ms_per_frame": dt / args.frames * 1e3,
-            "render_ms": t["render"] / args.frames * 1e3, "truth_ms": t["truth"] / args.frames * 1e3,
-            "physics_ms": t["physics"] / args.frames * 1e3}, indent=2) + "\n")
+        args.json.write_text(json.dumps({"track": args.track, "frames": args.frames, "rounds": args.rounds,
+                                         "machine": machine, "runs": runs, "skipped": skipped}, indent=2) + "\n")
 
 
 if __name__ == "__main__":
