@@ -81,7 +81,8 @@ def test_rounds_merge_the_corrections_and_retrain(tmp_path):
                     str(tmp_path / "m.pt"), "--epochs", "1", "--batch-size", "30", "--device", "cpu"], cwd=REPO,
                    check=True, timeout=600, capture_output=True)
     r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "m.pt"),
-                        "--seconds", "3", "--rounds", "2", "--epochs", "1", "--no-video", "--out", str(tmp_path / "a")],
+                        "--seconds", "3", "--rounds", "2", "--set", "epochs=1", "--set", "video=false", "--out",
+                        str(tmp_path / "a")],
                        cwd=REPO, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-2000:]
     rounds = json.loads((tmp_path / "a" / "autonomy.json").read_text())["rounds"]
@@ -93,7 +94,9 @@ def test_rounds_merge_the_corrections_and_retrain(tmp_path):
 
 @pytest.mark.parametrize("argv, says", [
     (["--rule", "lenient"], "argument --rule: invalid choice: 'lenient'"),
-    (["--rounds", "0"], "argument --rounds: must be an integer from 1 to 20, got 0"),
+    (["--rounds", "0"], "--rounds must be an integer from 1 to 20, got 0"),
+    (["--set", "obstacles=13"], "--set obstacles must be a number from 0 to 12, got 13.0"),
+    (["--set", "video=maybe"], "--set video must be true or false, got 'maybe'"),
 ])
 def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoint, run_cli, tmp_path, argv, says):
     r = run_cli("autonomy", "--model", checkpoint, *argv, "--out", tmp_path / "a", cwd=REPO)
@@ -104,7 +107,8 @@ def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoi
 def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path):
     r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint),
                         "--mode", "furtive",
-                        "--rule", "strict", "--seconds", "3", "--no-video", "--out", str(tmp_path)], cwd=REPO,
+                        "--rule", "strict", "--seconds", "3", "--set", "video=false", "--out", str(tmp_path)],
+                       cwd=REPO,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     result = json.loads((tmp_path / "autonomy.json").read_text())["rounds"][0]
@@ -137,9 +141,9 @@ def test_rounds_without_data_are_refused_before_round_0(autonomy, tmp_path):
 def test_merge_data_of_another_world_or_missing_is_refused_before_round_0(autonomy, tmp_path):
     highway = tmp_path / "hw"
     _generate("--out", highway, "--frames", "20", "--episode-frames", "20")
-    r = autonomy("--rounds", "2", "--data", highway, "--out", tmp_path / "a")
+    r = autonomy("--rounds", "2", "--set", f"data={highway}", "--out", tmp_path / "a")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "dataset of the highway world" in r.stderr
-    r = autonomy("--data", tmp_path / "gone", "--out", tmp_path / "a")
+    r = autonomy("--set", f"data={tmp_path / 'gone'}", "--out", tmp_path / "a")
     assert r.returncode == 2 and "no dataset folder" in r.stderr
     assert not (tmp_path / "a").exists()
 
@@ -147,7 +151,7 @@ def test_merge_data_of_another_world_or_missing_is_refused_before_round_0(autono
 def test_merge_data_too_small_to_hold_an_episode_out_is_refused_before_round_0(autonomy, tmp_path):
     data = tmp_path / "data"   # 3 episodes, one a mode: none to spare for validation
     _generate("--world", "sidewalk", "--out", data, "--frames", "60", "--episode-frames", "20")
-    r = autonomy("--rounds", "2", "--data", data, "--out", tmp_path / "a")
+    r = autonomy("--rounds", "2", "--set", f"data={data}", "--out", tmp_path / "a")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "fewer than 2 episodes of mode direct (1)" in r.stderr
     assert not (tmp_path / "a").exists()
 
@@ -173,8 +177,8 @@ def test_sigterm_ends_the_run_in_order_and_the_report_says_it_is_incomplete(tmp_
     save_checkpoint(tmp_path / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
     out = tmp_path / "a"
     proc = subprocess.Popen([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(tmp_path / "m.pt"),
-                             "--seconds", "2", "--rounds", "3", "--epochs", "50", "--data", str(data), "--out",
-                             str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--seconds", "2", "--rounds", "3", "--set", "epochs=50", "--set", f"data={data}",
+                             "--out", str(out)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t0 = time.time()
     while not (out / "autonomy.json").exists() and time.time() - t0 < 200 and proc.poll() is None:
         time.sleep(0.2)

@@ -75,8 +75,8 @@ def test_autonomy_checks_the_side_outputs_of_its_retrainings_before_round_0(side
     save_checkpoint(ckpt, {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
     out = tmp_path / "run"
     (out / f"model-round1.pt{side}").mkdir(parents=True)
-    rc = main(["autonomy", "--model", str(ckpt), "--data", str(sidewalk_data), "--mode", "direct", "--seconds", "1",
-               "--rounds", "2", "--epochs", "1", "--no-video", "--device", "cpu", "--out", str(out)])
+    rc = main(["autonomy", "--model", str(ckpt), "--set", f"data={sidewalk_data}", "--mode", "direct", "--seconds",
+               "1", "--rounds", "2", "--set", "epochs=1", "--set", "video=false", "--device", "cpu", "--out", str(out)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and f"model-round1.pt{side}: it is a folder" in err, (rc, err)
     assert _tree(out) == [f"model-round1.pt{side}"]
@@ -85,7 +85,7 @@ def test_autonomy_checks_the_side_outputs_of_its_retrainings_before_round_0(side
 def test_study_checks_every_training_output_before_recording_data(tmp_path, capsys):
     out = tmp_path / "study"
     (out / "models" / "multinet-round1.pt.loss.png").mkdir(parents=True)
-    rc = main(["study", "--out", str(out), "--quick", "--rounds", "1"])
+    rc = main(["study", "--out", str(out), "--quick", "--set", "rounds=1"])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "multinet-round1.pt.loss.png: it is a folder" in err, (rc, err)
     assert _tree(out) == ["models", "models/multinet-round1.pt.loss.png"]

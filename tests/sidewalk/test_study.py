@@ -14,7 +14,7 @@ import torch
 from core import worlds
 from drivestudio.errors import RunError
 from drivestudio.worlds.sidewalk.autonomy import Drive, drive_round, retrain
-from drivestudio.worlds.sidewalk.study import Job, Study, StudyConfig, run_jobs
+from drivestudio.worlds.sidewalk.study import QUICK, Job, Study, StudyConfig, run_jobs
 from perception.checkpoint import load_checkpoint, save_checkpoint
 from perception.models import Regressor, make_spec
 from perception.moments import Moments
@@ -80,7 +80,7 @@ def test_retraining_merges_the_corrections(merged, tmp_path):
 
 
 def test_a_capped_epoch_draws_at_most_mode_moments_of_each_mode(merged):
-    """`train --mode-moments N` (a study's --round-moments): an epoch is N moments per mode trained, however large
+    """`train --set mode_moments=N` (a study's round_moments): an epoch is N moments per mode trained, however large
     the merged data has grown; MultiNet trains three modes, an MTL net one."""
     data, corrections, _, _ = merged
     roots = f"{data},{corrections}"
@@ -148,7 +148,7 @@ def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
 
 
 def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
-    """--perturbed goes to generate, --steer-share to the first trainings and every round's fine-tuning."""
+    """perturbed goes to generate, steer_share to the first trainings and every round's fine-tuning."""
     calls: list = []
     study = Study(StudyConfig(out=str(tmp_path), rounds=1, perturbed=0.5, steer_share=0.5))
     study.verb = lambda *argv: calls.append([str(a) for a in argv])   # the verb's argv, not run
@@ -161,8 +161,8 @@ def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
     trainings = first + [j for j in rounds if j.argv[0] == "train"]
     assert len(trainings) == 5
     for job in trainings:
-        assert job.argv[job.argv.index("--steer-share") + 1] == 0.5
-    assert "--steer-share" not in Study(StudyConfig(out=str(tmp_path))).draws()
+        assert "steer_share=0.5" in job.argv and job.argv[job.argv.index("steer_share=0.5") - 1] == "--set"
+    assert Study(StudyConfig(out=str(tmp_path))).draws() == []
 
 
 def test_the_data_plan_holds_the_moments_asked_for():
@@ -174,12 +174,14 @@ def test_the_data_plan_holds_the_moments_asked_for():
 
 
 @pytest.mark.parametrize("argv, says", [
-    (["--rounds", "0"], "--rounds: must be an integer from 1 to 20"),
-    (["--rule", "lenient"], "invalid choice: 'lenient'"),
-    (["--loops", "park"], "park is driven by the study's data or rounds"),
-    (["--loops", "procedural:3"], "procedural:3 is driven by the study's data"),
-    (["--loops", "nowhere.json"], "--loops"),
-    (["--perturbed", "1.5"], "--perturbed"),
+    (["--set", "rounds=0"], "--set rounds must be an integer from 1 to 20"),
+    (["--set", "rule=lenient"], "invalid choice: 'lenient'"),
+    (["--set", "loops=park"], "park is driven by the study's data or rounds"),
+    (["--set", "loops=procedural:3"], "procedural:3 is driven by the study's data"),
+    (["--set", "loops=nowhere.json"], "loops: no such file"),
+    (["--set", "loops=,"], "loops names no loop"),
+    (["--set", "perturbed=1.5"], "--set perturbed"),
+    (["--jobs", "0"], "--jobs must be an integer from 1 to 64"),
 ])
 def test_bad_input_is_one_line_and_status_2(run_cli, argv, says, tmp_path):
     r = run_cli("study", "--out", tmp_path / "s", *argv, cwd=REPO)
@@ -192,16 +194,16 @@ def test_a_study_continues_only_with_the_settings_that_made_it(run_cli, tmp_path
     out.mkdir()
     made = json.dumps({**asdict(StudyConfig(out=str(out))), "epochs": 12}, indent=1)
     (out / "config.json").write_text(made)
-    r = run_cli("study", "--out", out, "--rounds", "3", cwd=REPO)
+    r = run_cli("study", "--out", out, "--set", "rounds=3", cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "epochs=12 (asked 10)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
 
 
 @pytest.mark.parametrize("setting, option, made_as", [
-    ("round_moments", ["--round-moments", "5000"], "round_moments=0 (asked 5000)"),   # every round drew all
-    ("perturbed", ["--perturbed", "0.5"], "perturbed=0.0 (asked 0.5)"),               # expert data only
-    ("steer_share", ["--steer-share", "0.5"], "steer_share=0.0 (asked 0.5)"),         # modes balanced only
+    ("round_moments", ["--set", "round_moments=5000"], "round_moments=0 (asked 5000)"),   # every round drew all
+    ("perturbed", ["--set", "perturbed=0.5"], "perturbed=0.0 (asked 0.5)"),               # expert data only
+    ("steer_share", ["--set", "steer_share=0.5"], "steer_share=0.0 (asked 0.5)"),         # modes balanced only
 ])
 def test_a_study_made_before_a_setting_existed_continues_as_it_was_made(run_cli, tmp_path, setting, option, made_as):
     """A config.json without a setting was made with the value the setting has for it (MADE_BEFORE): asking for
@@ -239,7 +241,7 @@ def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
                 a = study["autonomy"][rule][mode][net]
                 assert a["runs"] == 2 and 0.0 <= a["autonomy_mean"] <= 100.0
                 assert a["collisions_while_correcting"] == 0
-    rounds = StudyConfig().rounds                    # --quick keeps the default number of rounds, shorter
+    rounds = QUICK["rounds"]                         # --quick's rounds, shorter
     assert rounds >= 2 and study["final_networks"]["multinet"].endswith(f"multinet-round{rounds}.pt")
     assert sorted(p.name for p in (out / "rounds").iterdir()) == [f"round{k}" for k in range(1, rounds + 1)]
     assert len(study["validation"]["multinet"]) == 2 and (out / "figure7-all-modes.png").stat().st_size > 10_000
@@ -247,7 +249,7 @@ def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
     again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)   # all done: nothing redone
     assert again.returncode == 0 and "$ drivestudio train" not in again.stdout
     assert "$ drivestudio autonomy" not in again.stdout
-    more = subprocess.run(cmd + ["--rounds", str(rounds + 1)], cwd=REPO, capture_output=True, text=True, timeout=900)
+    more = subprocess.run(cmd + ["--set", f"rounds={rounds + 1}"], cwd=REPO, capture_output=True, text=True, timeout=900)
     assert more.returncode == 0, more.stderr[-3000:]                 # one more round, and the newer nets measured
     final = json.loads((out / "study.json").read_text())["final_networks"]
     assert final["multinet"].endswith(f"multinet-round{rounds + 1}.pt")

@@ -18,13 +18,14 @@ from pathlib import Path
 from typing import Any
 
 from core.files import check_output
-from core.worlds.sidewalk import SIDEWALK
+from core.settings import MAX_SEED, setting
+from core.worlds.sidewalk import MODES, RULES, SIDEWALK
 from drivestudio import worlds
 from drivestudio.errors import UsageError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.outputs import write_json, write_text
 from perception.train_outputs import side_outputs
-from sim.sidewalk.config import SidewalkConfig, obstacles_value
+from sim.sidewalk.config import MAX_DENSITY, SidewalkConfig, obstacles_value
 
 HELD_OUT_PATH = "procedural:907"   # a winding 214 m park loop that generate's default plan never drives
 HELD_OUT_PATHS = ("procedural:907", "procedural:913")   # and a 239 m forest loop: the study's evaluation loops
@@ -66,15 +67,28 @@ class RoundResult:
 class Drive:
     """One autonomy run: which network drives where, how long, under which rule."""
 
-    model: str
-    mode: str
-    seconds: float
-    path: str = HELD_OUT_PATH
-    obstacles: float = HELD_OUT_OBSTACLES
-    seed: int = 0
-    rule: str = "safety"
-    device: str = "cpu"
-    video: bool = True
+    model: str = setting(None, "a sidewalk checkpoint (drivestudio train --model z2color)")
+    mode: str = setting("direct", "behavioural mode (the paper measured direct and furtive)", choices=MODES)
+    seconds: float = setting(120.0, "simulated seconds per round", unit="s", low=0.1, high=24 * 3600.0)
+    path: str = setting(HELD_OUT_PATH, "the loop (a path preset, path file or procedural:SEED; the default is held "
+                                       "out of generate's default plan)")
+    obstacles: float = setting(HELD_OUT_OBSTACLES, "obstacles per 100 m", low=0.0, high=MAX_DENSITY)
+    seed: int = setting(0, "seed of the scene", low=0, high=MAX_SEED)
+    rule: str = setting("safety", "the correction rule: safety (take over for leaving the path, an imminent "
+                                  "collision, a stalled car) or strict (also for deviating from the expert)",
+                        choices=RULES)
+    device: str = setting("cpu", "torch device: cpu, cuda, cuda:N or auto")
+    video: bool = setting(True, "write a video per round, marking the corrections")
+
+
+@dataclass
+class Autonomy(Drive):
+    """`drivestudio autonomy`'s run: a Drive, then `rounds - 1` times merge its corrections, retrain, drive again."""
+
+    rounds: int = setting(1, "rounds of drive, merge, retrain", low=1, high=20)
+    epochs: int = setting(3, "epochs of each retraining", low=1, high=1000)
+    data: str | None = setting(None, "the training data to merge the corrections with (none: the checkpoint's)")
+    out: str | None = setting(None, "folder for the results (none: runs/autonomy-TIME)")
 
 
 def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
@@ -170,7 +184,7 @@ def retrain(current: str, roots: list[str], out: Path, epochs: int, seed: int, d
 
 
 def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
-    """The datasets a retraining merges the corrections with (--data, else the checkpoint's own), checked before
+    """The datasets a retraining merges the corrections with (`data`, else the checkpoint's own), checked before
     round 0 when there will be a retraining: each a sidewalk dataset that is there."""
     from perception.checkpoint import load_checkpoint  # lazy: torch
     from perception.shards import Dataset, DatasetError  # lazy: pyarrow
@@ -180,16 +194,16 @@ def merge_roots(model: str, data: str | None, rounds: int) -> list[str]:
     if rounds == 1 and data is None:
         return roots
     if not roots:
-        raise UsageError("--rounds needs the training data: give --data (the checkpoint does not record it)")
+        raise UsageError("--rounds needs the training data: give --set data=DIR (the checkpoint does not record it)")
     for root in roots:
         if not Path(root).is_dir():
-            raise UsageError(f"--data: no dataset folder at {root}")
+            raise UsageError(f"data: no dataset folder at {root}")
         try:
             world = Dataset(Path(root)).world
         except DatasetError as e:
-            raise UsageError(f"--data: {e}") from None
+            raise UsageError(f"data: {e}") from None
         if world != "sidewalk":
-            raise UsageError(f"--data: {root} is a dataset of the {world} world; {model} learns the sidewalk's")
+            raise UsageError(f"data: {root} is a dataset of the {world} world; {model} learns the sidewalk's")
     check_held_out(roots[0], spec["spec"]["options"])
     return roots
 
@@ -206,7 +220,7 @@ def check_held_out(root: str, options: dict) -> None:
         episodes[mode] = episodes.get(mode, 0) + 1
     short = [f"{m} ({episodes.get(m, 0)})" for m in modes if episodes.get(m, 0) < 2]
     if short:
-        raise UsageError(f"--data: {root} has fewer than 2 episodes of mode {', '.join(short)}; the retraining "
+        raise UsageError(f"data: {root} has fewer than 2 episodes of mode {', '.join(short)}; the retraining "
                          "holds one out for validation")
 
 

@@ -28,10 +28,11 @@ import math
 import os
 import resource
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
+from core.settings import MAX_SEED, as_json, setting
 from drivestudio.errors import RunError, UsageError
 from drivestudio.pool import Job, JobFailed, Pool, run_verb
 from drivestudio.worlds.sidewalk.autonomy import HELD_OUT_PATHS
@@ -51,29 +52,43 @@ MADE_BEFORE = {"round_moments": 0, "perturbed": 0.0, "steer_share": 0.0}
 
 @dataclass(frozen=True)
 class StudyConfig:
-    out: str = "out/study"
-    moments: int = 30_000           # at least this many data moments
-    episode_frames: int = 125       # short episodes over many loops: more paths for the same steps
-    procedural: int = 120           # procedural loops offered beside the three presets (the plan's 264 episodes
-                                    # of three modes per loop reach the first 85 of them)
-    perturbed: float = 0.5          # share of episodes whose expert is knocked aside now and then (docs/sidewalk.md)
-    epochs: int = 10
-    trials: int = 3
-    batch_size: int = 120
-    steer_share: float = 0.0        # share of each mode's draws from its steering moments (train --steer-share)
-    rounds: int = 6                 # correction rounds before the final autonomy runs,
-    round_seconds: float = 150.0    # simulated seconds per network and mode in each,
-    round_epochs: int = 2           # fine-tuning after each round,
-    round_moments: int = 2500       # each epoch drawing at most this many moments per mode (0: all, a growing set;
-                                    # a fixed cost per round is what lets six rounds fit in the 2.5 hours)
-    loops: tuple = HELD_OUT_PATHS
-    runs: int = 3                   # autonomy runs per loop (seeds 100, 101, ...)
-    autonomy_seconds: float = 60.0
-    baseline_runs: int = 0          # runs per loop before the rounds (under the study's rule), 0: none
-    rule: str = "safety"
-    device: str = "cpu"
-    seed: int = 0
-    jobs: int = 2                   # verbs run side by side (trainings, autonomy runs), each with cores / jobs threads
+    out: str = setting("out/study", "folder of the study")
+    # the data: short episodes over many loops, more paths for the same steps
+    moments: int = setting(30_000, "data moments at least", low=100, high=10**8)
+    episode_frames: int = setting(125, "steps per episode", low=20, high=10**5)
+    # the plan's 264 episodes of three modes per loop reach the first 85 of the 120 loops
+    procedural: int = setting(120, "procedural loops beside the presets", low=0, high=1000)
+    perturbed: float = setting(0.5, "share of the data's episodes whose expert is knocked aside now and then, its "
+                                    "recoveries labelled (docs/sidewalk.md)", low=0.0, high=1.0)
+    # the trainings
+    epochs: int = setting(10, "epochs per trial", low=1, high=1000)
+    trials: int = setting(3, "trials per network", low=1, high=100)
+    batch_size: int = setting(120, "moments per batch", low=3, high=65536)
+    steer_share: float = setting(0.0, "share of each mode's draws from its steering moments in every training (train's "
+                                      "steer_share)", low=0.0, high=1.0)
+    # the correction rounds before the final autonomy runs
+    rounds: int = setting(6, "correction rounds before the final autonomy runs", low=1, high=20)
+    round_seconds: float = setting(150.0, "simulated seconds each network drives per mode and round", unit="s",
+                                   low=0.1, high=24 * 3600.0)
+    round_epochs: int = setting(2, "fine-tuning epochs per round", low=1, high=1000)
+    # a fixed cost per round (not a growing set) is what lets six rounds fit in the 2.5 hours
+    round_moments: int = setting(2500, "moments of each mode an epoch of a round's fine-tuning draws from the data and "
+                                       "every round's recordings, 0 for all of them", low=0, high=10**9)
+    # the autonomy runs (seeds 100, 101, ... per loop)
+    loops: str = setting(",".join(HELD_OUT_PATHS), "held-out loops of the autonomy runs, comma-separated")
+    runs: int = setting(3, "autonomy runs per loop", low=1, high=1000)
+    autonomy_seconds: float = setting(60.0, "simulated seconds per autonomy run", unit="s", low=0.1, high=24 * 3600.0)
+    baseline_runs: int = setting(0, "autonomy runs per loop before the rounds, under the study's rule, 0 for none",
+                                 low=0, high=1000)
+    rule: str = setting("safety", "the correction rule of the rounds and the headline; the final runs measure both",
+                        choices=RULES)
+    device: str = setting("cpu", "torch device: cpu, cuda, cuda:N or auto (cuda: the paper's epochs and trials)")
+    seed: int = setting(0, "seed of the data, the trials and the runs", low=0, high=MAX_SEED)
+    jobs: int = setting(2, "trainings and autonomy runs side by side, each with cores / jobs threads", low=1, high=64)
+
+    @property
+    def loop_names(self) -> tuple[str, ...]:
+        return tuple(p.strip() for p in self.loops.split(",") if p.strip())
 
     @property
     def frames(self) -> int:
@@ -195,11 +210,11 @@ class Study:
 
     # --- 2. training -------------------------------------------------------------------------------------------------
     def nets(self) -> dict[str, list[str]]:
-        return {"multinet": []} | {f"mtl-{m}": ["--mtl", m] for m in MODES}
+        return {"multinet": []} | {f"mtl-{m}": ["--set", f"mtl={m}"] for m in MODES}
 
     def draws(self) -> list:
         """The trainings' options beyond the plain balanced draw."""
-        return ["--steer-share", self.cfg.steer_share] if self.cfg.steer_share else []
+        return ["--set", f"steer_share={self.cfg.steer_share}"] if self.cfg.steer_share else []
 
     def trained(self, ckpt: Path) -> bool:
         return ckpt.exists() and not Path(str(ckpt) + ".state").exists()
@@ -207,8 +222,8 @@ class Study:
     def train(self) -> None:
         c = self.cfg
         self.jobs("train", [Job(f"train-{name}", ["train", "--data", self.data, "--model", "z2color", "--out",
-                                                  self.models / f"{name}.pt", *extra, "--epochs", c.epochs, "--trials",
-                                                  c.trials, "--batch-size", c.batch_size, "--seed", c.seed,
+                                                  self.models / f"{name}.pt", *extra, "--epochs", c.epochs, "--set",
+                                                  f"trials={c.trials}", "--batch-size", c.batch_size, "--seed", c.seed,
                                                   *self.draws(), "--device", c.device])
                             for name, extra in self.nets().items() if not self.trained(self.models / f"{name}.pt")])
 
@@ -242,12 +257,13 @@ class Study:
                 nxt = self.models / f"{name}-round{k}.pt"
                 roots = [self.data] + [self.round_dir(j, name, m) / "corrections-0" for j in range(1, k + 1)
                                        for m in self.net_modes(name)]
-                kind = ["--mtl", name.removeprefix("mtl-")] if name.startswith("mtl-") else []
+                kind = ["--set", f"mtl={name.removeprefix('mtl-')}"] if name.startswith("mtl-") else []
                 if not self.trained(nxt):
                     jobs.append(Job(self.retrain_name(k, name), [
                         "train", "--data", ",".join(map(str, roots)), "--model", "z2color", "--out", nxt, *kind,
-                        "--epochs", c.round_epochs, "--trials", 1, "--batch-size", c.batch_size, "--seed", c.seed + k,
-                        *(["--mode-moments", c.round_moments] if c.round_moments else []), *self.draws(),
+                        "--epochs", c.round_epochs, "--set", "trials=1", "--batch-size", c.batch_size, "--seed",
+                        c.seed + k, *(["--set", f"mode_moments={c.round_moments}"] if c.round_moments else []),
+                        *self.draws(),
                         "--device", c.device, "--init", current[name]], before + tuple(j.name for j in drives)))
                 current[name] = str(nxt)
         return current, jobs
@@ -260,7 +276,7 @@ class Study:
             return None
         return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--seed", seed, "--seconds",
                           seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
-                          *([] if video else ["--no-video"])], after)
+                          *([] if video else ["--set", "video=false"])], after)
 
     def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int) -> list[tuple]:
         """(rule, mode, network title, result folder, job or None) of every autonomy run of a stage; a run after
@@ -270,12 +286,12 @@ class Study:
         for rule in rules:
             for mode in EVALUATED:
                 for title, name in (("MultiNet", "multinet"), ("MTL", f"mtl-{mode}")):
-                    for loop in c.loops:
+                    for loop in c.loop_names:
                         for r in range(runs):
                             # under the model's own name: after more rounds, the newer networks are measured anew
                             where = self.out / stage / rule / mode / Path(nets[name]).stem / \
                                 f"{loop.replace(':', '-')}-{100 + r}"
-                            video = rule == c.rule and loop == c.loops[0] and r == 0
+                            video = rule == c.rule and loop == c.loop_names[0] and r == 0
                             plan.append((rule, mode, title, where, self.drive_job(
                                 f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
                                 c.autonomy_seconds, rule, where, video,
@@ -297,7 +313,8 @@ class Study:
         self.check_continuation()
         self.check_outputs()
         self.out.mkdir(parents=True, exist_ok=True)
-        (self.out / "config.json").write_text(json.dumps(asdict(self.cfg), indent=1) + "\n")
+        # what the continuation is held to, and what `drivestudio study --config` runs again
+        (self.out / "config.json").write_text(json.dumps(as_json(self.cfg), indent=1) + "\n")
         self.generate()
         self.cache()
         self.train()
@@ -312,15 +329,3 @@ class Study:
                             time.perf_counter() - t0)
 
 
-def config_from_args(args) -> StudyConfig:
-    """The study's settings: the defaults, `--quick`'s or, on a GPU, the paper's epochs and trials; then every option
-    given."""
-    base = StudyConfig()
-    if args.quick:
-        base = replace(base, **QUICK)
-    elif str(args.device).startswith("cuda"):
-        base = replace(base, **PAPER_SCALE)
-    given = {k: v for k, v in vars(args).items() if k in StudyConfig.__dataclass_fields__ and v is not None}
-    if "loops" in given:
-        given["loops"] = tuple(p.strip() for p in given["loops"].split(",") if p.strip())
-    return replace(base, **given)

@@ -208,7 +208,7 @@ def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: fl
     write_text(study.out / "STUDY.md", text)
     c = study.cfg
     write_json(study.out / "study.json", {
-        "config": vars(c) | {"loops": list(c.loops)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
+        "config": vars(c) | {"loops": list(c.loop_names)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
         "verdicts": verdict, "final_networks": final, "sizes": nets,
         "minutes": round(wall / 60, 1), "cpu_minutes": round(cpu / 60, 1),
         "timings": study.timings,
@@ -270,7 +270,7 @@ For comparison, {PAPER_FIGURE7}; {PAPER_FIGURE8}.
 
 {rounds}
 
-## Percentage autonomy (the paper's section 4.4) on {', '.join(c.loops)}
+## Percentage autonomy (the paper's section 4.4) on {', '.join(c.loop_names)}
 
 {autonomy_table(autonomy)}
 """ + (f"""
