@@ -19,18 +19,27 @@ the lanes left and right, and its closing speed) and adds three rules to docs/co
         that lane;
     L4  cross at lane keeping's gain: phase 2 of a change (and of an abort's way back) steers with coe_phase_2
         (rule 4's 1.5) instead of 20, with which a change to the inside of a bend of 100 m radius or less stalls
-        on the marking.
+        on the marking;
+    L5  stop in time (with stop_in_time: the extended oracle's, on exact labels): while the in-lane system sees a
+        car ahead, the host's speed stays at most the speed from which it stops behind that car, braking at
+        stop_decel after stop_delay, with stop_margin to spare, should the car brake to a standstill at lead_decel:
+        v <= b (-tau + sqrt(tau^2 + 2 R / b)), R = dist_MM - car_length - stop_margin + v_lead^2 / (2 lead_decel),
+        v_lead = speed - closing, the closing speed from dist_MM's change over a frame (a jump of more than
+        gap_jump is another car: closing 0 then); above it the host brakes with stop_gain. The closing speed is a
+        difference of two gaps, exact on exact labels and as noisy as a network's gap estimates otherwise, so a
+        network's driver goes without L5 until a filtered closing speed is measured with it.
 
 Everything else is the Chen controller, unchanged. Depends only on numpy and the highway's declaration.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from controller.highway.chen import KEEP, LEFT_1, LEFT_2, RIGHT_1, RIGHT_2, ChenController, ChenParams
-from core.worlds.highway import CLOSING_INACTIVE, REAR, REAR_RANGE, Action
+from core.worlds.highway import CLOSING_INACTIVE, GAP_MAX, REAR, REAR_RANGE, Action
 
 LEFT_CHANGE, RIGHT_CHANGE = (LEFT_1, LEFT_2), (RIGHT_1, RIGHT_2)
 NOTHING_BEHIND = (REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE, CLOSING_INACTIVE)   # the rear labels of an empty road
@@ -48,6 +57,16 @@ class LookoutParams:
     ahead_min: float = 10.0        # [m] centre to centre: a car this close ahead in the target lane aborts (L2)
     clear_margin: float = 0.3        # [m] past the marking the host's body is clear of the leader it pulls out from
     coe_phase_2: float = 1.5         # [-] L4: the steering divisor of phase 2 (rule 4's coe_keep, not rule 5's 20)
+    stop_in_time: bool = False       # L5 on (the extended oracle)
+    frame: float = 0.1               # [s] L5: between two calls (the controller's 10 Hz)
+    stop_decel: float = 6.0          # [m/s^2] L5: the braking the host plans with (its brakes give 11)
+    stop_delay: float = 0.3          # [s] L5: before that braking is reached (rule 7's speed control builds it)
+    lead_decel: float = 8.0          # [m/s^2] L5: the hardest the car ahead is expected to brake
+    car_length: float = 4.8          # [m] L5: centre-to-centre gap less the bumper gap (half of two car lengths)
+    stop_margin: float = 2.0         # [m] L5: the bumper gap left at a standstill
+    gap_jump: float = 3.0            # [m] L5: dist_MM changing more than this in a frame is another car
+    stop_gain: float = 0.5           # [1/(m/s)] L5: brake = stop_gain (speed - limit) above the limit, five times
+                                     # rule 7's brake_gain, so that 1 m/s too fast brakes at about stop_decel
 
 
 MIN_SPEED = 0.5   # [m/s] crossing() of a (nearly) standing host: as at this speed (28 s at 14 m)
@@ -80,6 +99,8 @@ class LookoutController(ChenController):
         self._aborts = self._refusals = 0
         self._refused = ""
         self._speed = 0.0
+        self._last_mm: float | None = None   # L5: dist_MM of the last frame, while a car was ahead
+        self._stop_limit = self.params.no_slow_down   # L5's limit on this frame
 
     @property
     def aborts(self) -> int:
@@ -90,6 +111,11 @@ class LookoutController(ChenController):
     def refusals(self) -> int:
         """Frames on which rule 2 or 3 wanted a change that L1 refused."""
         return self._refusals
+
+    @property
+    def stop_limit(self) -> float:
+        """L5's limit [m/s] on the last frame (inf: none)."""
+        return self._stop_limit
 
     @property
     def refused(self) -> str:
@@ -103,7 +129,13 @@ class LookoutController(ChenController):
         self._rear = dict(zip(REAR, values.tolist()))
         self._speed = float(speed)
         self._refused = ""
-        return super().act(indicators, speed)
+        self._stop_limit = self.params.no_slow_down
+        action = super().act(indicators, speed)
+        over = self._speed - self._stop_limit
+        if over > 0:   # L5 brakes harder than rule 7's speed control would
+            brake = max(action.brake, min(1.0, self.lookout.stop_gain * over))
+            return Action(action.steer, 0.0, brake)
+        return action
 
     # --- L1: look before moving --------------------------------------------------------------------------------
     def rear_safe(self, side: str, v: dict[str, float], abort: bool = False) -> bool:
@@ -161,7 +193,12 @@ class LookoutController(ChenController):
 
     # --- L3: pull out behind the leader -------------------------------------------------------------------------
     def _change_speed_limit(self, v: dict[str, float], side: str = "") -> float:
-        """L3's limit [m/s] during a change (or, with `side`, during one about to start that way)."""
+        """L3's limit [m/s] during a change (or, with `side`, during one about to start that way), and L5's."""
+        if not side:
+            return min(self._pull_out_limit(v), self.stop_speed(v))
+        return self._pull_out_limit(v, side)
+
+    def _pull_out_limit(self, v: dict[str, float], side: str = "") -> float:
         if self._state == KEEP and not side:
             return self.params.no_slow_down
         left = self._state in LEFT_CHANGE if not side else side == "left"
@@ -173,3 +210,22 @@ class LookoutController(ChenController):
             return self.params.no_slow_down
         # on the marking: the lane it leaves lies right of it for a change to the left, left of it for one right
         return self.follow_speed(v["dist_R"] if left else v["dist_L"])
+
+    # --- L5: stop in time -------------------------------------------------------------------------------------------
+    def stop_speed(self, v: dict[str, float]) -> float:
+        """L5's limit [m/s]: the speed from which the host stops behind the car ahead if that car brakes to a
+        standstill (no limit without a car ahead in the in-lane system's view)."""
+        p, gap = self.lookout, v["dist_MM"]
+        last, self._last_mm = self._last_mm, None
+        if not p.stop_in_time or not self._in_lane_valid(v) or gap >= GAP_MAX:
+            return self.params.no_slow_down
+        self._last_mm = gap
+        closing = (last - gap) / p.frame if last is not None and abs(last - gap) <= p.gap_jump else 0.0
+        lead = max(0.0, self._speed - closing)
+        room = gap - p.car_length - p.stop_margin + lead * lead / (2.0 * p.lead_decel)
+        if room <= 0:
+            self._stop_limit = 0.0
+            return 0.0
+        b, tau = p.stop_decel, p.stop_delay
+        self._stop_limit = b * (-tau + math.sqrt(tau * tau + 2.0 * room / b))
+        return self._stop_limit

@@ -11,7 +11,7 @@ import numpy as np
 from controller.highway import ChenController
 from controller.highway.chen import KEEP
 from controller.highway.expert import PerturbedExpert
-from controller.highway.lookout import NOTHING_BEHIND, LookoutController
+from controller.highway.lookout import NOTHING_BEHIND, LookoutController, LookoutParams
 from core.worlds.highway import HIGHWAY, INDICATORS, REAR
 from drivestudio.driver_spec import DriverSpec
 from drivestudio.loop import Percept
@@ -33,9 +33,12 @@ def reads_behind(outputs) -> bool:
     return set(REAR) <= set(outputs)
 
 
-def make_controller(lanes: int, lookout: bool) -> ChenController:
-    """The controller of a driver: the Chen controller, or the lookout controller (rules L1-L3 on top)."""
-    return LookoutController(lanes) if lookout else ChenController(lanes)
+def make_controller(lanes: int, lookout: bool, exact: bool = False) -> ChenController:
+    """The controller of a driver: the Chen controller, or the lookout controller (rules L1-L4 on top, and L5 on
+    exact labels: the extended oracle's, controller/highway/lookout.py)."""
+    if not lookout:
+        return ChenController(lanes)
+    return LookoutController(lanes, lookout=LookoutParams(stop_in_time=exact))
 
 
 def act_on(controller: ChenController, estimate: np.ndarray, speed: float):
@@ -91,7 +94,7 @@ class ChenDriver:
         lanes = int(percept.record[self._i_lanes])
         controller = self.controller
         if controller is None or controller.lanes != lanes:
-            controller = self.controller = make_controller(lanes, self.lookout)
+            controller = self.controller = make_controller(lanes, self.lookout, exact=self.predictor is None)
         action = act_on(controller, est, float(percept.record[self._i_speed]))
         self.timings["perception"] += t1 - t0
         self.timings["control"] += time.perf_counter() - t1

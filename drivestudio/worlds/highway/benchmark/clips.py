@@ -38,14 +38,16 @@ from controller.highway import ChenController
 from controller.highway.chen import KEEP, LaneOccupancy
 from controller.highway.lookout import LookoutController, safe_gap
 from core.worlds.highway import HIGHWAY, INDEX, INDICATORS, PAPER_INDICATORS, REAR, REAR_RANGE
-from drivestudio.outputs import VideoWriter
+from drivestudio.outputs import VideoWriter, write_json
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
+from drivestudio.worlds.highway.benchmark.replay import REPLAY_BEFORE, replay_scenario
 from drivestudio.worlds.highway.benchmark.suite import Route
 from drivestudio.worlds.highway.drivers import act_on, make_controller
 from drivestudio.worlds.highway.overlays import overlay_observation
 from perception.highway.overlay import ERROR_SCALE
 
 if TYPE_CHECKING:
+    from sim.highway.traffic import CarStates
     from sim.highway.world import Observation
 
 PANEL_HEIGHT = 206
@@ -68,21 +70,24 @@ class Entry:
     action: np.ndarray
     estimate: np.ndarray
     control: dict | None
+    cars: CarStates | None = None   # the cars the observation was made of (speeds and models: for a replay)
 
 
 @dataclass
 class _Pending:
     event: str
     index: int                     # the route's clip number
-    before: list
+    before: list                   # the clip's seconds before the event
+    history: list                  # the replay's (replay.py: longer)
     after: list = field(default_factory=list)
 
 
 class ShadowController:
     """The driver's controller, replayed on the world side from the estimates the driver reported."""
 
-    def __init__(self, lookout: bool = False):
+    def __init__(self, lookout: bool = False, exact: bool = False):
         self.ctrl: ChenController | None = None
+        self.exact = exact
         self.truth_occupancy: LaneOccupancy | None = None   # rule 1 on the true gaps, restarted as the driver's
         self.lookout = lookout
         self.agreed = True
@@ -92,7 +97,7 @@ class ShadowController:
         lanes = int(record[_I_LANES])
         c = self.ctrl
         if c is None or c.lanes != lanes:
-            c = self.ctrl = make_controller(lanes, self.lookout)
+            c = self.ctrl = make_controller(lanes, self.lookout, self.exact)
             self.truth_occupancy = LaneOccupancy(c.params.occupied_gap, c.params.pre_dist_start)
         assert self.truth_occupancy is not None
         truth = rec.obs.truth.indicators
@@ -244,8 +249,8 @@ class ClipRecorder:
         self.limit = opts.clips if clip_dir is not None else 0
         self.before_n = int(round(opts.clip_before / world.dt))
         self.after_n = int(round(opts.clip_after / world.dt))
-        self.buffer: deque = deque(maxlen=self.before_n + 1)
-        self.shadow = ShadowController(model.lookout)
+        self.buffer: deque = deque(maxlen=max(self.before_n, int(round(REPLAY_BEFORE / world.dt))) + 1)
+        self.shadow = ShadowController(model.lookout, model.exact)
         self.pending: list[_Pending] = []
         self.clips: list[dict] = []
         self.skipped = 0
@@ -258,7 +263,7 @@ class ClipRecorder:
 
     def __call__(self, rec) -> None:
         self._push(Entry(rec.obs, np.asarray(rec.action, dtype=np.float64),
-                         np.asarray(rec.estimate, dtype=np.float64), self.shadow(rec)))
+                         np.asarray(rec.estimate, dtype=np.float64), self.shadow(rec), self.world.last_cars))
 
     def _push(self, entry: Entry) -> None:
         self.buffer.append(entry)
@@ -271,7 +276,8 @@ class ClipRecorder:
             if now and not self._was[event]:
                 self._events += 1
                 if len(self.clips) + len(self.pending) < self.limit:
-                    self.pending.append(_Pending(event, self._events, list(self.buffer)))
+                    history = list(self.buffer)
+                    self.pending.append(_Pending(event, self._events, history[-(self.before_n + 1):], history))
                 else:
                     self.skipped += 1
             self._was[event] = now
@@ -279,7 +285,8 @@ class ClipRecorder:
     def finish(self, last_obs) -> list[dict]:
         """The route's last observation (which no action followed) may hold an event too; then every clip still
         waiting for its after-seconds is written with what there is."""
-        self._push(Entry(last_obs, np.full(3, np.nan), np.full(len(HIGHWAY.estimate_names), np.nan), None))
+        self._push(Entry(last_obs, np.full(3, np.nan), np.full(len(HIGHWAY.estimate_names), np.nan), None,
+                         self.world.last_cars))
         for p in list(self.pending):
             self._write(p)
         return self.clips
@@ -297,6 +304,7 @@ class ClipRecorder:
         if p.event == "collision":
             info["contact"] = describe_contact(p.before, self.world.track)
             info["rule"], info["cause"] = fault(p.before, self.world.dt)
+            info["scenario"] = self._write_replay(p, t)
         else:
             d = float(event_entry.obs.truth.ego[4])
             info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
@@ -312,6 +320,21 @@ class ClipRecorder:
             raise
         info["file"] = name
         self.clips.append(info)
+
+    def _write_replay(self, p: _Pending, t: float) -> str | None:
+        """CLIP.scenario.json beside the clip: its last seconds as a scripted scenario (replay.py); its file name,
+        or None when the clip's steps cannot make one."""
+        from sim.highway.scripted import scripted_from_dict  # lazy: with the world, already loaded
+        assert self.dir is not None
+        name = f"{self.route.name}-{p.index:02d}-{p.event}-t{t:06.1f}s"
+        about = (f"the {REPLAY_BEFORE:g} s before the collision at {t:.1f} s of route {self.route.name} driven by "
+                 f"{self.model.label}, replayed from its crash clip")
+        obj = replay_scenario(p.history, self.world.track, self.route, t, name, about)
+        if obj is None:
+            return None
+        scripted_from_dict(obj, self.dir)   # what is written reads back (a ScenarioError here is a bug of ours)
+        write_json(self.dir / f"{name}.scenario.json", obj)
+        return f"{name}.scenario.json"
 
     def frame(self, entry: Entry, t_event: float, info: dict, mark: bool = True) -> np.ndarray:
         """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""

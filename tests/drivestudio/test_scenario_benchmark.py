@@ -1,0 +1,101 @@
+"""benchmark --scenarios as docs/scenarios.md and docs/benchmark.md specify it: pass or fail per scenario beside the
+driving score (scenarios.csv, a table in leaderboard.md), the same traces over shared memory, a scenario beside every
+collision's clip that replays it, and the shipped suite."""
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+
+from drivestudio.loop import in_process, run_loop
+from drivestudio.worlds.highway.benchmark.scenarios import SCENARIOS_DIR, load_scenarios
+from drivestudio.worlds.highway.drivers import ChenDriver
+from sim.highway.scripted import EVENT_FIELDS, load_scripted
+from sim.highway.world import World, WorldConfig
+
+# the plain oracle runs into a car braking hard 20 m ahead; the extended oracle (L5) stops in time; both let a
+# slower car cut in 25 m ahead and keep their distance
+BRAKE = {"version": 2, "name": "brake", "route": {"track": "oval", "lanes": 1, "seed": 2, "seconds": 4},
+         "host": {"s": 0, "lane": 0, "speed": 20}, "actors": [{"name": "lead", "gap": 20, "speed": 20}],
+         "events": [{"actor": "lead", "when": {"time": 0.5}, "do": "brake", "decel": 9}]}
+CUT_IN = {"version": 2, "name": "cut-in", "route": {"track": "oval", "lanes": 2, "seed": 3, "seconds": 4},
+          "host": {"s": 0, "lane": 1, "speed": 20},
+          "actors": [{"name": "cutter", "lane_offset": 1, "gap": 30, "speed": 15}],
+          "events": [{"actor": "cutter", "when": {"gap": 25}, "do": "change_lane"}], "pass": {"min_time_gap": 0.3}}
+
+
+def rows(out):
+    with open(out / "scenarios.csv") as f:
+        return {(r["model"], r["scenario"]): r for r in csv.DictReader(f)}
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    d = tmp_path_factory.mktemp("scenarios")
+    for obj in (BRAKE, CUT_IN):
+        (d / f"{obj['name']}.json").write_text(json.dumps(obj))
+    return d
+
+
+@pytest.fixture(scope="module")
+def benchmark(folder, tmp_path_factory):
+    """Both oracles on the two scenarios, in process and over shared memory."""
+    outs = {}
+    for transport in ("in-process", "shm"):
+        out = tmp_path_factory.mktemp(transport) / "bench"
+        argv = ["benchmark", "--model", "oracle-extended", "--scenarios", str(folder), "--workers", "2", "--clips", "1",
+                "--quiet", "--out", str(out), *(["--shm"] if transport == "shm" else [])]
+        run = subprocess.run([sys.executable, "-m", "drivestudio", *argv], capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr
+        outs[transport] = out
+    return outs
+
+
+def test_each_scenario_passes_or_fails_per_model_in_scenarios_csv_and_the_leaderboard(benchmark):
+    out = benchmark["in-process"]
+    got = rows(out)
+    assert {k: v["passed"] for k, v in got.items()} == {
+        ("oracle", "brake"): "False", ("oracle", "cut-in"): "True",
+        ("oracle-extended", "brake"): "True", ("oracle-extended", "cut-in"): "True"}
+    assert got[("oracle", "brake")]["failed"].startswith("collision at")
+    assert float(got[("oracle-extended", "cut-in")]["min_time_gap_s"]) >= 0.3
+    assert got[("oracle", "cut-in")]["events_fired"] == "1"
+    text = (out / "leaderboard.md").read_text()
+    table = text[text.index("## Scenarios"):text.index("## Per route")]
+    assert "| scenario | oracle | oracle-extended |" in table
+    assert "| brake | FAIL: collision at" in table and "| **passed** | **1 of 2** | **2 of 2** |" in table
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert board["models"][0]["overall"]["driving_score"] < board["models"][1]["overall"]["driving_score"]
+
+
+def test_over_shared_memory_every_trace_is_bit_identical(benchmark):
+    here, there = rows(benchmark["in-process"]), rows(benchmark["shm"])
+    assert here.keys() == there.keys()
+    for key in here:
+        assert here[key]["trace_sha256"] == there[key]["trace_sha256"], key
+        assert here[key]["steps"] == there[key]["steps"] == "40"
+
+
+def test_a_collision_clip_gets_a_scenario_beside_it_that_replays_the_collision(benchmark):
+    out = benchmark["in-process"]
+    board = json.loads((out / "leaderboard.json").read_text())
+    clip = next(c for r in board["models"][0]["routes"] for c in r["clips"] if c["event"] == "collision")
+    path = out / "clips" / "oracle" / clip["scenario"]
+    assert (out / clip["file"]).is_file() and path.is_file()
+    replay = load_scripted(path)
+    assert replay.actors[0].blind and replay.traffic == 0 and replay.criteria.no_collision
+    with World(WorldConfig(scenario=str(path), render=False)) as world:
+        run_loop(world, in_process(ChenDriver(None)), replay.seconds, render=False)
+        report = world.scenario_report()
+    start = clip["t"] - (replay.seconds - 2.0)                   # the replay begins this long before the collision
+    assert not report["passed"] and report["collision_t"] + start == pytest.approx(clip["t"], abs=0.3)
+
+
+def test_the_shipped_suite_has_every_event_kind_on_one_to_four_lanes():
+    suite = load_scenarios(SCENARIOS_DIR)
+    scenarios = [load_scripted(r.scenario) for r in suite.routes]
+    assert len(scenarios) >= 12 and {s.lanes for s in scenarios} == {1, 2, 3, 4}
+    assert {e.do for s in scenarios for e in s.events} == set(EVENT_FIELDS)
+    assert any(e.gap is not None for s in scenarios for e in s.events)
+    assert any(len(s.events) > 1 for s in scenarios)   # chains
