@@ -6,7 +6,7 @@ controller.
 Why the side views: a car level with the host is in neither the front view nor the mirror, and such cars were most
 of the collisions left to the driver built with the mirror alone; with them the rear network reads the gap beside
 the host (its validation error on dist_LB fell from 10.1 to 5.9 m) and the driver passed the random suite's target
-with one rear network (docs/aggregation.md, results). `--no-side-views` builds the driver of the mirror alone.
+with one rear network (docs/aggregation.md, results). `--set side_views=false` builds the driver of the mirror alone.
 
 The steps, as the verbs a user would run: two datasets with the mirror (the forward networks' of 1-3 lanes, the
 rear network's with four-lane roads too: more lanes with a car beside the host on both sides); the
@@ -15,7 +15,7 @@ and one aggregation round for each forward network, started as soon as that netw
 own frames with the expert's share `beta`); the ensemble of the rounds' networks and the rear networks; the
 benchmark beside both oracles. A training's or a round's result does not depend on what runs beside it.
 
-Why a second rear network is possible (`--rear-members 2`): networks from two seeds misread different cars, and the
+Why a second rear network is possible (`--set rear_members=2`): networks from two seeds misread different cars, and the
 ensemble believes the nearer gap either reads; with the mirror alone a second one trained on two threads made the
 random suite's target, but the recipe's own (one thread, or 4,000 iterations) did not, and it does not fit the 90
 minutes (docs/aggregation.md, "Tried"). Off by default."""
@@ -24,26 +24,34 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivestudio.commands.recipe_steps import Steps, benchmark, ensemble_step
+from core.settings import setting
+from drivestudio.commands.recipe_steps import RecipeRun, Steps, benchmark, ensemble_step
+from drivestudio.worlds.highway.filters import MAX_MEMORY
 
 REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
 
 
 @dataclass(frozen=True)
-class Extended:
-    frames: int = 20000          # each of the two datasets
-    iterations: int = 6000       # each network's training
-    members: int = 2             # forward networks of the paper's 13 (seeds 0, 1, ...)
-    rear_members: int = 1        # rear networks (seeds 0, 2, ...: the pair measured was 0 and 2)
-    rounds: int = 1              # aggregation rounds of each forward network
-    round_frames: int = 6000
-    round_iterations: int = 2000
-    beta: float = 0.25           # the expert's share of the steps in round 1
-    pass_memory: float = 15.0    # [s] the ensemble's memories (docs/controller.md; chosen on the design suites)
-    rear_memory: float = 10.0
-    history: int = 1             # earlier frames each network reads
-    emphasis: int = 4            # the forward networks' decisive frames, in their trainings and rounds
-    side_views: bool = True      # the frames show the side windows too (generate --set side_views=true): the blind spot
+class Extended(RecipeRun):
+    frames: int = setting(20000, "expert frames of each of the two datasets", low=200, high=10**7)
+    iterations: int = setting(6000, "iterations of each network's training", low=1, high=10**7)
+    members: int = setting(2, "forward networks of the paper's 13 (seeds 0, 1, ...)", low=1, high=8)
+    # the pair measured was 0 and 2
+    rear_members: int = setting(1, "networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of theirs "
+                                   "believed (2 builds one like the best driver measured, about 105 minutes in all, "
+                                   "untimed)", low=1, high=4)
+    rounds: int = setting(1, "aggregation rounds of each forward network", low=1, high=50)
+    round_frames: int = setting(6000, "frames each aggregation round drives", low=20, high=10**7)
+    round_iterations: int = setting(2000, "fine-tuning iterations of each aggregation round", low=1, high=10**7)
+    beta: float = setting(0.25, "the expert's share of the steps in round 1", low=0.0, high=1.0)
+    # the ensemble's memories (docs/controller.md; chosen on the design suites)
+    pass_memory: float = setting(15.0, "the ensemble's pass memory", unit="s", low=0.0, high=MAX_MEMORY)
+    rear_memory: float = setting(10.0, "the ensemble's rear memory", unit="s", low=0.0, high=MAX_MEMORY)
+    history: int = setting(1, "earlier frames each network reads", low=0, high=2)
+    emphasis: int = setting(4, "times every epoch shows the forward networks a decisive frame, in their trainings "
+                               "and rounds", low=1, high=100)
+    side_views: bool = setting(True, "frames with the views out of both side windows beside the rear-view mirror "
+                                     "(generate --set side_views=true: the blind spot); false: the mirror alone")
 
 
 EXTENDED = Extended()
@@ -59,11 +67,12 @@ def train_argv(size: Extended, data: Path, model: Path, seed: int, rear: bool) -
 
 def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int) -> list:
     return ["aggregate", "--data", data, "--model", model, "--out", out, "--rounds", size.rounds,
-            "--frames", size.round_frames, "--beta", size.beta, "--iterations", size.round_iterations,
-            "--emphasis", size.emphasis, "--suite", "none", "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
+            "--set", f"frames={size.round_frames}", "--set", f"beta={size.beta}", "--set",
+            f"iterations={size.round_iterations}", "--set", f"emphasis={size.emphasis}", "--suite", "none",
+            "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
 
 
-def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
+def extended_recipe(steps: Steps, size: Extended) -> Path | None:
     """The steps above; returns the leaderboard (None with --suite none)."""
     from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
     from perception.shards import Dataset  # pyarrow: only once the recipe runs
@@ -74,7 +83,7 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
                    "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--workers",
-                   args.workers, "--quiet")
+                   size.workers, "--quiet")
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):
         dataset = Dataset(data)
@@ -96,4 +105,4 @@ def extended_recipe(steps: Steps, size: Extended, args) -> Path | None:
     ensemble = out / "ensemble.pt"
     ensemble_step(steps, "the ensemble: each output over the members that estimate it", members, ensemble)
     memories = f"pass_memory={size.pass_memory:g},rear_memory={size.rear_memory:g}"
-    return benchmark(steps, ["oracle-extended", f"{ensemble}@{memories}"], args)
+    return benchmark(steps, ["oracle-extended", f"{ensemble}@{memories}"], size)

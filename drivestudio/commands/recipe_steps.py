@@ -5,12 +5,23 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
+from core.settings import setting
 from drivestudio.outputs import write_json
 from drivestudio.pool import ONE_THREAD, Job, Pool, run_verb
 
 EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
+
+
+@dataclass(frozen=True)
+class RecipeRun:
+    """What every recipe's settings begin with: where it writes, what it benchmarks, how many workers."""
+
+    out: str = setting("out/recipe", "output folder")
+    suite: str = setting("default", "the benchmark suite: a suite file, the held-out default suite or none")
+    workers: int = setting(2, "worker processes", low=1, high=256)
 
 
 class Steps:
@@ -84,19 +95,19 @@ def ensemble_step(steps: Steps, title: str, members: list[Path], ensemble: Path)
     steps.done(t0)
 
 
-def benchmark(steps: Steps, models: list, args) -> Path | None:
+def benchmark(steps: Steps, models: list, run: RecipeRun) -> Path | None:
     """The models beside the oracle on the suite; skipped when its leaderboard is newer than every model."""
-    if args.suite == "none":
+    if run.suite == "none":
         return None
     bench = steps.out / "benchmark"
     board = bench / "leaderboard.md"
-    if done_before(bench, args.suite, [Path(str(m).split("@")[0]) for m in models if str(m) not in EXACT]):
+    if done_before(bench, run.suite, [Path(str(m).split("@")[0]) for m in models if str(m) not in EXACT]):
         print(f"\n== the benchmark: done before ({board})", flush=True)
         return board
     models_argv = [a for m in models for a in ("--model", m)]
-    suite = [] if args.suite == "default" else ["--suite", args.suite]
+    suite = [] if run.suite == "default" else ["--suite", run.suite]
     steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
-               "--workers", args.workers, "--quiet", "--out", bench)
+               "--workers", run.workers, "--quiet", "--out", bench)
     return board
 
 

@@ -34,10 +34,14 @@ def model():
 @pytest.fixture(scope="module")
 def run(model, tmp_path_factory):
     out = tmp_path_factory.mktemp("aggregation") / "run"
-    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", out, "--rounds", 1, "--frames", 60,
-           "--episode-frames", 20, "--iterations", 2, "--batch-size", 4, "--suite", "none", "--workers", 1)
+    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", out, *SMALL)
     assert r.returncode == 0, r.stderr
     return out
+
+
+# one round of 60 frames, fine-tuned for 2 iterations, no benchmark
+SMALL = ("--rounds", 1, "--set", "frames=60", "--set", "episode_frames=20", "--set", "iterations=2", "--set",
+         "batch_size=4", "--suite", "none", "--workers", 1)
 
 
 def ds(*args, timeout=600):
@@ -108,11 +112,11 @@ def test_the_same_seed_drives_the_same_round(model, tmp_path):
 
 
 def test_running_again_continues_and_other_options_are_refused(run, model):
-    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", run, "--rounds", 1, "--frames", 60,
-           "--episode-frames", 20, "--iterations", 2, "--batch-size", 4, "--suite", "none", "--workers", 1)
+    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", run, *SMALL)
     assert r.returncode == 0 and "driving" not in r.stdout      # round 1 is done: nothing is driven again
-    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", run, "--rounds", 1, "--frames", 80,
-           "--episode-frames", 20, "--iterations", 2, "--batch-size", 4, "--suite", "none", "--workers", 1)
+    r = ds("aggregate", "--config", run / "config.json")
+    assert r.returncode == 0 and "driving" not in r.stdout      # and from the run's config.json
+    r = ds("aggregate", "--data", dataset(), "--model", model, "--out", run, *SMALL, "--set", "frames=80")
     assert r.returncode == 2 and "other options (frames differ)" in r.stderr and len(r.stderr.splitlines()) == 1
 
 
@@ -132,9 +136,9 @@ def test_a_run_made_before_emphasis_continues_and_another_emphasis_is_refused(tm
 
 @pytest.mark.parametrize("args, message", [
     (["--rounds", "0"], "--rounds"),
-    (["--beta", "1.5"], "--beta"),
-    (["--cars", "40-12"], "--cars"),
-    (["--emphasis", "0"], "--emphasis"),
+    (["--set", "beta=1.5"], "--set beta"),
+    (["--set", "cars=40-12"], "cars must be from 0 to 300"),
+    (["--set", "emphasis=0"], "--set emphasis"),
     (["--suite", "/nonexistent/suite.json"], "no such file"),
 ])
 def test_bad_input_is_refused_in_one_line_before_any_work(model, tmp_path, args, message):

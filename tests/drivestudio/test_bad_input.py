@@ -114,12 +114,12 @@ CASES = [
     ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--emphasis", "3"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--steer-share", "0.5"),
     ("train", "--data", D, "--model", "z2color", "--out", "{root}/z.pt", "--steer-share", "1.5"),
-    ("study", "--steer-share", "-0.1", "--out", "{root}/study"),
+    ("study", "--set", "steer_share=-0.1", "--out", "{root}/study"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
-    ("recipe", "--emphasis", "0", "--out", "{root}/recipe"),
-    ("recipe", "--rounds", "2", "--out", "{root}/recipe"),            # rounds fine-tune one network, not three
-    ("recipe", "--members", "0", "--out", "{root}/recipe"),
-    ("recipe", "--members", "9", "--out", "{root}/recipe"),
+    ("recipe", "--set", "emphasis=0", "--out", "{root}/recipe"),
+    ("recipe", "--set", "rounds=2", "--out", "{root}/recipe"),         # rounds fine-tune one network, not three
+    ("recipe", "--set", "members=0", "--out", "{root}/recipe"),
+    ("recipe", "--set", "members=9", "--out", "{root}/recipe"),
     ("recipe", "--suite", "{root}/deep.json", "--out", "{root}/recipe"),  # a bad suite: refused before training
     # files and their content
     ("probe", "/dev/zero"),

@@ -55,20 +55,20 @@ def test_the_recipe_trains_members_side_by_side_and_benchmarks_their_ensemble(tm
 
 @pytest.mark.slow   # about 80 s
 def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
-    out, _ = recipe(tmp_path, "--members", "1", "--rounds", "1")
+    out, _ = recipe(tmp_path, "--set", "members=1", "--set", "rounds=1")
     board = json.loads((out / "aggregation" / "benchmark" / "leaderboard.json").read_text())
     specs = [m["spec"] for m in board["models"]]
     assert specs[0] == "oracle" and specs[1].endswith("mobilenet.pt") and specs[2].endswith("round-1/model.pt")
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
-    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:])
+    assert f"--emphasis {FULL.emphasis}" in commands[1] and f"--set emphasis={FULL.emphasis}" in commands[2]
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
 
 
 @pytest.mark.slow   # about 2 minutes
 def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(tmp_path):
-    out, _ = recipe(tmp_path, "--extended", "--rear-members", "2")
+    out, _ = recipe(tmp_path, "--extended", "--set", "rear_members=2")
     board = json.loads((out / "benchmark" / "leaderboard.json").read_text())
     specs = [m["spec"] for m in board["models"]]
     assert specs[:2] == ["oracle", "oracle-extended"]
@@ -88,8 +88,8 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     assert [c.split("--seed ")[1].split()[0] for c in commands[2:6]] == ["0", "1", "0", "2"]   # rear: seeds 0, 2
     assert all(f"--targets {REAR_TARGETS}" in c and "--emphasis" not in c for c in commands[4:6])
     assert all("data-mirror-4lanes" in c for c in commands[4:6])
-    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4] + commands[6:8])
-    assert all(f"--beta {EXTENDED.beta:g}" in c for c in commands[6:8])
+    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4])
+    assert all(f"--set emphasis={EXTENDED.emphasis}" in c and f"--set beta={EXTENDED.beta}" in c for c in commands[6:8])
     # every dataset and network fingerprinted, as `stats --fingerprint` and the checkpoint's stored digest say
     prints = json.loads((out / "fingerprints.json").read_text())
     assert {"data-mirror", "data-mirror-4lanes", "aggregation-0/round-1/data"} <= set(prints["datasets"])
@@ -104,24 +104,25 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     assert prints["networks"]["rear.pt"] == torch.load(out / "rear.pt", weights_only=False)["state_sha256"]
 
 
-def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
-    from types import SimpleNamespace
+def _sized(*argv):
+    from drivestudio import cli
+    from drivestudio.commands.recipe import recipe_config
+    return recipe_config(cli.build_parser().parse_args(["recipe", *argv]))
 
-    from drivestudio.commands.recipe import Size, sized
+
+def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
+    from drivestudio.commands.recipe import Size
     from drivestudio.errors import UsageError
-    none = dict(frames=None, iterations=None, members=None, rounds=None, emphasis=None, quick=False,
-                rear_members=None)
-    assert sized(SimpleNamespace(**none, extended=False)) == FULL
-    assert sized(SimpleNamespace(**{**none, "rounds": 2, "members": 3}, extended=True)) == \
-        Extended(rounds=2, members=3)
-    assert isinstance(sized(SimpleNamespace(**{**none, "quick": True}, extended=True)), Extended)
-    with pytest.raises(UsageError, match="--rounds needs --members 1"):
-        sized(SimpleNamespace(**{**none, "rounds": 2}, extended=False))
-    assert isinstance(sized(SimpleNamespace(**{**none, "rounds": 2, "members": 1}, extended=False)), Size)
-    assert sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=True)) == Extended(rear_members=2)
-    with pytest.raises(UsageError, match="--rear-members is of the extended recipe"):
-        sized(SimpleNamespace(**{**none, "rear_members": 2}, extended=False))
-    assert Extended().side_views and sized(SimpleNamespace(**none, extended=True)).side_views
-    assert sized(SimpleNamespace(**none, no_side_views=True, extended=True)) == Extended(side_views=False)
-    with pytest.raises(UsageError, match="--no-side-views is of the extended recipe"):
-        sized(SimpleNamespace(**none, no_side_views=True, extended=False))
+    assert _sized() == FULL
+    assert _sized("--extended", "--set", "rounds=2", "--set", "members=3") == Extended(rounds=2, members=3)
+    assert isinstance(_sized("--extended", "--quick"), Extended)
+    with pytest.raises(UsageError, match="rounds=2 needs members=1"):
+        _sized("--set", "rounds=2")
+    assert isinstance(_sized("--set", "rounds=2", "--set", "members=1"), Size)
+    assert _sized("--extended", "--set", "rear_members=2") == Extended(rear_members=2)
+    with pytest.raises(UsageError, match="rear_members=2: a setting of the extended recipe; give --extended too"):
+        _sized("--set", "rear_members=2")
+    assert Extended().side_views and _sized("--extended").side_views
+    assert _sized("--extended", "--set", "side_views=false") == Extended(side_views=False)
+    with pytest.raises(UsageError, match="side_views=false: a setting of the extended recipe"):
+        _sized("--set", "side_views=false")

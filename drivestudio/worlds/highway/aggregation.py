@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from core.files import check_output_dir, make_dir
+from core.settings import as_json
 from core.worlds.highway import HIGHWAY
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.errors import UsageError
@@ -38,6 +40,7 @@ from drivestudio.generate import GenerateConfig, generate
 from drivestudio.loop import Percept
 from drivestudio.outputs import write_json, write_text
 from drivestudio.worlds.base import Episode
+from drivestudio.worlds.highway.aggregation_config import AggregationConfig
 from drivestudio.worlds.highway.benchmark import RunOptions, check_models, load_suite, run_benchmark
 from drivestudio.worlds.highway.benchmark.report import write_board
 from drivestudio.worlds.highway.benchmark.suite import SUITES_DIR
@@ -52,30 +55,9 @@ from sim.mirror import inset_options
 
 STATE = "aggregation.json"
 MADE_BEFORE = {"emphasis": 1}   # a setting's value in runs made before it existed
-
-
-@dataclass(frozen=True)
-class AggregationConfig:
-    data: str                       # the expert dataset the model was trained on (round 0)
-    model: str                      # the model of round 0 (a highway checkpoint)
-    out: str                        # the run's folder
-    rounds: int = 3
-    frames: int = 4000              # visited frames recorded per round
-    beta: float = 0.5               # the expert's share of round 1 ...
-    decay: float = 0.5              # ... times this per round
-    iterations: int = 2000          # fine-tuning iterations per round
-    batch_size: int | None = None   # None: the family's
-    lr: float | None = None         # None: the family's
-    emphasis: int = 1               # the fine-tuning shows the world's decisive frames this many times an epoch
-    episode_frames: int = 200
-    cars: tuple[int, int] = (12, 40)
-    seed: int = 0
-    workers: int = 2
-    device: str = "cpu"
-    benchmark: str | None = "default"   # the suite every round's model drives at the end (None: none)
-
-    def beta_of(self, round_: int) -> float:
-        return self.beta * self.decay ** (round_ - 1)
+# settings a run may be continued with another value of: they add rounds, or say how and what to benchmark ("benchmark"
+# is the suite's name in runs made before the settings were typed)
+ANY_VALUE = ("rounds", "workers", "suite", "benchmark")
 
 
 # --- driving: the expert and the model, mixed step by step ----------------------------------------------------
@@ -152,7 +134,7 @@ def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
     lanes = expert_lanes(cfg.data)
-    options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.cars),
+    options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.car_range),
                "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0,
                **inset_options(checkpoint_inset(str(learner)))}
     held_out = benchmark_tracks()
@@ -166,18 +148,19 @@ class Aggregation:
 
     def __init__(self, cfg: AggregationConfig, log=print):
         self.cfg, self.log = cfg, log
+        self.workers = cfg.workers or os.cpu_count() or 1
         self.out = make_dir(check_output_dir(cfg.out, "aggregation folder"))
         self.state = self._load_state()
 
     def _load_state(self) -> dict:
         path = self.out / STATE
-        config = json.loads(json.dumps(asdict(self.cfg)))
+        # the cars as the range the rounds drive ([12, 40], as every run has recorded it), whatever its spelling
+        config = json.loads(json.dumps(asdict(self.cfg) | {"cars": self.cfg.car_range}))
         if not path.exists():
             return {"config": config, "rounds": [], "complete": False}
         state = json.loads(path.read_text())
-        keep = {k: v for k, v in config.items() if k not in ("rounds", "workers", "benchmark")}
-        old = {k: v for k, v in (MADE_BEFORE | state.get("config", {})).items()
-               if k not in ("rounds", "workers", "benchmark")}
+        keep = {k: v for k, v in config.items() if k not in ANY_VALUE}
+        old = {k: v for k, v in (MADE_BEFORE | state.get("config", {})).items() if k not in ANY_VALUE}
         if old != keep:
             diff = sorted(k for k in set(old) | set(keep) if old.get(k) != keep.get(k))
             raise UsageError(f"{self.out} holds an aggregation run made with other options ({', '.join(diff)} "
@@ -192,11 +175,12 @@ class Aggregation:
         return Path(self.cfg.model) if round_ == 0 else self.out / f"round-{round_}" / "model.pt"
 
     def run(self) -> dict:
+        write_json(self.out / "config.json", as_json(self.cfg))   # `drivestudio aggregate --config` runs it again
         for r in range(1, self.cfg.rounds + 1):
             if r <= len(self.state["rounds"]) and self.state["rounds"][r - 1].get("done"):
                 continue
             self.do_round(r)
-        if self.cfg.benchmark:
+        if self.cfg.suite != "none":
             self.state["benchmark"] = self.benchmark()
         self.state["complete"] = True
         self._save()
@@ -210,7 +194,7 @@ class Aggregation:
         self.log(f"round {r} of {cfg.rounds}: driving {cfg.frames} frames, the expert's share {beta:.3f}")
         gen = GenerateConfig(world="highway", frames=cfg.frames, seed=cfg.seed * 100 + r,
                              episode_frames=cfg.episode_frames, options=drive_options(cfg, r, self.model_of(r - 1)))
-        manifest = generate(folder / "data", gen, workers=cfg.workers, plugin=AggregationPlugin())
+        manifest = generate(folder / "data", gen, workers=self.workers, plugin=AggregationPlugin())
         shares = learner_share(folder / "data")
         merged = folder / "merged"
         if not (merged / MANIFEST).exists():
@@ -239,14 +223,14 @@ class Aggregation:
                 "val_mae": {k[len("val_mae_"):]: v for k, v in last.items() if k.startswith("val_mae_")}}
 
     def benchmark(self) -> dict:
-        suite = load_suite(None if self.cfg.benchmark == "default" else self.cfg.benchmark)
+        suite = load_suite(None if self.cfg.suite == "default" else self.cfg.suite)
         rounds = [str(self.model_of(r)) for r in range(self.cfg.rounds + 1)]
         # a model of the extended labels drives with the lookout: its upper bound is the extended oracle
         exact = ["oracle"] + (["oracle-extended"] if reads_behind(load_checkpoint(rounds[0])["spec"]["outputs"])
                               else [])
         models = check_models(exact + rounds)
         out = make_dir(self.out / "benchmark")
-        board = run_benchmark(suite, models, RunOptions(device=self.cfg.device), out, self.cfg.workers)
+        board = run_benchmark(suite, models, RunOptions(device=self.cfg.device), out, self.workers)
         write_board(out, board)
         return {"suite": suite.name, "rows": [{"model": e["spec"], **{k: e["overall"][k] for k in
                                                ("driving_score", "score_vs_oracle", "collisions", "off_road_events",
