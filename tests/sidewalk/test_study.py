@@ -249,7 +249,8 @@ def test_the_quick_study_runs_end_to_end_and_continues(tmp_path):
     again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)   # all done: nothing redone
     assert again.returncode == 0 and "$ drivestudio train" not in again.stdout
     assert "$ drivestudio autonomy" not in again.stdout
-    more = subprocess.run(cmd + ["--set", f"rounds={rounds + 1}"], cwd=REPO, capture_output=True, text=True, timeout=900)
+    more = subprocess.run(cmd + ["--set", f"rounds={rounds + 1}"], cwd=REPO, capture_output=True, text=True,
+                          timeout=900)
     assert more.returncode == 0, more.stderr[-3000:]                 # one more round, and the newer nets measured
     final = json.loads((out / "study.json").read_text())["final_networks"]
     assert final["multinet"].endswith(f"multinet-round{rounds + 1}.pt")
