@@ -15,11 +15,15 @@ Reward, per step, the sum of four terms, also in info["reward_terms"]:
 An episode ends (terminated) on a collision or when the car is lost off the road (6 m beyond the edge); it is
 truncated after `max_steps`. info carries the ground truth: the 14 indicators by name, `indicators` as an array in
 canonical order, lanes_left, lanes, speed, the poses, collision, off_road and t.
+`scenario=` (a scripted scenario file, docs/scenarios.md) replaces track, lanes and cars by its route: every reset
+replays it, at its own seed, an episode is truncated at its end (or at max_steps, if sooner), and info["scenario"]
+holds the events carried out and the verdict of its criteria so far.
 Every option is checked here, before any SUMO starts; the world opens on the first reset().
 """
 from __future__ import annotations
 
 import math
+import os
 import weakref
 from dataclasses import replace
 
@@ -28,6 +32,7 @@ import numpy as np
 
 from core.worlds.highway import GAP_INACTIVE, GAPS, HIGHWAY, INDICATORS, Action
 from sim import gym_options as opt
+from sim.highway.scripted import load_scripted
 from sim.highway.sumo_traffic import car_count_problem
 from sim.highway.vehicle import VehicleParams
 from sim.highway.world import Observation, World, WorldConfig
@@ -58,7 +63,7 @@ class HighwayEnv(gym.Env):
                  renderer: str = DEFAULTS.renderer, width: int = DEFAULTS.camera.width,
                  height: int = DEFAULTS.camera.height, max_steps: int = 3000,
                  start_speed: float = DEFAULTS.start_speed, render_mode: str | None = "rgb_array",
-                 observation: str = "camera"):
+                 observation: str = "camera", scenario: str | None = None):
         self.observation = opt.check_choice(ENV, "observation", observation, opt.OBSERVATIONS)
         config = opt.check_settings(ENV, DEFAULTS, {
             "lanes": ("lanes", lanes), "cars": ("cars", cars), "renderer": ("renderer", renderer),
@@ -68,14 +73,18 @@ class HighwayEnv(gym.Env):
         self.max_steps = opt.check_int(ENV, "max_steps", max_steps, 1, MAX_EPISODE)
         if render_mode is not None:
             opt.check_choice(ENV, "render_mode", render_mode, tuple(self.metadata["render_modes"]))
-        try:
-            road = load_track(track, lanes=lanes)
-        except ValueError as e:   # TrackError: an unknown preset, a bad file, arcs too tight for the lanes
-            raise opt.fail(ENV, "track" if lanes is None else "track/lanes", str(e)) from None
-        problem = car_count_problem(road, cars)
-        if problem:
-            raise opt.fail(ENV, "cars", problem)
-        self._config = replace(config, track=track, render=self.observation != "affordances")
+        config = replace(config, track=track, render=self.observation != "affordances")
+        if scenario is not None:
+            config = self._scripted(config, scenario)
+        else:
+            try:
+                road = load_track(track, lanes=lanes)
+            except ValueError as e:   # TrackError: an unknown preset, a bad file, arcs too tight for the lanes
+                raise opt.fail(ENV, "track" if lanes is None else "track/lanes", str(e)) from None
+            problem = car_count_problem(road, cars)
+            if problem:
+                raise opt.fail(ENV, "cars", problem)
+        self._config = config
         self.declaration = HIGHWAY.with_camera("front", height, width)
         self._world: World | None = None
         self._finalizer: weakref.finalize | None = None
@@ -90,11 +99,24 @@ class HighwayEnv(gym.Env):
         self._last: Observation | None = None
         self._steps = 0
 
-    @staticmethod
-    def _info(obs: Observation) -> dict:
+    def _scripted(self, config: WorldConfig, scenario) -> WorldConfig:
+        """The configuration with a scripted scenario's route; its episodes end with it."""
+        if not isinstance(scenario, (str, os.PathLike)):
+            raise opt.fail(ENV, "scenario", f"must be the path of a scenario file, got {scenario!r}")
+        try:
+            script = load_scripted(scenario)
+        except ValueError as e:   # ScenarioError: one line naming the file and the field
+            raise opt.fail(ENV, "scenario", str(e)) from None
+        self.max_steps = min(self.max_steps, max(1, int(round(script.seconds / config.dt))))
+        return script.configure(replace(config, scenario=str(scenario)))
+
+    def _info(self, obs: Observation) -> dict:
         info = obs.truth.as_dict()
         info.update(indicators=obs.truth.indicators.copy(), t=obs.t, collision=obs.collision,
                     off_road=obs.off_road)
+        report = self._world.scenario_report() if self._world is not None else None
+        if report is not None:
+            info["scenario"] = report
         return info
 
     def _observation(self, obs: Observation):

@@ -70,6 +70,10 @@ class HighwayView:
         t = _truth(rec)
         out["lane"] = f"{int(t.lanes_left) + 1} of {int(t.lanes)}"
         out["system"] = "both" if t.in_lane and t.on_marking else "in-lane" if t.in_lane else "on-marking"
+        report = self.world.scenario_report()
+        if report is not None:   # a scripted scenario (docs/scenarios.md): what it did so far, and how it goes
+            out["scenario"] = f"{report['scenario']}: {len(report['events'])} of {len(self.world.script.events)} events"
+            out["verdict"] = "passing so far" if report["passed"] else "failed: " + "; ".join(report["failed"])
         return out
 
     def columns(self, rec: StepRecord, who: str) -> dict:
