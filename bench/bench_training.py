@@ -8,7 +8,8 @@ round, so that the machine's drift hits every configuration alike; the figure of
 iterations after the first logged row (start-up excluded), and a configuration's figure is its best round.
 
 `--before-tree DIR` runs the "before" configuration from another checkout of the project (say, a commit before a
-speed-up that has no option to turn it off, such as the fused optimisers): `git worktree add DIR <commit>`.
+speed-up that has no option to turn it off, such as the fused optimisers): `git worktree add DIR <commit>`, a
+commit whose `train` takes the settings as `--set NAME=VALUE`.
 
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
@@ -25,11 +26,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-FAMILIES = {"alexnet": (["--model", "alexnet", "--batch-size", "15", "--optimizer", "adam", "--lr", "1e-4"], 24),
+FAMILIES = {"alexnet": (["--model", "alexnet", "--batch-size", "15", "--set", "optimizer=adam", "--lr", "1e-4"], 24),
             "mobilenet": (["--model", "mobilenet"], 48),
-            "mobilenet-h1": (["--model", "mobilenet", "--history", "1"], 48)}
-VARIANTS = {"before (contiguous, PNG every epoch)": ["--no-channels-last", "--no-cache", "--workers", "1"],
-            "channels-last": ["--no-cache", "--workers", "1"],
+            "mobilenet-h1": (["--model", "mobilenet", "--set", "history=1"], 48)}
+VARIANTS = {"before (contiguous, PNG every epoch)": ["--set", "channels_last=false", "--set", "cache=false",
+                                                    "--workers", "1"],
+            "channels-last": ["--set", "cache=false", "--workers", "1"],
             "channels-last + frame cache": ["--workers", "1"],
             "channels-last + frame cache, no loader process": ["--workers", "0"]}
 
@@ -72,7 +74,7 @@ def main() -> None:
                         p.unlink()
                     shutil.rmtree(data / ".frames", ignore_errors=True)   # every cached run decodes once, as a user's
                     drivestudio("train", "--data", str(data), "--out", str(ckpt), *options, *extra, "--iterations",
-                                str(iterations), "--val-every", str(10 * iterations),
+                                str(iterations), "--set", f"val_every={10 * iterations}",
                                 "--device", "cpu", tree=args.before_tree if variant == before else None)
                     rate = samples_per_s(ckpt)
                     best[(fam, variant)] = max(best.get((fam, variant), 0.0), rate)

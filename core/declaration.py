@@ -152,11 +152,11 @@ class WorldDeclaration:
     (typed by kind); every label is also a truth field of the same name. columns: what datasets record besides
     (strings, lists). action: the driver's command, in order. modes: behavioural modes (shared flag `behaviour` on
     the bridge; `mode_field` of the truth record holds the index). targets: the labels a model learns by default.
-    label_sets: named lists of labels a model may learn instead (`train --labels NAME`). observable: the truth
+    label_sets: named lists of labels a model may learn instead (`train --targets NAME`). observable: the truth
     fields a driving agent may read (the Gymnasium environments' affordance observation): what the car could sense
     of its surroundings and itself, not the map position nor the outcomes its reward scores. decisive: (label,
     bound) pairs; a step on which any of these labels is below its bound is one on which the world's driver makes
-    a rare, costly decision (the highway: a car near ahead in a neighbouring lane), which `train --emphasis W`
+    a rare, costly decision (the highway: a car near ahead in a neighbouring lane), which `train --set emphasis=W`
     counts W times an epoch (by the labels among the model's targets: a network does not learn a decision from
     labels it does not estimate).
     """

@@ -115,7 +115,7 @@ def load_checkpoint(path, model: str | None = None, labels=None, map_location="c
         raise CheckpointError(f"{path} holds a '{spec['name']}' model, not '{model}'")
     if labels is not None and tuple(spec["labels"]) != tuple(labels):
         raise CheckpointError(f"{path} predicts {describe_labels(spec['labels'])}, not the "
-                              f"{describe_labels(labels)} asked for (--fast / --lanes-left must match)")
+                              f"{describe_labels(labels)} asked for (--targets must match)")
     return ckpt
 
 

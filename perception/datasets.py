@@ -244,7 +244,7 @@ class FrameStream(torch.utils.data.IterableDataset):
             raise DatasetError(f"the {self.data.world} world declares no decisive steps to emphasise")
         rule = [(n, bound) for n, bound in declared if n in self.spec.targets]
         if not rule:
-            raise DatasetError(f"--emphasis: none of the {self.data.world} world's decisive labels "
+            raise DatasetError(f"emphasis: none of the {self.data.world} world's decisive labels "
                                f"({', '.join(dict.fromkeys(n for n, _ in declared))}) is a target")
         names = tuple(dict.fromkeys(n for n, _ in rule))
         times = {}

@@ -49,7 +49,7 @@ def evaluate_model(path, data: str, split: str = "test", device: str = "cpu", ba
     spec = ckpt["spec"]
     labels = tuple(spec["labels"])
     context = tuple(c for c in (layout or ReportLayout()).context if not ds.missing_columns([c]))
-    # the frames the model reads: a temporal model (train --history) takes earlier steps beside the current one
+    # the frames the model reads: a temporal model (the training setting history) takes earlier steps beside this one
     instants = tuple(spec["input"].get("instants", ds.declaration.moment.instants))
     moment = Moment(instants, ds.declaration.moment.horizon) if instants != ds.declaration.moment.instants else None
     stream = FrameStream(data, split, labels, normalised=False, shuffle=False, context=context, moment=moment)

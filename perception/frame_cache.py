@@ -100,7 +100,7 @@ class FrameCache:
         free = shutil.disk_usage(self.folder).free
         if need > free - (256 << 20):
             raise OutputError(f"the decoded frames of {len(todo)} shards need {need / 2**30:.1f} GiB in "
-                              f"{self.folder}, which has {free / 2**30:.1f} GiB free (train with --no-cache)")
+                              f"{self.folder}, which has {free / 2**30:.1f} GiB free (train with --set cache=false)")
         for shard in todo:
             self._write(shard)
             if progress is not None:

@@ -14,7 +14,7 @@ positions and distances in the image, not a class.
     reduce  1x1 conv to 32 channels                                 -> 32 x 7 x 9 = 2016
     head    fully connected 2016-256-N
 
-The input may hold several instants (the current frame and the previous one or two, `train --history K`, as
+The input may hold several instants (the current frame and the previous one or two, `train --set history=K`, as
 Conditional Affordance Learning feeds its temporal heads): 3 channels per instant. No ImageNet weights exist for
 this trunk here; it trains from scratch, the modern way rather than the papers': Adam, batches of 32, the L1 loss
 (the Euclidean one let the gaps' large misses drown the angle) and a moving average of the weights as the model

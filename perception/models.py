@@ -55,7 +55,9 @@ class Family:
     size(declaration) -> (height, width) the family wants its input at (None: the camera's own).
     trainer: "sgd" (iterations of SGD/Adam on the Euclidean loss), "closed-form" (GIST + ridge) or "multinet"
     (epochs of Adadelta, MultiNet's losses and trials). defaults: the trainer's settings for this family.
-    temporal: the family takes frames of earlier steps beside the current one (3 channels per instant).
+    temporal: the family takes frames of earlier steps beside the current one (3 channels per instant), as many as
+    the training setting `history` says. settings: the other settings of TrainConfig that only this family's training
+    reads (perception/train.py's settings_read).
     onnx: None when the family can be exported as ONNX (`drivestudio export`), else why not (one line).
     """
 
@@ -68,7 +70,8 @@ class Family:
     size: Callable[[WorldDeclaration], tuple[int, int] | None] = lambda decl: None
     defaults: dict = field(default_factory=dict)
     describe: Callable[[dict], str] | None = None
-    temporal: bool = False     # reads several instants of a one-instant world (train --history K)
+    temporal: bool = False     # reads several instants of a one-instant world (the setting history)
+    settings: tuple[str, ...] = ()   # settings of TrainConfig only this family reads (VGG-16's unfreeze, ...)
     onnx: str | None = None    # None: exportable to ONNX; else why not, e.g. an operator ONNX cannot express
 
 

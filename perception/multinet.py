@@ -20,7 +20,7 @@ Multi-Task Learning for Autonomous Driving, 2017), with the paper's measures.
 Speed on a CPU (docs/benchmarks.md): the weights and the images are channels-last (oneDNN's preferred layout), the
 forward and backward passes run under bfloat16 autocast where the processor computes bfloat16 natively (`amp`, the
 default: AVX512-BF16 or AMX, or a CUDA device that supports it; float32 master weights, the losses and the optimiser
-in float32; validation's forward pass under the same autocast); elsewhere, and with `--no-amp`, float32 throughout
+in float32; validation's forward pass under the same autocast); elsewhere, and with `amp` false, float32 throughout
 (emulated bfloat16 trains several times slower); a second thread assembles the next batch while the present one
 trains, its pixels scaled through a table of the 256 values (Regressor.scale_pixels, bit for bit scale_input's).
 
@@ -211,13 +211,13 @@ def run_modes(cfg, decl: WorldDeclaration) -> list[str]:
     """The modes a run trains on: cfg.mtl's one, else cfg.modes' (None: all the world's). A list that names no
     mode ("", ",") is refused, not read as all of them; so is an unknown mode."""
     if cfg.mtl is not None and cfg.modes is not None:
-        raise CheckpointError("--mtl MODE trains on one mode: leave out --modes")
+        raise CheckpointError("mtl trains on one mode: leave out modes")
     try:
-        names = list(decl.mode_list(cfg.mtl, "--mtl") if cfg.mtl is not None else decl.mode_list(cfg.modes))
+        names = list(decl.mode_list(cfg.mtl, "mtl") if cfg.mtl is not None else decl.mode_list(cfg.modes, "modes"))
     except DeclarationError as e:
         raise CheckpointError(f"the {decl.name} world: {e}") from None
     if cfg.mtl is not None and len(names) != 1:
-        raise CheckpointError(f"--mtl trains the MTL net of one mode, got {cfg.mtl!r}")
+        raise CheckpointError(f"mtl trains the MTL net of one mode, got {cfg.mtl!r}")
     return names
 
 
@@ -401,7 +401,7 @@ def resume(run: MultiNetRun, log=print):
     saved = load_checkpoint(run.state_path, model="z2color", world=run.moments.decl.name)
     config = saved["train"]["config"]
     if config.get("mtl") != run.mtl or config.get("modes") != run.config.get("modes"):
-        raise CheckpointError(f"{run.state_path} belongs to another run (other --mtl / --modes); use another --out")
+        raise CheckpointError(f"{run.state_path} belongs to another run (other mtl / modes); use another --out")
     progress = Progress(**saved["train"]["state"])
     model = opt = None
     if progress.trial < run.trials:

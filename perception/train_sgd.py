@@ -107,7 +107,7 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
         raise CheckpointError(f"{out} holds no training state to continue from")
     check_continuation(cfg, decl, ckpt, optimizer, ema)
     old = ckpt["train"]["config"]
-    loss = old.get("loss") or "euclidean"   # checkpoints from before --loss were all Euclidean
+    loss = old.get("loss") or "euclidean"   # checkpoints from before the setting loss were all Euclidean
     if old.get("lr") != lr or old.get("batch_size") != batch_size:
         log(f"note: {out} continues with its own learning-rate schedule (started at lr {old.get('lr'):g}, "
             f"batch {old.get('batch_size')}); the settings of this run are ignored")
@@ -116,32 +116,33 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
 
 
 def earlier_frames(decl: WorldDeclaration, history: int) -> int:
-    """How many earlier frames a model trained with --history reads (0: the world's own data moment)."""
+    """How many earlier frames a model trained with the setting history reads (0: the world's own data moment)."""
     return history or len(decl.moment.instants) - 1
 
 
 def check_continuation(cfg: TrainConfig, decl: WorldDeclaration, ckpt: dict, optimizer: str, ema: float) -> None:
-    """A checkpoint is continued only with the options it was trained with."""
+    """A checkpoint is continued only with the settings it was trained with."""
     out, o = cfg.out, ckpt["spec"]["options"]
     if cfg.model == "vgg16" and o.get("frozen") == cfg.unfreeze:
-        raise CheckpointError(f"{out} was trained {'without' if o.get('frozen') else 'with'} --unfreeze; use "
-                              "the same options to continue it, or another --out")
+        raise CheckpointError(f"{out} was trained with unfreeze={str(not o.get('frozen')).lower()}; "
+                              "use the same settings to continue it, or another --out")
     if cfg.model == "vgg16" and bool(o.get("batch_norm")) != cfg.batch_norm:
-        raise CheckpointError(f"{out} was trained {'with' if o.get('batch_norm') else 'without'} --batch-norm; "
-                              "use the same options to continue it, or another --out")
+        raise CheckpointError(f"{out} was trained with batch_norm="
+                              f"{str(bool(o.get('batch_norm'))).lower()}; use the same settings to continue it, or "
+                              "another --out")
     if len(ckpt["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"{out} reads {len(ckpt['spec']['input']['instants']) - 1} earlier frame(s); continue "
-                              "it with the same --history, or use another --out")
+                              "it with the same history, or use another --out")
     check_inset(str(out), ckpt["spec"], decl)
     old = ckpt["train"]["config"]
     if old.get("optimizer") != optimizer:
-        raise CheckpointError(f"{out} was trained with --optimizer {old.get('optimizer')}; use the same "
+        raise CheckpointError(f"{out} was trained with optimizer={old.get('optimizer')}; use the same "
                               "optimiser to continue it, or another --out")
     if cfg.loss and cfg.loss != (old.get("loss") or "euclidean"):
-        raise CheckpointError(f"{out} was trained with --loss {old.get('loss') or 'euclidean'}; use the same loss "
+        raise CheckpointError(f"{out} was trained with loss={old.get('loss') or 'euclidean'}; use the same loss "
                               "to continue it, or another --out")
     if ema != (old.get("ema") or 0.0):
-        raise CheckpointError(f"{out} was trained with --ema {old.get('ema') or 0:g}; use the same moving average "
+        raise CheckpointError(f"{out} was trained with ema={old.get('ema') or 0:g}; use the same moving average "
                               "to continue it, or another --out")
 
 
@@ -163,7 +164,7 @@ def initial_checkpoint(cfg: TrainConfig, decl: WorldDeclaration, labels) -> dict
     check_inset(f"--init {cfg.init}", init["spec"], decl)
     if len(init["spec"]["input"]["instants"]) - 1 != earlier_frames(decl, cfg.history):
         raise CheckpointError(f"--init {cfg.init} reads {len(init['spec']['input']['instants']) - 1} earlier "
-                              f"frame(s), not --history {cfg.history}")
+                              f"frame(s), not history={cfg.history}")
     return init
 
 
@@ -407,7 +408,7 @@ class SGDTrainer:
             value, due = torch.tensor(mean_loss), due_any > 0
         if not torch.isfinite(value):
             raise TrainingError(f"the loss diverged ({value.item()}) at iteration {self.state['iteration']}; "
-                                f"lower --lr (now {self.setup.lr:g}) or use --optimizer adam")
+                                f"lower --lr (now {self.setup.lr:g}) or use --set optimizer=adam")
         self.opt.zero_grad(set_to_none=True)
         self.scaler.scale(loss).backward()
         self.scaler.step(self.opt)

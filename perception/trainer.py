@@ -28,7 +28,7 @@ class Plan:
 
 
 class Trainer(Protocol):
-    # the settings of TrainConfig (perception/training.py) it reads besides those every trainer reads: the
+    # the settings of TrainConfig (perception/train_config.py) it reads besides those every trainer reads: the
     # command refuses any other one given, since the trainer would ignore it
     reads: ClassVar[frozenset[str]]
 

@@ -1,15 +1,15 @@
 """What every trainer shares (the SGD trainer of perception/train_sgd.py, GIST's closed-form fit of
-perception/gist_fit.py, Z2Color's of perception/multinet.py): the run's configuration, its targets, the device,
-the data and its validation frames, the Euclidean loss and the per-output MAE.
+perception/gist_fit.py, Z2Color's of perception/multinet.py): the run's configuration (TrainConfig, whose settings
+perception/train_config.py holds), its targets, the device, the data and its validation frames, the Euclidean loss
+and the per-output MAE.
 
-The defaults are Liu and Wang's (Deeper Direct Perception, sections 6.1 and 6.3): SGD with momentum 0.9,
-learning rate x0.9 every 1000 iterations, AlexNet from scratch at lr 1e-2 with batches of 15 for 10,000 iterations,
-VGG-16 (conv frozen) at lr 1e-4 with batches of 10 for 15,000 iterations, Euclidean loss
-L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to about [0.1, 0.9]; no dropout, no output sigmoid.
+Liu and Wang's training (Deeper Direct Perception, sections 6.1 and 6.3): the Euclidean loss
+L = 1/(2m) sum ||y_hat - y||^2 on targets normalised to about [0.1, 0.9]; no dropout, no output sigmoid; the
+families' numbers are theirs (perception/alexnet.py, vgg.py).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -19,93 +19,52 @@ from core.declaration import DeclarationError, Moment, WorldDeclaration
 from perception.datasets import FrameDataset
 from perception.models import Regressor, family, fitting
 from perception.shards import Dataset
+from perception.train_config import TrainConfig
 
 
 class TrainingError(ValueError):
     """Training that cannot go on: the loss diverged, or the run's settings contradict its checkpoint."""
 
 
-@dataclass
-class TrainConfig:
-    data: str = "out/dataset"
-    model: str = "alexnet"            # a family of perception/models.py that fits the dataset's world
-    out: str = "runs/alexnet.pt"
-    targets: str | None = None        # comma-separated labels (default: the world's); "+name" adds to the default
-    labels: str | None = None         # a named label set of the world (highway: paper, extended) as the default
-    iterations: int | None = None     # None: the paper's for the model (or from `epochs`)
-    epochs: float | None = None       # alternative to iterations: passes over the training split
-    batch_size: int | None = None     # None: the paper's (15 AlexNet, 10 VGG-16)
-    lr: float | None = None           # None: the paper's (1e-2 AlexNet, 1e-4 VGG-16)
-    lr_step: int = 1000               # iterations between learning-rate decays
-    lr_gamma: float = 0.9
-    optimizer: str | None = None      # sgd (Liu and Wang's, momentum 0.9) | adam | adadelta; None: the family's
-    loss: str | None = None           # a name of LOSSES; None: the checkpoint's (continued, --init), else the family's
-    ema: float | None = None          # decay of the weights' moving average (0: none); None: the family's
-    momentum: float = 0.9
-    weight_decay: float = 0.0
-    device: str = "auto"              # auto | cpu | cuda | cuda:N
-    amp: bool = True                  # mixed precision on CUDA (bf16 where supported, else fp16)
-    workers: int = 1                  # DataLoader processes decoding frames
-    shuffle_buffer: int = 16384       # frames mixed across episodes before batching
-    val_every: int = 500              # iterations between validations (and checkpoints)
-    checkpoint_every: float = 300.0   # [s] also save at least this often (a kill loses at most this much)
-    val_frames: int = 1000            # at most this many validation frames, evenly spread over the split
-    log_every: int = 10               # iterations per row of the loss curve
-    unfreeze: bool = False            # VGG-16: train the convolutional layers too
-    batch_norm: bool = False          # VGG-16: vgg16_bn
-    weights: str | None = None        # torchvision ImageNet state dict for the trunk (never downloaded)
-    fast: bool = False                # highway: predict `fast` too (= targets "+fast")
-    lanes_left: bool = False          # highway: predict lanes_left too (Liu and Wang's proposed fix)
-    regressor: str = "ridge"          # GIST: ridge | rbf
-    modes: str | None = None          # Z2Color: behavioural modes to train on (comma-separated; None: all)
-    mtl: str | None = None            # Z2Color: the MTL baseline on this one mode (no modal input)
-    trials: int = 1                   # Z2Color: repeats with fresh seeds
-    mode_moments: int | None = None   # Z2Color: at most this many moments of each mode per epoch (None: all)
-    steer_share: float = 0.0          # Z2Color: share of each mode's draws from its steering moments (multinet.py)
-    init: str | None = None           # start from this checkpoint's weights (fine-tuning, aggregation rounds)
-    history: int = 0                  # earlier frames read beside the current one (a temporal family)
-    cache: bool = True                # decode the training frames once into the dataset's frame cache
-    channels_last: bool = True        # CPU: channels-last weights and inputs (oneDNN's faster convolutions)
-    emphasis: int = 1                 # an epoch shows the world's decisive steps this many times (datasets.py)
-    seed: int = 0
-
-    def labels_for(self, decl: WorldDeclaration) -> tuple[str, ...]:
-        """The targets of this run for a dataset of world `decl`."""
-        return resolve_targets(decl, self.targets, extra=tuple(
-            n for n, on in (("fast", self.fast), ("lanes_left", self.lanes_left)) if on), label_set=self.labels)
+def run_targets(cfg: TrainConfig, decl: WorldDeclaration) -> tuple[str, ...]:
+    """The targets of a run for a dataset of world `decl`."""
+    return resolve_targets(decl, cfg.targets, extra=tuple(
+        n for n, on in (("fast", cfg.fast), ("lanes_left", cfg.lanes_left)) if on), label_set=cfg.labels)
 
 
 def resolve_targets(decl: WorldDeclaration, text: str | None, extra=(), label_set: str | None = None) \
         -> tuple[str, ...]:
-    """--targets: "a,b" replaces the default targets, "+a,+b" adds to them; `extra` adds too. The default is the
-    world's, or its label set named by --labels."""
+    """The targets `text` (TrainConfig.targets) names: a label set of the world ("extended"), labels in place of the
+    default ("a,b"), labels added to it ("+a,+b"), or a label set and additions ("extended,+a"); `extra` adds too.
+    The default is the world's targets, or the label set `label_set` (TrainConfig.labels)."""
     items = [t.strip() for t in (text or "").split(",") if t.strip()]
-    if label_set is not None:
-        try:
-            default = list(decl.label_set(label_set))
-        except DeclarationError as e:
-            raise TrainingError(f"--labels: {e}") from None
-    else:
-        default = list(decl.targets)
-    if items and all(not t.startswith("+") for t in items):
-        if label_set is not None:
-            raise TrainingError("--labels names the targets; --targets may only add to them (+name)")
-        names = items
-    elif any(not t.startswith("+") for t in items):
-        raise TrainingError("--targets takes either names (replacing the defaults) or +names (adding to them)")
-    else:
-        names = default + [t[1:] for t in items]
-    names += [n for n in extra if n not in names]
-    known = set(decl.label_names)
-    unknown = [n for n in names if n not in known]
+    names = [t for t in items if not t.startswith("+")]
+    adds = [t[1:] for t in items if t.startswith("+")]
+    sets = [n for n, _ in decl.label_sets]
+    if len(names) == 1 and names[0] in sets and names[0] not in decl.label_names:
+        if label_set not in (None, names[0]):
+            raise TrainingError(f"--targets names the label set {names[0]} and labels the set {label_set}: give one")
+        label_set, names = names[0], []
+    if names and adds:
+        raise TrainingError("--targets takes a label set or names (in place of the default targets), and +names "
+                            "(added to them); not names and +names")
+    if names and label_set is not None:
+        raise TrainingError(f"labels names the targets (the set {label_set}); --targets may only add to them (+name)")
+    try:
+        default = list(decl.targets if label_set is None else decl.label_set(label_set))
+    except DeclarationError as e:
+        raise TrainingError(str(e)) from None
+    chosen = names or default + adds
+    chosen += [n for n in extra if n not in chosen]
+    unknown = [n for n in chosen if n not in decl.label_names]
     if unknown:
-        raise TrainingError(f"the {decl.name} world has no label {', '.join(unknown)} "
-                            f"(labels: {', '.join(decl.label_names)})")
-    return tuple(dict.fromkeys(names))
+        raise TrainingError(f"the {decl.name} world has no label {', '.join(unknown)} (labels: "
+                            f"{', '.join(decl.label_names)}" + (f"; label sets: {', '.join(sets)})" if sets else ")"))
+    return tuple(dict.fromkeys(chosen))
 
 
 def config_from(**kwargs) -> TrainConfig:
-    """A TrainConfig from keyword arguments, ignoring those that are not its fields (e.g. argparse extras)."""
+    """A TrainConfig from keyword arguments, ignoring those that are not its fields (a caller's other options)."""
     names = {f.name for f in fields(TrainConfig)}
     return TrainConfig(**{k: v for k, v in kwargs.items() if k in names})
 
@@ -122,8 +81,9 @@ def absolute_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return (pred.float() - target.float()).abs().sum(1).mean()
 
 
-# `train --loss` (its choices are these names): the Euclidean loss is the papers' (Liu and Wang; Chen et al.) and the
-# default of every family but the MobileNet, which trains with L1 (perception/mobilenet.py).
+# the setting `loss` (its choices, train_config.LOSS_NAMES, are these names): the Euclidean loss is the papers'
+# (Liu and Wang; Chen et al.) and the default of every family but the MobileNet, which trains with L1
+# (perception/mobilenet.py).
 LOSSES = {"euclidean": euclidean_loss, "l1": absolute_loss}
 
 
@@ -157,7 +117,7 @@ def open_data(cfg: TrainConfig) -> tuple[Dataset, WorldDeclaration, tuple[str, .
     if why is not None:
         raise TrainingError(f"--model {cfg.model} does not fit the {decl.name} world of {cfg.data}: {why} "
                             f"(models for it: {', '.join(fitting(decl)) or 'none'})")
-    return data, decl, cfg.labels_for(decl)
+    return data, decl, run_targets(cfg, decl)
 
 
 def data_summary(data: Dataset) -> dict:

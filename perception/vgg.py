@@ -75,4 +75,4 @@ def _describe(spec: dict) -> str:
 
 register(Family("vgg16", "VGG-16", _build, one_camera_now, trainer="sgd",
                 defaults={"iterations": 15_000, "batch_size": 10, "lr": 1e-4},   # Liu and Wang, section 6.3
-                describe=_describe))
+                describe=_describe, settings=("unfreeze", "batch_norm")))

@@ -1,4 +1,4 @@
-"""An exponential moving average of a model's weights and batch-norm statistics (`train --ema DECAY`).
+"""An exponential moving average of a model's weights and batch-norm statistics (`train --set ema=DECAY`).
 
 Why: with Adam at a constant learning rate a small network's weights keep jittering, and so does what it reads
 from a frame: the demo's MobileNet read the angle 0.039, 0.046 and 0.047 rad wrong (validation MAE) at 1,500,

@@ -50,7 +50,7 @@ REAR_RANGE = 100.0      # [m] rear gaps are measured up to this; also their inac
 CLOSING_INACTIVE = 0.0  # [m/s] closing speed when no car is within REAR_RANGE or the lane does not exist
 HOST_LENGTH = 4.6       # [m] the host car's body (sim/highway/vehicle.py VehicleParams.length, SUMO's host)
 
-# Named label sets (`train --labels NAME`): the paper's 13 stay the default; `extended` adds `fast`, `lanes_left`
+# Named label sets (`train --targets NAME`): the paper's 13 stay the default; `extended` adds `fast`, `lanes_left`
 # and the four above. Names and order are fixed once published: models trained on a set depend on them.
 LABEL_SETS: dict[str, tuple[str, ...]] = {
     "paper": PAPER_INDICATORS,

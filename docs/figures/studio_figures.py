@@ -140,8 +140,8 @@ def main() -> None:
     cli("stats", data, log=out / "stats.txt")
     model = out / "person-z2color.pt"     # the set holds direct mode only: Z2Color without the modal input (MTL)
     if not model.exists():
-        cli("train", "--data", data, "--model", "z2color", "--mtl", "direct", "--out", model, "--epochs", args.epochs,
-            "--device", "cpu", log=out / "train.txt")
+        cli("train", "--data", data, "--model", "z2color", "--set", "mtl=direct", "--out", model, "--epochs",
+            args.epochs, "--device", "cpu", log=out / "train.txt")
     cli("evaluate", "--data", data, "--model", model, "--out", out / "evaluate", log=out / "evaluate.txt")
     cli("drive", "--world", "sidewalk", "--model", model, "--seconds", 60, "--out", out / "drive",
         log=out / "drive.txt")

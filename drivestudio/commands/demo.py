@@ -115,8 +115,8 @@ def _highway(step: _Steps, size: Size, hw: Path) -> None:
     step("highway: the GIST baseline", "train", "--data", data, "--model", "gist", "--out", models / "gist.pt")
     step(f"highway: a MobileNet ({size.iterations} iterations of 32 frames; docs/aggregation.md)",
          "train", "--data", data, "--model", "mobilenet", "--out", models / "mobilenet.pt", "--iterations",
-         size.iterations, "--val-every", max(5, size.iterations // 3), "--val-frames", 200, "--workers", 0,
-         "--device", "cpu")
+         size.iterations, "--set", f"val_every={max(5, size.iterations // 3)}", "--set", "val_frames=200",
+         "--workers", 0, "--device", "cpu")
     step("highway: per-indicator MAE, as Liu and Wang's Table 3", "evaluate", "--data", data, "--model",
          models / "gist.pt", "--model", models / "mobilenet.pt", "--out", hw / "evaluate", "--latency-frames", 10)
     step("highway: box overlays of the MobileNet's worst test frames", "overlay", "--data", data, "--model",
@@ -144,7 +144,7 @@ def _sidewalk(step: _Steps, size: Size, sw: Path) -> None:
          "--data", sdata, "--model", "z2color", "--out", smodels / "multinet.pt", "--epochs", size.epochs,
          "--batch-size", 60, "--device", "cpu")
     step(f"sidewalk: the MTL baseline on direct mode's data, {size.epochs} epoch(s)", "train", "--data", sdata,
-         "--model", "z2color", "--mtl", "direct", "--out", smodels / "mtl-direct.pt", "--epochs", size.epochs,
+         "--model", "z2color", "--set", "mtl=direct", "--out", smodels / "mtl-direct.pt", "--epochs", size.epochs,
          "--batch-size", 60, "--device", "cpu")
     for net in ("multinet", "mtl-direct"):
         step(f"sidewalk: autonomy of the {net} net in direct mode, {size.autonomy_seconds} s under the expert's "

@@ -114,9 +114,9 @@ def run(args) -> int:
 
 
 def train_argv(size: Size, data: Path, model: Path, seed: int = 0) -> list:
-    return ["train", "--data", data, "--model", "mobilenet", "--history", size.history, "--out", model,
-            "--iterations", size.iterations, "--val-every", max(10, size.iterations // 6), "--workers", 0,
-            "--device", "cpu", "--emphasis", size.emphasis, "--seed", seed]
+    return ["train", "--data", data, "--model", "mobilenet", "--set", f"history={size.history}", "--out", model,
+            "--iterations", size.iterations, "--set", f"val_every={max(10, size.iterations // 6)}", "--workers", 0,
+            "--device", "cpu", "--set", f"emphasis={size.emphasis}", "--seed", seed]
 
 
 def single_recipe(steps: Steps, size: Size, data: Path) -> Path | None:

@@ -59,9 +59,9 @@ EXTENDED_QUICK = Extended(frames=400, iterations=20, round_frames=60, round_iter
 
 
 def train_argv(size: Extended, data: Path, model: Path, seed: int, rear: bool) -> list:
-    targets = ["--targets", REAR_TARGETS] if rear else ["--emphasis", size.emphasis]
-    return ["train", "--data", data, "--model", "mobilenet", "--history", size.history, "--out", model,
-            "--iterations", size.iterations, "--val-every", max(10, size.iterations // 6), "--workers", 0,
+    targets = ["--targets", REAR_TARGETS] if rear else ["--set", f"emphasis={size.emphasis}"]
+    return ["train", "--data", data, "--model", "mobilenet", "--set", f"history={size.history}", "--out", model,
+            "--iterations", size.iterations, "--set", f"val_every={max(10, size.iterations // 6)}", "--workers", 0,
             "--device", "cpu", "--seed", seed, *targets]
 
 

@@ -1,4 +1,4 @@
-"""The world declaration's decisive steps (core/declaration.py), which `train --emphasis` weighs: checked, carried
+"""The world declaration's decisive steps (core/declaration.py), which `train --set emphasis=W` weighs: checked, carried
 by a declaration's JSON, left out of the fingerprint (they do not change what recorded data means), and the
 highway's the Chen controller's own occupancy rule."""
 from dataclasses import replace

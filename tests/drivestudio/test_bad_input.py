@@ -107,13 +107,15 @@ CASES = [
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--batch-size", "0"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--device", "banana"),
     ("train", "--data", D, "--model", "resnet", "--out", "{root}/a.pt"),
-    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--loss", "l3"),
-    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--ema", "1.5"),
-    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--loss", "l1"),
-    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--emphasis", "0"),
-    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--emphasis", "3"),
-    ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--steer-share", "0.5"),
-    ("train", "--data", D, "--model", "z2color", "--out", "{root}/z.pt", "--steer-share", "1.5"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--set", "loss=l3"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--set", "ema=1.5"),
+    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--set", "loss=l1"),
+    ("train", "--data", D, "--model", "mobilenet", "--out", "{root}/a.pt", "--set", "emphasis=0"),
+    ("train", "--data", D, "--model", "gist", "--out", "{root}/g.pt", "--set", "emphasis=3"),
+    ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--set", "steer_share=0.5"),
+    ("train", "--data", D, "--model", "z2color", "--out", "{root}/z.pt", "--set", "steer_share=1.5"),
+    ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--set", "lr_step=0"),
+    ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--set", "nope=1"),
     ("study", "--set", "steer_share=-0.1", "--out", "{root}/study"),
     ("demo", "--frames", "-5", "--out", "{root}/demo"),
     ("recipe", "--set", "emphasis=0", "--out", "{root}/recipe"),
@@ -208,7 +210,7 @@ def test_write_never_replaces_a_special_file(tmp_path):
 
 
 def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
-    """Checkpoints are written at validations, every --checkpoint-every seconds and on SIGTERM: a kill between
+    """Checkpoints are written at validations, every checkpoint_every seconds and on SIGTERM: a kill between
     validations loses little, and the same command continues."""
     import signal
     import time
@@ -223,8 +225,8 @@ def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
          "1", "--quiet", env=worlds)
     out = tmp_path / "tiny.pt"
     cmd = [sys.executable, "-m", "drivestudio", "train", "--data", str(data), "--model", "tinyconv", "--out", str(out),
-           "--iterations", "10000000", "--batch-size", "4", "--val-every", "10000000", "--checkpoint-every", "0.5",
-           "--device", "cpu", "--workers", "0", "--optimizer", "adam", "--lr", "1e-3"]
+           "--iterations", "10000000", "--batch-size", "4", "--set", "val_every=10000000", "--set",
+           "checkpoint_every=0.5", "--device", "cpu", "--workers", "0", "--set", "optimizer=adam", "--lr", "1e-3"]
     proc = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t0 = time.time()
     while not out.exists() and time.time() - t0 < 120:   # a save by the clock, long before any validation

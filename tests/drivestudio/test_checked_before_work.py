@@ -1,6 +1,6 @@
-"""Options are checked before any work: an option that would be ignored is refused, a combination that cannot be
-honoured is refused, and every model of a run is opened before the first is used (docs/errors.md). Each case: one
-line on stderr, exit status 2, nothing written."""
+"""Options are checked before any work: an option or setting that would be ignored is refused, a combination that
+cannot be honoured is refused, and every model of a run is opened before the first is used (docs/errors.md). Each
+case: one line on stderr, exit status 2, nothing written."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,12 +8,13 @@ from pathlib import Path
 import pytest
 import torch
 
+from core.settings import SettingError
 from core.worlds.highway import HIGHWAY
 from core.worlds.sidewalk import SIDEWALK
 from drivestudio.cli import main
-from drivestudio.errors import UsageError
 from perception.checkpoint import save_checkpoint
 from perception.models import Regressor, make_spec
+from perception.train_config import TrainConfig
 
 REPO = Path(__file__).resolve().parents[2]
 SMALL = str(REPO / "tests" / "dataset" / "fixtures" / "highway-10")
@@ -26,33 +27,45 @@ def _refused(capsys, argv: list[str], words: str) -> None:
 
 
 @pytest.mark.parametrize("extra, words", [
-    (["--model", "z2color", "--iterations", "5"], "--iterations does not apply to --model z2color"),
-    (["--model", "z2color", "--weights", "vgg16.pth"], "--weights does not apply to --model z2color"),
-    (["--model", "z2color", "--workers", "3"], "--workers does not apply to --model z2color"),
-    (["--model", "gist", "--init", "model.pt"], "--init does not apply to --model gist"),
-    (["--model", "gist", "--lr", "0.1", "--epochs", "2"], "--epochs, --lr do not apply to --model gist"),
-    (["--model", "gist", "--no-cache"], "--no-cache does not apply to --model gist"),
-    (["--model", "alexnet", "--trials", "3"], "--trials does not apply to --model alexnet"),
-    (["--model", "alexnet", "--mode-moments", "500"], "--mode-moments does not apply to --model alexnet"),
-    (["--model", "z2color", "--modes", ","], "--modes ',' names no mode"),
-    (["--model", "z2color", "--modes", ""], "--modes '' names no mode"),
+    (["--model", "z2color", "--iterations", "5"], "iterations does not apply to --model z2color"),
+    (["--model", "z2color", "--weights", "vgg16.pth"], "weights does not apply to --model z2color"),
+    (["--model", "z2color", "--workers", "3"], "workers does not apply to --model z2color"),
+    (["--model", "z2color", "--set", "momentum=0.5"], "momentum does not apply to --model z2color"),
+    (["--model", "gist", "--init", "model.pt"], "init does not apply to --model gist"),
+    (["--model", "gist", "--lr", "0.1", "--epochs", "2"], "epochs, lr do not apply to --model gist"),
+    (["--model", "gist", "--set", "cache=false"], "cache does not apply to --model gist"),
+    (["--model", "alexnet", "--set", "trials=3"], "trials does not apply to --model alexnet"),
+    (["--model", "alexnet", "--set", "mode_moments=500"], "mode_moments does not apply to --model alexnet"),
+    (["--model", "alexnet", "--set", "unfreeze=true"], "unfreeze does not apply to --model alexnet"),
+    (["--model", "alexnet", "--set", "history=1"], "history does not apply to --model alexnet"),
+    (["--model", "z2color", "--set", "modes=,"], "modes ',' names no mode"),
+    (["--model", "z2color", "--set", "modes="], "modes '' names no mode"),
 ])
-def test_train_refuses_options_its_trainer_would_ignore(tmp_path, capsys, extra, words):
+def test_train_refuses_settings_its_trainer_would_ignore(tmp_path, capsys, extra, words):
     _refused(capsys, ["train", "--data", SMALL, "--out", str(tmp_path / "m.pt"), *extra], words)
     assert list(tmp_path.iterdir()) == []
 
 
-def test_options_the_multinet_trainer_reads_are_accepted():
-    """--no-amp (float32 throughout, perception/multinet.py) is read by Z2Color's trainer, so it is not refused."""
-    from argparse import Namespace
+def test_a_refusal_names_what_the_trainer_reads():
+    """One line: the setting given and every setting that family's trainer takes (perception/train.py)."""
+    from perception.train import check_reads
+    with pytest.raises(SettingError) as refused:
+        check_reads(TrainConfig(model="gist", lr_step=5))
+    assert str(refused.value) == "lr_step does not apply to --model gist (its closed-form training reads val_frames, " \
+                                 "regressor)"
 
-    from drivestudio.cli import build_parser
-    from drivestudio.commands.train import _DEFAULTS, check_applies
-    build_parser()   # registers the train parser's defaults
-    check_applies(Namespace(**(_DEFAULTS | {"model": "z2color", "amp": False, "trials": 3, "mtl": "direct"})),
-                  "multinet")
-    with pytest.raises(UsageError, match="--no-amp does not apply to --model gist"):
-        check_applies(Namespace(**(_DEFAULTS | {"model": "gist", "amp": False})), "closed-form")
+
+def test_settings_the_multinet_trainer_reads_are_accepted():
+    """amp false (float32 throughout, perception/multinet.py) is read by Z2Color's trainer, so it is not refused;
+    VGG-16's own settings are read for it alone, a temporal family's history for it alone."""
+    from perception.train import check_reads
+    check_reads(TrainConfig(model="z2color", amp=False, trials=3, mtl="direct"))
+    check_reads(TrainConfig(model="vgg16", unfreeze=True, batch_norm=True))
+    check_reads(TrainConfig(model="mobilenet", history=2))
+    with pytest.raises(SettingError, match="amp does not apply to --model gist"):
+        check_reads(TrainConfig(model="gist", amp=False))
+    with pytest.raises(SettingError, match="batch_norm does not apply to --model mobilenet"):
+        check_reads(TrainConfig(model="mobilenet", batch_norm=True))
 
 
 def test_evaluate_refuses_models_of_two_worlds_before_evaluating_either(tmp_path, capsys):

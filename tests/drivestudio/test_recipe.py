@@ -47,7 +47,7 @@ def test_the_recipe_trains_members_side_by_side_and_benchmarks_their_ensemble(tm
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "train", "ensemble", "benchmark"]
     assert [c.split("--seed ")[1] for c in commands[1:3]] == ["0", "1"]
-    assert all(f"--emphasis {FULL.emphasis}" in c for c in commands[1:3]) and FULL.emphasis > 1
+    assert all(f"--set emphasis={FULL.emphasis}" in c for c in commands[1:3]) and FULL.emphasis > 1
     # run again: every step is found done, nothing is trained or driven again
     _, again = recipe(tmp_path)
     assert "the benchmark: done before" in again.stdout and "nothing to do" in (out / "member-0.log").read_text()
@@ -61,7 +61,7 @@ def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
     assert specs[0] == "oracle" and specs[1].endswith("mobilenet.pt") and specs[2].endswith("round-1/model.pt")
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
-    assert f"--emphasis {FULL.emphasis}" in commands[1] and f"--set emphasis={FULL.emphasis}" in commands[2]
+    assert all(f"--set emphasis={FULL.emphasis}" in c for c in commands[1:])
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
 
@@ -86,9 +86,9 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     assert "--set side_views=true --lanes 1,2,3,4 " in commands[1]
     assert ensemble["spec"]["input"]["inset"] == "mirror+sides"
     assert [c.split("--seed ")[1].split()[0] for c in commands[2:6]] == ["0", "1", "0", "2"]   # rear: seeds 0, 2
-    assert all(f"--targets {REAR_TARGETS}" in c and "--emphasis" not in c for c in commands[4:6])
+    assert all(f"--targets {REAR_TARGETS}" in c and "emphasis" not in c for c in commands[4:6])
     assert all("data-mirror-4lanes" in c for c in commands[4:6])
-    assert all(f"--emphasis {EXTENDED.emphasis}" in c for c in commands[2:4])
+    assert all(f"--set emphasis={EXTENDED.emphasis}" in c for c in commands[2:4])
     assert all(f"--set emphasis={EXTENDED.emphasis}" in c and f"--set beta={EXTENDED.beta}" in c for c in commands[6:8])
     # every dataset and network fingerprinted, as `stats --fingerprint` and the checkpoint's stored digest say
     prints = json.loads((out / "fingerprints.json").read_text())

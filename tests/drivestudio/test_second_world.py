@@ -40,7 +40,7 @@ def data(tmp_path_factory):
 def checkpoint(data, tmp_path_factory):
     out = tmp_path_factory.mktemp("corridor-model") / "tiny.pt"
     make("train", "--data", data, "--model", "tinyconv", "--out", out, "--iterations", 150, "--batch-size", 16,
-         "--val-every", 50, "--optimizer", "adam", "--lr", "3e-3", "--device", "cpu", env=WORLDS)
+         "--set", "val_every=50", "--set", "optimizer=adam", "--lr", "3e-3", "--device", "cpu", env=WORLDS)
     return out
 
 

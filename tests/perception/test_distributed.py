@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "DRIVESTUDIO_WORLDS": "tests.drivestudio.tiny_world:Plugin", "PYTHONPATH": str(REPO),
        "OMP_NUM_THREADS": "1"}
 TORCHRUN = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
-TRAIN = ["--model", "tinyconv", "--batch-size", "8", "--val-every", "20", "--optimizer", "adam", "--lr", "3e-3",
+TRAIN = ["--model", "tinyconv", "--batch-size", "8", "--set", "val_every=20", "--set", "optimizer=adam", "--lr", "3e-3",
          "--device", "cpu", "--workers", "1"]
 
 

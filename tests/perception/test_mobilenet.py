@@ -49,7 +49,7 @@ def test_a_temporal_model_trains_and_its_checkpoint_says_so(temporal):
 
 
 def test_continuing_with_another_history_is_refused(temporal):
-    with pytest.raises(CheckpointError, match="--history"):
+    with pytest.raises(CheckpointError, match="the same history"):
         train(tiny_config("mobilenet", temporal, history=0, iterations=12), log=lambda *a: None)
 
 

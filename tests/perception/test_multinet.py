@@ -193,7 +193,7 @@ def test_export_round_trip(tmp_path):
 
 
 def test_a_finished_multinet_is_not_handed_back_as_an_mtl_net(tmp_path):
-    """train --mtl direct --out over a finished MultiNet is refused, not answered 'trained already'."""
+    """train --set mtl=direct --out over a finished MultiNet is refused, not answered 'trained already'."""
     import pytest as _pytest
     import torch as _torch
 

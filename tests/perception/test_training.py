@@ -44,16 +44,11 @@ def test_absolute_loss_pulls_every_output_alike_whatever_its_error():
     assert pred.grad[0, 1] / pred.grad[0, 0] == pytest.approx(50)
 
 
-def test_the_command_line_offers_every_loss_and_no_other():
-    import argparse
-
-    from drivestudio.commands import train as command
+def test_the_loss_setting_offers_every_loss_and_no_other():
+    from core.settings import entries
     from perception.training import LOSSES
 
-    sub = argparse.ArgumentParser().add_subparsers()
-    command.register(sub)
-    option = next(a for a in sub.choices["train"]._actions if a.dest == "loss")
-    assert tuple(option.choices) == tuple(LOSSES)
+    assert entries(TrainConfig)["loss"].setting.choices == tuple(LOSSES)
 
 
 def test_l1_training_records_its_loss_and_continues_only_with_it():
@@ -64,9 +59,9 @@ def test_l1_training_records_its_loss_and_continues_only_with_it():
     # its validation loss is the L1 one: near the training loss, not a tenth of it as a Euclidean value would be
     row = ckpt["train"]["history"][-1]
     assert row["val_loss"] > 0.3 * row["train_loss"]
-    with pytest.raises(CheckpointError, match="--loss l1"):
+    with pytest.raises(CheckpointError, match="loss=l1"):
         train(tiny_config("mobilenet", path, iterations=4, loss="euclidean"), log=lambda *x: None)
-    # without --loss it continues with the checkpoint's, and so does a run that starts from it (--init)
+    # without a loss it continues with the checkpoint's, and so does a run that starts from it (init)
     train(tiny_config("mobilenet", path, iterations=4), log=lambda *x: None)
     assert load_checkpoint(path)["train"]["config"]["loss"] == "l1"
     tuned = workdir() / "mobilenet-l1-tuned.pt"

@@ -52,7 +52,7 @@ def test_the_checkpoint_holds_the_average_and_an_interrupted_run_continues_exact
     assert not torch.allclose(a["state_dict"][key], a["training_state_dict"][key])
     for part in ("state_dict", "training_state_dict"):
         torch.testing.assert_close(b[part][key], a[part][key], rtol=1e-4, atol=1e-5)
-    with pytest.raises(CheckpointError, match="--ema 0.9"):
+    with pytest.raises(CheckpointError, match="ema=0.9"):
         train(tiny_config("mobilenet", halves, iterations=10, ema=0.0), log=lambda *x: None)
 
 

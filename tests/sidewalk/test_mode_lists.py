@@ -49,18 +49,18 @@ def test_generate_refuses_modes_naming_no_mode(tmp_path, capsys, text):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("option", ["--modes", "--mtl"])
+@pytest.mark.parametrize("name", ["modes", "mtl"])
 @pytest.mark.parametrize("text", EMPTY)
-def test_train_refuses_modes_or_mtl_naming_no_mode(sidewalk_data, tmp_path, capsys, option, text):
+def test_train_refuses_modes_or_mtl_naming_no_mode(sidewalk_data, tmp_path, capsys, name, text):
     _refused(capsys, ["train", "--data", str(sidewalk_data), "--model", "z2color", "--epochs", "1",
-                      "--batch-size", "6", "--out", str(tmp_path / "m.pt"), option, text],
-             f"{option} {text!r} names no mode")
+                      "--batch-size", "6", "--out", str(tmp_path / "m.pt"), "--set", f"{name}={text}"],
+             f"{name} {text.strip()!r} names no mode")   # --set reads the value without its outer spaces
     assert list(tmp_path.iterdir()) == []
 
 
 def test_train_refuses_an_empty_mtl_for_a_family_without_modes(tmp_path, capsys, sidewalk_data):
     _refused(capsys, ["train", "--data", str(sidewalk_data), "--model", "alexnet", "--out", str(tmp_path / "m.pt"),
-                      "--mtl", ""], "--mtl does not apply to --model alexnet")
+                      "--set", "mtl="], "mtl does not apply to --model alexnet")
 
 
 @pytest.mark.parametrize("kw", [{"modes": ""}, {"modes": ","}, {"mtl": ""}, {"mtl": "direct,follow"}])
