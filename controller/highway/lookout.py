@@ -3,7 +3,7 @@
 DeepDriving's indicators see only cars ahead, so the Chen controller changes lanes into a car alongside or
 arriving from behind, and pulls out from a short following gap while still accelerating. This controller reads
 the extended labels too (core/worlds/highway.py REAR: the bumper gap to the nearest car alongside or behind in
-the lanes left and right, and its closing speed) and adds three rules to docs/controller.md's seven
+the lanes left and right, and its closing speed) and adds five rules to docs/controller.md's seven
 (docs/controller.md, "The lookout"; every number argued there):
 
     L1  look: a change (rule 2 or 3) starts only when the target lane's rear gap is at least the safe gap
@@ -86,7 +86,7 @@ def safe_gap(closing: float, speed: float, p: LookoutParams = LookoutParams(), a
 
 
 class LookoutController(ChenController):
-    """The Chen controller with rules L1-L3. `act(indicators, speed, rear)`: rear holds dist_LB, dist_RB,
+    """The Chen controller with rules L1-L5. `act(indicators, speed, rear)`: rear holds dist_LB, dist_RB,
     closing_LB, closing_RB (REAR order); without it nothing is beside or behind and this is the Chen controller."""
 
     def __init__(self, lanes: int, params: ChenParams | None = None, lookout: LookoutParams = LookoutParams()):

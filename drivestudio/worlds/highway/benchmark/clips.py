@@ -340,8 +340,9 @@ class ClipRecorder:
         """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""
         obs = entry.obs
         truth = obs.truth
-        title = (f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, "
-                 f"{self.route.cars} cars")
+        cars = f"{self.route.cars} cars" if not self.route.scenario else \
+            f"{len(self.world.script.actors)} scripted cars, {self.route.cars} AI cars"
+        title = f"t {obs.t:5.1f} s  {self.route.name}: {self.route.track}, {truth.lanes} lanes, {cars}"
         if self.model.exact or not np.isfinite(entry.estimate[:len(PAPER_INDICATORS)]).all():
             est, ll, rear = None, None, None
         else:
