@@ -85,14 +85,6 @@ class Event:
     speed: float | None = None        # [m/s] brake, slow: the speed it ends at; resume: the speed it wants
     rate: float | None = None         # [m/s^2] brake, stop: deceleration; slow: the rate of the change
 
-    def describe(self, actors: tuple[Actor, ...]) -> str:
-        when = f"at {self.time:g} s" if self.time is not None else f"at a gap of {self.gap:g} m"
-        what = {"change_lane": f"changes lane towards {'the host' if self.towards == 'host' else self.towards}",
-                "brake": f"brakes at {self.rate:g} m/s^2 to {self.speed:g} m/s",
-                "stop": f"stops at {self.rate:g} m/s^2", "slow": f"goes to {self.speed:g} m/s at {self.rate:g} m/s^2",
-                "resume": "drives on its own (SUMO)"}[self.do]
-        return f"{actors[self.actor].name} {what} {when}"
-
 
 @dataclass(frozen=True)
 class Criteria:
@@ -116,10 +108,6 @@ class ScriptedScenario:
     events: tuple[Event, ...]
     criteria: Criteria
     track: Track = field(compare=False, repr=False, default=None)   # type: ignore[assignment]
-
-    @property
-    def steps(self) -> int:
-        return int(round(self.seconds / 0.1))
 
     def configure(self, config):
         """The world's configuration (sim/highway/config.py) with this scenario's route: its track, lanes, traffic,
@@ -238,7 +226,13 @@ def _event(obj, i: int, names: dict[str, int], seconds: float, track: Track) -> 
     if actor not in names:
         raise ScenarioError(f"{where}: 'actor' must name an actor ({', '.join(names) or 'there are none'}), "
                             f"got {show(actor)}")
-    when = _obj(obj.get("when"), f"{where}: 'when'", TRIGGERS)
+    time, gap = _trigger(obj.get("when"), where, seconds, track)
+    return Event(names[actor], time, gap, do, **_action(obj, do, where))
+
+
+def _trigger(when, where: str, seconds: float, track: Track) -> tuple[float | None, float | None]:
+    """(time, gap) of an event's `when`, one of them None; a trigger that can never fire is refused."""
+    when = _obj(when, f"{where}: 'when'", TRIGGERS)
     if len(when) != 1:
         raise ScenarioError(f"{where}: 'when' must hold one of 'time' [s] and 'gap' [m], got {show(when)}")
     time = gap = None
@@ -253,6 +247,11 @@ def _event(obj, i: int, names: dict[str, int], seconds: float, track: Track) -> 
         if abs(gap) > half:
             raise ScenarioError(f"{where}: its trigger can never fire: gaps along this track are measured within "
                                 f"half a lap, -{half:g} to {half:g} m, got {gap:g}")
+    return time, gap
+
+
+def _action(obj: dict, do: str, where: str) -> dict:
+    """The fields of an event's kind: towards, speed and rate (a brake's or stop's "decel")."""
     kw: dict = {}
     if do == "change_lane":
         kw["towards"] = obj.get("towards", "host")
@@ -274,7 +273,7 @@ def _event(obj, i: int, names: dict[str, int], seconds: float, track: Track) -> 
     if do == "resume" and "speed" in obj:
         kw["speed"] = number(obj, "speed", where, lo=0, lo_open=True, hi=MAX_ACTOR_SPEED, unit="m/s",
                              error=ScenarioError)
-    return Event(names[actor], time, gap, do, **kw)
+    return kw
 
 
 def _criteria(obj) -> Criteria:
@@ -331,8 +330,3 @@ def load_scripted(path) -> ScriptedScenario:
         return scripted_from_dict(obj, p.resolve().parent, stem, str(p.resolve()))
     except ScenarioError as e:
         raise ScenarioError(f"{show_path(p)}: {e}") from None
-
-
-def is_scripted(obj) -> bool:
-    """Whether a parsed scenario file is of this format (it carries a version) rather than the static one."""
-    return isinstance(obj, dict) and "version" in obj
