@@ -78,10 +78,3 @@ class HighwayGL:
 
     def close(self) -> None:
         self._scene.release()
-
-
-def glass(rect: tuple[int, int, int, int], border: int) -> tuple[int, int, int, int]:
-    """The rectangle inside an inset's border."""
-    top, left, h, w = rect
-    return top + border, left + border, h - 2 * border, w - 2 * border
-

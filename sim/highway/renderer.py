@@ -24,7 +24,7 @@ from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
 from sim.highway.errors import RendererError
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
-from sim.mirror import BORDER, RearMirror, SideViews
+from sim.mirror import BORDER_RGB, RearMirror, SideViews, glass
 from sim.render.available import share_egl
 from sim.track import Track
 
@@ -51,10 +51,19 @@ class Renderer:
                 raise RendererError(clash)
             self._gl = HighwayGL(chunks, self.look, GROUND_MATERIALS, self._base_frame())
         elif renderer == "numba":
-            from sim.render.raster import Part, Rasteriser  # lazy: numba loads (and compiles) for this renderer only
+            from sim.render.raster import Part, Rasteriser, Slot  # lazy: numba loads (and compiles) for it only
             models = [[Part(m.parts[p].vertices, m.parts[p].faces, m.parts[p].normals,
                             None if p == "paint" else PART_COLOURS[p][:3]) for p in PARTS] for m in car_models()]
             self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models, PAINTS)
+            # every view of a frame in one compiled call, composed as render() composes PyBullet's
+            slots = [Slot(camera, 0.0, self._backdrops[camera], (0, 0, camera.height, camera.width))]
+            if self.mirror is not None:
+                slots.append(Slot(self.mirror.camera, np.pi, self._backdrops[self.mirror.camera],
+                                  glass(self.mirror.rect), self.mirror.rect, mirrored=True))
+            if self.sides is not None:
+                for rect, turn in zip(self.sides.rects, (np.pi / 2, -np.pi / 2)):
+                    slots.append(Slot(self.sides.camera, turn, self._backdrops[self.sides.camera], glass(rect), rect))
+            self._layout = self._raster.layout(slots, BORDER_RGB)
         else:
             from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
             self._objects = BulletScene(chunks, self.look, camera, renderer)
@@ -101,6 +110,10 @@ class Renderer:
         """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in."""
         if self._gl is not None:
             return self._gl.render(self._gl_views(x, y, yaw, cars))
+        if self._raster is not None:
+            from sim.render.raster import Cars  # loaded with the rasteriser (above); this names its argument
+            return self._raster.render(self._layout, x, y, yaw, Cars(cars.x, cars.y, cars.yaw, cars.models,
+                                                                     cars.paints), CAR_RADIUS)
         frame = self._view(self.camera, x, y, yaw, cars)
         if self.mirror is not None:
             self.mirror.composite(frame, self._view(self.mirror.camera, x, y, yaw + np.pi, cars))
@@ -111,21 +124,18 @@ class Renderer:
         return frame
 
     def _visible(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates):
-        """The chunks and the cars in the view wedge of `camera`."""
-        xy = np.stack([cars.x, cars.y], axis=1)
-        return (self.in_view(self._centres, self._radii, x, y, yaw, camera),
-                self.in_view(xy, np.full(len(cars), CAR_RADIUS), x, y, yaw, camera))
+        """The chunks and the cars in the view wedge of `camera` (one test of both: a frame makes several)."""
+        n = len(self._radii)
+        centres = np.empty((n + len(cars), 2))
+        centres[:n], centres[n:, 0], centres[n:, 1] = self._centres, cars.x, cars.y
+        seen = self.in_view(centres, np.concatenate([self._radii, np.full(len(cars), CAR_RADIUS)]), x, y, yaw,
+                            camera)
+        return seen[:n], seen[n:]
 
     def _view(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
         """One camera's image: backdrop, ground, then the objects in its view wedge."""
         visible, car_visible = self._visible(camera, x, y, yaw, cars)
         frame = self._backdrops[camera].copy()
-        if self._raster is not None:
-            from sim.render.raster import Cars  # loaded with the rasteriser (above); this names its argument
-            on = np.flatnonzero(car_visible)
-            self._raster.draw(frame, camera, x, y, yaw, visible, Cars(cars.x[on], cars.y[on], cars.yaw[on],
-                                                                      cars.models[on], cars.paints[on]))
-            return frame
         assert self._objects is not None
         self._objects.set_visible_chunks(visible)
         self._objects.set_cars(np.stack([cars.x, cars.y, cars.yaw], axis=1), cars.models, cars.paints, car_visible)
@@ -136,7 +146,6 @@ class Renderer:
 
     def _gl_views(self, x: float, y: float, yaw: float, cars: CarStates) -> list:
         """The views of the GL renderer, the insets first (each kept from the views after it), the front last."""
-        from sim.highway.gl_scene import glass  # loaded with the GL scene (above)
         gl = self._gl
         assert gl is not None
 
@@ -146,11 +155,11 @@ class Renderer:
 
         views = []
         if self.mirror is not None:
-            views.append(view(self.mirror.camera, yaw + np.pi, glass(self.mirror.rect, BORDER), True,
+            views.append(view(self.mirror.camera, yaw + np.pi, glass(self.mirror.rect), True,
                               self.mirror.rect))
         if self.sides is not None:
             for rect, turn in zip(self.sides.rects, (np.pi / 2, -np.pi / 2)):
-                views.append(view(self.sides.camera, yaw + turn, glass(rect, BORDER), keep=rect))
+                views.append(view(self.sides.camera, yaw + turn, glass(rect), keep=rect))
         views.append(view(self.camera, yaw, (0, 0, self.camera.height, self.camera.width)))
         return views
 

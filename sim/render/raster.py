@@ -1,20 +1,46 @@
 """The compiled rasteriser's scene (renderer "numba", docs/rendering.md#the-fast-renderers): a world's chunks of
-ground and objects and its car models packed into arrays once, then one camera's view drawn into an image per call.
+ground and objects and its car models packed into arrays once, then a frame of views (the front camera's and the
+insets', composed as sim/highway/renderer.py composes PyBullet's) drawn in one compiled call (render), or one view
+into an image (draw).
 The ground is painted as sim/ground_painter.py paints it (sim/render/raster_ground.py), the objects drawn as
 PyBullet's TinyRenderer draws them (sim/render/raster_objects.py), so the frames are those of renderer "tiny" pixel
 for pixel but for a rare pixel at an edge, at a fraction of the time.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from sim.camera import CameraConfig
 from sim.render.lighting import base_colour
-from sim.render.raster_view import draw_view
+from sim.render.raster_view import draw_frame, draw_view
 from sim.scene import Chunk, Look
+
+KERNELS = ("raster_ground.py", "raster_objects.py", "raster_view.py")   # the compiled functions' files
+
+
+def drop_stale_kernels(folder: Path = Path(__file__).parent) -> None:
+    """numba keeps a function's compiled code while the function's own file is unchanged, even when a function of
+    another file that it calls has changed: the kernels' cached code is dropped together when any of their files has
+    changed since it was compiled (a source tree being edited; an installed one never changes)."""
+    stamp = hashlib.sha1(b"".join((folder / f).read_bytes() for f in KERNELS)).hexdigest()
+    cache, mark = folder / "__pycache__", folder / "__pycache__" / "raster-kernels.sha1"
+    if mark.is_file() and mark.read_text() == stamp:
+        return
+    try:
+        for f in cache.glob("raster_*.nb[ic]"):
+            f.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        mark.write_text(stamp)
+    except OSError:   # a folder this process cannot write: numba caches elsewhere, or not at all
+        pass
+
+
+drop_stale_kernels()
 
 
 @dataclass
@@ -30,13 +56,40 @@ class Part:
 
 @dataclass
 class Cars:
-    """The cars of one view, in the order they are drawn: pose, model and paint (indices)."""
+    """Cars, in the order they are drawn: pose ([m], [rad]), model and paint (indices)."""
 
     x: np.ndarray
     y: np.ndarray
     yaw: np.ndarray
     models: np.ndarray
     paints: np.ndarray
+
+
+@dataclass(frozen=True)
+class Slot:
+    """A view of a frame: its camera, turned by `yaw` [rad] from the car's heading, its image before anything is
+    drawn, and where it goes: the first view fills the frame; a later one goes into `glass` (top, left, height,
+    width [px]) inside a border filling `outer`, flipped left to right if `mirrored`."""
+
+    camera: CameraConfig
+    yaw: float
+    backdrop: np.ndarray
+    glass: tuple[int, int, int, int]
+    outer: tuple[int, int, int, int] = (0, 0, 0, 0)
+    mirrored: bool = False
+
+
+@dataclass
+class Layout:
+    """A frame's views as the arrays draw_frame takes (Rasteriser.layout)."""
+
+    front: np.ndarray       # the first view's backdrop
+    insets: np.ndarray      # every other view's backdrop, flat, one after the other (at offsets[v])
+    offsets: np.ndarray
+    places: np.ndarray
+    cameras: np.ndarray
+    projections: np.ndarray
+    border: np.ndarray
 
 
 def _triangles(meshes: list[tuple]) -> tuple[np.ndarray, ...]:
@@ -88,34 +141,67 @@ class Rasteriser:
         self._end = np.cumsum(counts)
         self._first = self._end - counts
         self._n_chunks = len(chunks)
+        self._centres = np.array([c.centre for c in chunks], dtype=np.float64).reshape(-1, 2)
+        self._radii = np.array([c.radius for c in chunks], dtype=np.float64)
         self._paints = base_colour(np.asarray(paints, dtype=np.float64).reshape(-1, 3))
         self._light = np.asarray(look.light_direction, dtype=np.float32)
         self._ambient, self._diffuse = np.float32(look.ambient), np.float32(look.diffuse)
         self._projections: dict[CameraConfig, tuple] = {}
 
     def _camera(self, camera: CameraConfig) -> tuple:
-        """What a camera's views share: its projection (float32, as PyBullet takes it) and focal lengths [px]."""
+        """What a camera's views share: its placement (forward, left, height [m], pitch [deg], near [m]), focal
+        lengths [px] and projection (float32, as PyBullet takes it)."""
         if camera not in self._projections:
             f = 1.0 / math.tan(math.radians(camera.fov_deg) / 2)
             self._projections[camera] = (
-                np.array(camera.projection_matrix(), dtype=np.float32).reshape(4, 4).T.copy(),
-                f / camera.aspect * camera.width / 2, f * camera.height / 2)
+                np.array([camera.eye_forward, camera.eye_left, camera.eye_height, camera.pitch_deg, camera.near]),
+                f / camera.aspect * camera.width / 2, f * camera.height / 2,
+                np.array(camera.projection_matrix(), dtype=np.float32).reshape(4, 4).T.copy())
         return self._projections[camera]
 
     def draw(self, img: np.ndarray, camera: CameraConfig, x: float, y: float, yaw: float, chunks: np.ndarray,
              cars: Cars) -> None:
         """Paint the ground and draw the objects of the chunks `chunks` (bool, in view) and `cars` into img (h, w, 3)
         uint8 RGB, its backdrop, as `camera` sees them from a host car at (x, y) [m] with yaw [rad]."""
-        projection, fx, fy = self._camera(camera)
-        eye, basis = camera.basis(x, y, yaw)
-        view = np.eye(4)   # OpenGL's lookAt, as CameraConfig.view_matrix makes it, in float32
-        view[0, :3], view[1, :3], view[2, :3] = basis[0], basis[1], -basis[2]
-        view[:3, 3] = -view[:3, :3] @ eye
+        placement, fx, fy, projection = self._camera(camera)
+        cx, cy, cyaw, models, paints = self._cars(cars)
         draw_view(img, np.ascontiguousarray(chunks, dtype=np.bool_), self._ground, self._spans, self._by_rank,
-                  self._colours, eye, basis, camera.near, fx, fy, self._v, self._n, self._c, self._p, self._first,
-                  self._end, self._n_chunks, view.astype(np.float32), projection,
-                  np.asarray(cars.x, dtype=np.float64), np.asarray(cars.y, dtype=np.float64),
-                  np.asarray(cars.yaw, dtype=np.float64), np.asarray(cars.models, dtype=np.int64),
-                  self._paints[np.asarray(cars.paints, dtype=np.int64) % max(len(self._paints), 1)]
-                  if len(cars.x) else np.zeros((0, 3), np.float32),
-                  self._light, self._ambient, self._diffuse)
+                  self._colours, float(x), float(y), float(yaw), placement, fx, fy, self._v, self._n, self._c,
+                  self._p, self._first, self._end, self._n_chunks, projection, cx, cy, cyaw, models, paints,
+                  np.ones(len(cars.x), dtype=np.bool_), self._light, self._ambient, self._diffuse)
+
+    def _cars(self, cars: Cars) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The kernels' arrays of `cars`: x, y, yaw (float64), model (int64), paint (n, 3 float32 base colours)."""
+        paints = self._paints[np.asarray(cars.paints, dtype=np.int64) % len(self._paints)] if len(self._paints) \
+            else np.zeros((len(cars.x), 3), np.float32)
+        return (np.asarray(cars.x, dtype=np.float64), np.asarray(cars.y, dtype=np.float64),
+                np.asarray(cars.yaw, dtype=np.float64), np.asarray(cars.models, dtype=np.int64), paints)
+
+    def layout(self, slots: list[Slot], border) -> Layout:
+        """The arrays of a frame of `slots` (the first fills the frame), the insets' border of colour `border`."""
+        flat = [np.zeros(0, np.uint8)] + [np.ascontiguousarray(s.backdrop, dtype=np.uint8).reshape(-1)
+                                          for s in slots[1:]]
+        offsets = np.cumsum([len(b) for b in flat]).astype(np.int64) - [len(b) for b in flat]
+        places = np.zeros((len(slots), 9), dtype=np.int64)
+        cameras = np.zeros((len(slots), 10))
+        projections = np.zeros((len(slots), 4, 4), dtype=np.float32)
+        for v, slot in enumerate(slots):
+            cam = slot.camera
+            places[v] = (*slot.outer, *slot.glass, slot.mirrored)
+            placement, fx, fy, projection = self._camera(cam)
+            cameras[v] = (*placement, fx, fy, slot.yaw, cam.hfov, cam.cull_distance)
+            projections[v] = projection
+        return Layout(np.ascontiguousarray(slots[0].backdrop, dtype=np.uint8), np.concatenate(flat), offsets, places,
+                      cameras, projections, np.asarray(border, dtype=np.uint8))
+
+    def render(self, layout: Layout, x: float, y: float, yaw: float, cars: Cars, car_radius: float) -> np.ndarray:
+        """The frame (h, w, 3) uint8 RGB of `layout`'s views from a host car at (x, y) [m] with yaw [rad], the
+        chunks and the cars (bounding circles of car_radius [m]) in each view's wedge drawn in it."""
+        frame = layout.front.copy()   # numpy's copies: numba's element loops copy bytes ten times slower
+        cx, cy, cyaw, models, paints = self._cars(cars)
+        draw_frame(frame, layout.insets.copy(), layout.offsets, layout.places, layout.cameras, layout.projections,
+                   self._centres, self._radii, float(car_radius), layout.border, self._ground, self._spans,
+                   self._by_rank, self._colours, self._v, self._n, self._c, self._p, self._first, self._end,
+                   float(x), float(y), float(yaw), cx, cy, cyaw, models, paints, self._light, self._ambient,
+                   self._diffuse)
+        return frame

@@ -86,6 +86,8 @@ def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diff
         r, g, b = _shade(normals[0, 0], normals[0, 1], normals[0, 2], light, ambient, diffuse, c0, c1, c2)
     z0, z1, z2 = float(clip[0, 2]), float(clip[1, 2]), float(clip[2, 2])
     w0, w1, w2 = float(clip[0, 3]), float(clip[1, 3]), float(clip[2, 3])
+    rw0, rw1, rw2 = 1.0 / w0, 1.0 / w1, 1.0 / w2   # depth = -(sum b z / w) / (sum b / w), perspective-correct
+    zw0, zw1, zw2 = z0 * rw0, z1 * rw1, z2 * rw2
     # every pixel of the bounding box is TinyRenderer's candidate; a row's span of candidates that can be inside (the
     # barycentric coordinates are linear in x), widened by a pixel, is tested exactly and the rest skipped
     e = _edges(sx, sy)
@@ -93,26 +95,43 @@ def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diff
     if abs(uz) <= DEGENERATE:
         return
     sign = 1.0 if uz > 0 else -1.0
+    size = abs(uz)
+    # ux = bay x + (bax apy - ax bay), uy = -cay x + (ax cay - cax apy), uz - ux - uy: each of sign >= 0 inside
+    slopes = (bay * sign, -cay * sign, (cay - bay) * sign)
+    inverse = (1.0 / slopes[0] if slopes[0] else 0.0, 1.0 / slopes[1] if slopes[1] else 0.0,
+               1.0 / slopes[2] if slopes[2] else 0.0)
     x0, x1 = int(xmin), int(np.floor(xmax))
     for py in range(int(ymin), int(np.floor(ymax)) + 1):
         apy = ay - py
         lo, hi = float(x0), float(x1)
-        # ux = bay x + (bax apy - ax bay), uy = -cay x + (ax cay - cax apy), uz - ux - uy: each of sign >= 0
-        for slope, at0 in ((bay, bax * apy - ax * bay), (-cay, ax * cay - cax * apy),
-                           (cay - bay, uz - (bax * apy - ax * bay) - (ax * cay - cax * apy))):
-            a, c = slope * sign, at0 * sign
+        at0 = (bax * apy - ax * bay, ax * cay - cax * apy, uz - (bax * apy - ax * bay) - (ax * cay - cax * apy))
+        for k in range(3):
+            a, c = slopes[k], at0[k] * sign
             if a > 0:
-                lo = max(lo, -c / a - 1.0)
+                lo = max(lo, -c * inverse[k] - 1.0)
             elif a < 0:
-                hi = min(hi, -c / a + 1.0)
+                hi = min(hi, -c * inverse[k] + 1.0)
         for px in range(max(x0, int(np.floor(lo))), min(x1, int(np.ceil(hi))) + 1):
-            b0, b1, b2 = _barycentric(e, float(px), float(py))
-            if b0 < 0 or b1 < 0 or b2 < 0:
+            # TinyRenderer's test b >= 0 for b = (1 - (ux + uy) / uz, uy / uz, ux / uz), decided by signs where
+            # the quotient's rounding cannot matter: (ux + uy) / uz rounds to no more than 1 when ux + uy is at
+            # most uz (in uz's sign), and to more than 1 when it is clearly more
+            apx = ax - px
+            ux = bax * apy - apx * bay
+            uy = apx * cay - cax * apy
+            if ux * sign < 0 or uy * sign < 0:
                 continue
-            q0, q1, q2 = b0 / w0, b1 / w1, b2 / w2
-            qs = q0 + q1 + q2
-            q0, q1, q2 = q0 / qs, q1 / qs, q2 / qs
-            depth = -1.0 * (z0 * q0 + z1 * q1 + z2 * q2)
+            t = (ux + uy) * sign
+            if t > size and (t > size * (1.0 + 1e-12) or 1.0 - (ux + uy) / uz < 0):
+                continue
+            if flat:   # the depth alone, in one division: equal to TinyRenderer's but for the last bits
+                u0 = uz - ux - uy
+                depth = -(u0 * zw0 + uy * zw1 + ux * zw2) / (u0 * rw0 + uy * rw1 + ux * rw2)
+            else:
+                b0, b1, b2 = 1.0 - (ux + uy) / uz, uy / uz, ux / uz
+                q0, q1, q2 = b0 / w0, b1 / w1, b2 / w2
+                qs = q0 + q1 + q2
+                q0, q1, q2 = q0 / qs, q1 / qs, q2 / qs
+                depth = -1.0 * (z0 * q0 + z1 * q1 + z2 * q2)
             row = h - 1 - py
             if float(zbuf[row, px]) > depth:
                 continue

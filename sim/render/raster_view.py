@@ -28,13 +28,57 @@ def car_model(x, y, yaw):
 
 
 @njit(cache=True)
-def draw_view(img, chunks, ground, spans, by_rank, colours, eye, basis, near, fx, fy,
-              verts, normals, bases, painted, firsts, ends, n_chunks, view, projection,
-              car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse):
+def camera_basis(x, y, yaw, forward, left, height, pitch_deg):
+    """sim/camera.py CameraConfig.basis, step for step: the eye [m] of a camera `forward` ahead of a car at (x, y)
+    with yaw [rad], `left` of its axis and `height` up, looking pitch_deg down, and its (right, up, forward) rows."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    eye = np.array([x + forward * c, y + forward * s, height])
+    if left:
+        eye[0] += -left * s
+        eye[1] += left * c
+    p = pitch_deg * (math.pi / 180.0)
+    f0, f1, f2 = math.cos(p) * c, math.cos(p) * s, math.sin(p)
+    basis = np.array([[s, -c, 0.0], [-f2 * c, -f2 * s, f0 * c + f1 * s], [f0, f1, f2]])
+    return eye, basis
+
+
+@njit(cache=True)
+def view_matrix(eye, basis):
+    """OpenGL's lookAt of the camera (CameraConfig.view_matrix), float32 as PyBullet takes it."""
+    m = np.zeros((4, 4))
+    for i in range(3):
+        sign = -1.0 if i == 2 else 1.0
+        for j in range(3):
+            m[i, j] = sign * basis[i, j]
+    for i in range(3):
+        m[i, 3] = -(m[i, 0] * eye[0] + m[i, 1] * eye[1] + m[i, 2] * eye[2])
+    m[3, 3] = 1.0
+    return m.astype(np.float32)
+
+
+@njit(cache=True)
+def in_wedge(cx, cy, radius, x, y, yaw, hfov, cull):
+    """sim/highway/renderer.py Renderer.in_view for one bounding circle: whether it reaches into the view wedge of a
+    camera with horizontal field of view hfov [rad] and cull distance `cull` [m] looking along yaw from (x, y)."""
+    vx, vy = cx - x, cy - y
+    dist = math.hypot(vx, vy)
+    bearing = abs((math.atan2(vy, vx) - yaw + np.pi) % (2 * np.pi) - np.pi)
+    margin = math.asin(min(max(radius / max(dist, 1e-6), 0.0), 1.0))
+    return (dist <= radius or bearing <= hfov / 2 + margin) and dist - radius < cull
+
+
+@njit(cache=True)
+def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy,
+              verts, normals, bases, painted, firsts, ends, n_chunks, projection,
+              car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse):
     """Into img (h, w, 3) uint8, its backdrop: the ground of the chunks `chunks` (bool), polygon p of chunk c and
     rank r listed in by_rank[r, c] (first, end) of `spans` (paint_ground), then their objects (body c: triangles
-    firsts[c]..ends[c]) and the cars (body n_chunks + model, paint car_paints (k, 3)), seen through `view` and
-    `projection` (float32) from `eye` (float64, with `basis`)."""
+    firsts[c]..ends[c]) and the cars `cars` (bool; body n_chunks + model, paint car_paints (k, 3)), as the camera
+    (forward, left, height [m], pitch [deg], near [m]; focal lengths fx, fy [px], `projection` float32) sees them
+    from a car at (x, y) [m] with yaw [rad]."""
+    eye, basis = camera_basis(x, y, yaw, camera[0], camera[1], camera[2], camera[3])
+    near = camera[4]
+    view = view_matrix(eye, basis)
     order = np.empty(len(spans), dtype=np.int64)
     n = 0
     for r in range(by_rank.shape[0]):
@@ -54,6 +98,43 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, eye, basis, near, fx
             draw_body(img, zbuf, verts, normals, bases, painted, firsts[c], ends[c], identity, none, view,
                       projection, eye32, light, ambient, diffuse, True)
     for k in range(len(car_x)):
-        b = n_chunks + car_models[k]
-        draw_body(img, zbuf, verts, normals, bases, painted, firsts[b], ends[b], car_model(car_x[k], car_y[k],
-                  car_yaw[k]), car_paints[k], view, projection, eye32, light, ambient, diffuse, False)
+        if cars[k]:
+            b = n_chunks + car_models[k]
+            draw_body(img, zbuf, verts, normals, bases, painted, firsts[b], ends[b], car_model(car_x[k], car_y[k],
+                      car_yaw[k]), car_paints[k], view, projection, eye32, light, ambient, diffuse, False)
+
+
+@njit(cache=True)
+def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, radii, car_radius, border,
+               ground, spans, by_rank, colours, verts, normals, bases, painted, firsts, ends, x, y, yaw,
+               car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse):
+    """Every view of a frame, as sim/highway/renderer.py composes them: view 0 fills the frame (its backdrop when
+    called), each later one is drawn apart, onto its backdrop at insets[offsets[v]:] (height x width x 3 bytes, C
+    order), and pasted into the frame (flipped left to right where it is a mirror) inside a border of colour
+    `border`. Per view v: layout[v] (outer top, left, height, width; glass top, left, height, width; mirrored),
+    cameras[v] (forward, left, height, pitch, near, fx, fy, yaw offset, hfov, cull) and projections[v]. The chunks'
+    bounding circles (centres, radii) and the cars' (car_radius) choose what each view draws (in_wedge)."""
+    n_chunks = len(radii)
+    chunks = np.empty(n_chunks, dtype=np.bool_)
+    cars = np.empty(len(car_x), dtype=np.bool_)
+    for v in range(len(layout)):
+        cam = cameras[v]
+        heading = yaw + cam[7]
+        for c in range(n_chunks):
+            chunks[c] = in_wedge(centres[c, 0], centres[c, 1], radii[c], x, y, heading, cam[8], cam[9])
+        for k in range(len(car_x)):
+            cars[k] = in_wedge(car_x[k], car_y[k], car_radius, x, y, heading, cam[8], cam[9])
+        gt, gl, gh, gw = layout[v, 4], layout[v, 5], layout[v, 6], layout[v, 7]
+        img = frame if v == 0 else insets[offsets[v]:offsets[v] + gh * gw * 3].reshape(gh, gw, 3)
+        draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6], verts, normals,
+                  bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw, car_models,
+                  car_paints, cars, light, ambient, diffuse)
+        if v:
+            ot, ol, oh, ow = layout[v, 0], layout[v, 1], layout[v, 2], layout[v, 3]
+            for i in range(3):
+                frame[ot:ot + oh, ol:ol + ow, i] = border[i]
+            for r in range(gh):
+                for col in range(gw):
+                    src = gw - 1 - col if layout[v, 8] else col
+                    for i in range(3):
+                        frame[gt + r, gl + col, i] = img[r, src, i]
