@@ -35,8 +35,7 @@ def main() -> None:
         plot(json.loads(Path(args.plot).read_text()), args.out or "benchmark-scores.png")
         return
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "drivestudio", "benchmark", "--workers", str(args.workers), "--out", tmp,
-               "--quiet"]
+        cmd = [sys.executable, "-m", "drivestudio", "benchmark", "--workers", str(args.workers), "--out", tmp]
         for m in args.model or ["oracle"]:
             cmd += ["--model", m]
         cmd += (["--suite", args.suite] if args.suite else []) + (["--shm"] if args.shm else [])

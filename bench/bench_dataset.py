@@ -25,7 +25,7 @@ def gen(out: Path, frames: int, workers: int) -> float:
     shutil.rmtree(out, ignore_errors=True)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), "--frames", str(frames),
-                    "--workers", str(workers), "--quiet"], check=True)
+                    "--workers", str(workers)], check=True)
     return frames / (time.perf_counter() - t0)
 
 

@@ -81,7 +81,7 @@ def dataset(folder: Path) -> Path:
     """A small real sidewalk data set (every mode), its moments cached at 94 x 168 by the trainer's cache."""
     out = folder / "data"
     subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(out),
-                    "--frames", "240", "--episode-frames", "40", "--paths", "park", "--quiet"], check=True,
+                    "--frames", "240", "--episode-frames", "40", "--paths", "park"], check=True,
                    capture_output=True)
     return out
 

@@ -36,7 +36,7 @@ def generate(out: Path, frames: int, workers: int) -> float:
     shutil.rmtree(out, ignore_errors=True)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(out),
-                    "--frames", str(frames), "--workers", str(workers), "--quiet"], check=True)
+                    "--frames", str(frames), "--workers", str(workers)], check=True)
     return frames / (time.perf_counter() - t0)
 
 

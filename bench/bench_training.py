@@ -63,7 +63,7 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-train-"))
     try:
         data = work / "data"
-        drivestudio("generate", "--out", str(data), "--frames", str(args.frames), "--quiet")
+        drivestudio("generate", "--out", str(data), "--frames", str(args.frames))
         best: dict = {}
         for _ in range(args.rounds):
             for fam in args.families.split(","):

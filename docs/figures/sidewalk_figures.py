@@ -233,7 +233,7 @@ def moment() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--frames", "120",
                         "--episode-frames", "40", "--paths", "park", "--seed", "7", "--out", f"{tmp}/d",
-                        "--workers", "2", "--quiet"], check=True, cwd=ROOT)
+                        "--workers", "2"], check=True, cwd=ROOT)
         ds = FrameDataset(f"{tmp}/d", None, normalised=False)
         i = 2 * len(ds) // 3 + 12    # a furtive moment
         images, mode, target = ds[i]

@@ -48,7 +48,7 @@ def highway_shot(page, out: Path) -> None:
     """A small GIST regressor of the highway drives, so that its estimate boxes and error bars show."""
     data, model = out / "highway-data", out / "highway-gist.pt"
     if not (data / "manifest.json").exists():
-        cli("generate", "--out", data, "--frames", 2000, "--quiet")
+        cli("generate", "--out", data, "--frames", 2000)
     if not model.exists():
         cli("train", "--data", data, "--model", "gist", "--out", model)
     s = Studio(["studio", "--port", "0", "--model", model, "--out", out / "studio-highway"], out)

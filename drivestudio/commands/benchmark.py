@@ -75,7 +75,6 @@ def register(sub) -> None:
     p.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
     add_device_option(p)
     p.add_argument("--out", help="output folder (default runs/benchmark-TIME)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -112,7 +111,7 @@ def run(args) -> int:
           f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {workers} workers, "
           f"{'over shared memory' if args.shm else 'in process'}{', as Ray tasks' if args.backend == 'ray' else ''}",
           file=sys.stderr)
-    board = run_benchmark(suite, models, opts, out, workers, show_progress=not args.quiet, backend=args.backend)
+    board = run_benchmark(suite, models, opts, out, workers, show_progress=sys.stderr.isatty(), backend=args.backend)
     text = write_board(out, board)
     print(text.split("\n## Per route")[0].rstrip())
     clips = sum(e["overall"]["clips"] for e in board["models"])

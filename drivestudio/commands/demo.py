@@ -110,7 +110,7 @@ def _highway(step: _Steps, size: Size, hw: Path) -> None:
          size.oracle_seconds, "--record", hw / "oracle-drive.mp4", "--out", hw / "oracle-drive")
     step(f"highway: a labelled dataset ({size.frames} frames, episodes of {size.episode_frames}: every tenth episode "
          "is for testing, and they cycle through 1, 2 and 3 lanes)", "generate", "--out", data, "--frames",
-         size.frames, "--episode-frames", size.episode_frames, "--quiet")
+         size.frames, "--episode-frames", size.episode_frames)
     step("highway: what the dataset covers", "stats", data, "--out", hw / "stats")
     step("highway: the GIST baseline", "train", "--data", data, "--model", "gist", "--out", models / "gist.pt")
     step(f"highway: a MobileNet ({size.iterations} iterations of 32 frames; docs/aggregation.md)",
@@ -137,8 +137,7 @@ def _sidewalk(step: _Steps, size: Size, sw: Path) -> None:
              "sidewalk", "--model", "expert", "--mode", mode, "--path", "park", "--seconds", size.expert_seconds,
              "--record", sw / f"expert-{mode}.mp4", "--out", sw / f"expert-{mode}")
     step(f"sidewalk: a data-moment set ({size.moments} steps, the three modes balanced)", "generate", "--world",
-         "sidewalk", "--out", sdata, "--frames", size.moments, "--episode-frames", size.sw_episode_frames,
-         "--quiet")
+         "sidewalk", "--out", sdata, "--frames", size.moments, "--episode-frames", size.sw_episode_frames)
     step("sidewalk: mode balance, steering and motor spread", "stats", sdata, "--out", sw / "stats")
     step(f"sidewalk: MultiNet (Z2Color with the behavioural mode inserted), {size.epochs} epoch(s)", "train",
          "--data", sdata, "--model", "z2color", "--out", smodels / "multinet.pt", "--epochs", size.epochs,

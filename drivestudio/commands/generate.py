@@ -29,7 +29,6 @@ def register(sub) -> None:
                    help="worker processes (default: cores)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local worker processes, or Ray tasks on a cluster (pip install 'drivestudio[cluster]')")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_world_options(p, "generate", renderer=True)
     p.set_defaults(func=run)
 
@@ -48,7 +47,8 @@ def run(args) -> int:
                          warmup=5.0 if args.warmup is None else args.warmup, options=options)
     t0 = time.perf_counter()
     try:
-        manifest = generate(args.out, cfg, workers=args.workers, backend=args.backend, show_progress=not args.quiet)
+        manifest = generate(args.out, cfg, workers=args.workers, backend=args.backend,
+                            show_progress=sys.stderr.isatty())
     except KeyboardInterrupt:
         print("drivestudio generate: interrupted; run the same command again to continue", file=sys.stderr)
         return 130

@@ -104,7 +104,7 @@ def run(args) -> int:
     else:
         data = out / "data"
         steps.verb(f"the expert's dataset: {size.frames} frames", "generate", "--out", data, "--frames",
-                   size.frames, "--workers", size.workers, "--quiet")
+                   size.frames, "--workers", size.workers)
         board = ensemble_recipe(steps, size, data) if size.members > 1 else single_recipe(steps, size, data)
     fingerprints(steps)
     write_text(out / "commands.txt", "\n".join(steps.log) + "\n")

@@ -83,7 +83,7 @@ def extended_recipe(steps: Steps, size: Extended) -> Path | None:
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
                    "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--workers",
-                   size.workers, "--quiet")
+                   size.workers)
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):
         dataset = Dataset(data)

@@ -107,7 +107,7 @@ def benchmark(steps: Steps, models: list, run: RecipeRun) -> Path | None:
     models_argv = [a for m in models for a in ("--model", m)]
     suite = [] if run.suite == "default" else ["--suite", run.suite]
     steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
-               "--workers", run.workers, "--quiet", "--out", bench)
+               "--workers", run.workers, "--out", bench)
     return board
 
 

@@ -21,7 +21,7 @@ SMALL = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,hairpins"
 
 def generate(run_cli, out, *extra, workers=1, check=True):
     """`drivestudio generate` in this process (its workers are processes of their own all the same)."""
-    r = run_cli("generate", "--out", out, *SMALL, "--workers", workers, "--quiet", *extra)
+    r = run_cli("generate", "--out", out, *SMALL, "--workers", workers, *extra)
     if check:
         assert r.returncode == 0, r.stderr[-3000:]
     return r
@@ -40,7 +40,7 @@ def content(root: Path) -> dict:
 def reference(tmp_path_factory):
     from drivestudio.cli import main
     root = tmp_path_factory.mktemp("ref") / "ds"
-    assert main(["generate", "--out", str(root), *SMALL, "--workers", "2", "--quiet"]) == 0
+    assert main(["generate", "--out", str(root), *SMALL, "--workers", "2"]) == 0
     return root
 
 
@@ -113,7 +113,7 @@ def _children_of(pid: int) -> list[int]:
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
 def test_killed_run_resumes_without_loss_or_duplicates(reference, run_cli, tmp_path, sig):
     out = tmp_path / "ds"
-    cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", "2", "--quiet"]
+    cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", "2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert _wait_for(lambda: any(out.glob("shard-*.parquet")) or any(out.glob(".shard-*.tmp")), 120)
     workers = _children_of(proc.pid)
@@ -137,7 +137,7 @@ def test_killed_run_resumes_without_loss_or_duplicates(reference, run_cli, tmp_p
 def test_other_options_refuse_to_continue(reference, run_cli, tmp_path):
     out = tmp_path / "ds"
     generate(run_cli, out)
-    r = run_cli("generate", "--out", out, *SMALL, "--seed", "5", "--quiet")
+    r = run_cli("generate", "--out", out, *SMALL, "--seed", "5")
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "other options (seed differ)" in r.stderr
 
@@ -175,7 +175,7 @@ def test_a_manifest_that_is_not_json_gets_one_line(reference, run_cli, tmp_path)
     shutil.copytree(reference, out)
     (out / "manifest.json").write_bytes(b"\xff\xfe not utf-8 \x00")
     for verb in (["stats", str(out)], ["evaluate", "--data", str(out), "--model", str(out / "manifest.json")],
-                 ["generate", "--out", str(out), *SMALL, "--quiet"]):
+                 ["generate", "--out", str(out), *SMALL]):
         r = run_cli(*verb)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, verb
 
@@ -235,7 +235,7 @@ def test_resuming_over_a_shard_of_another_world_is_refused(run_cli, tmp_path):
     """A manifest whose entry names a sidewalk shard with that shard's size and checksum: the shard is whole, so
     only its columns tell; continuing would report success and leave an unreadable dataset."""
     hw, sw = tmp_path / "hw", tmp_path / "sw"
-    gen = ["generate", "--quiet", "--workers", "1"]
+    gen = ["generate", "--workers", "1"]
     hw_args = ["--out", str(hw), "--frames", "20", "--episode-frames", "10", "--tracks", "oval", "--cars", "0-0",
                "--set", "camera.width=70", "--set", "camera.height=52"]
     assert run_cli(*gen, *hw_args).returncode == 0

@@ -12,7 +12,7 @@ from tests.helpers import make
 IMAGES = "d5262fd20cc70ecee9d35ccb6eba99cd5d6693e1c9608774220799b62f949a5a"
 LABELS = "ae58514b58a12c42ffd2828ab3d9671a905ab6b6bd58880b4155b1378152fce7"
 COMMAND = ["--frames", "60", "--episode-frames", "20", "--tracks", "oval,procedural:5", "--lanes", "1,2,3",
-           "--cars", "12", "--workers", "2", "--quiet"]
+           "--cars", "12", "--workers", "2"]
 
 
 def digests(root) -> tuple[str, str]:

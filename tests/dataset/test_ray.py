@@ -54,7 +54,7 @@ def cluster():
 
 
 def generate(out: Path, env: dict, *extra: str) -> subprocess.CompletedProcess:
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--quiet",
+    r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL,
                         *extra], capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     return r
@@ -101,5 +101,5 @@ def test_a_ray_run_continues_a_partial_dataset(cluster, tmp_path):
 def test_an_unreachable_cluster_fails_in_one_line(tmp_path):
     env = {**os.environ, **LOOPBACK, "RAY_ADDRESS": f"127.0.0.1:{_free_port()}"}
     r = subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--out", str(tmp_path / "x"), *SMALL,
-                        "--quiet", "--backend", "ray"], capture_output=True, text=True, env=env, timeout=300)
+                        "--backend", "ray"], capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode != 0 and "Traceback" not in r.stderr

@@ -15,7 +15,7 @@ def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("readers") / "ds"
     from tests.helpers import make
     make("generate", "--out", root, "--frames", "200", "--episode-frames", "20", "--tracks", "oval", "--lanes", "3",
-         "--cars", "6", "--workers", "2", "--quiet")
+         "--cars", "6", "--workers", "2")
     return root
 
 

@@ -76,7 +76,7 @@ def test_a_highway_model_is_refused_in_one_line(run_cli, tmp_path):
 def test_rounds_merge_the_corrections_and_retrain(tmp_path):
     data = tmp_path / "data"
     subprocess.run([sys.executable, "-m", "drivestudio", "generate", "--world", "sidewalk", "--out", str(data),
-                    "--frames", "300", "--episode-frames", "50", "--quiet"], cwd=REPO, check=True, timeout=300)
+                    "--frames", "300", "--episode-frames", "50"], cwd=REPO, check=True, timeout=300)
     subprocess.run([sys.executable, "-m", "drivestudio", "train", "--data", str(data), "--model", "z2color", "--out",
                     str(tmp_path / "m.pt"), "--epochs", "1", "--batch-size", "30", "--device", "cpu"], cwd=REPO,
                    check=True, timeout=600, capture_output=True)
@@ -129,7 +129,7 @@ def autonomy(run_cli, checkpoint):
 
 def _generate(*argv):
     from drivestudio.cli import main
-    assert main(["generate", *map(str, argv), "--workers", "1", "--quiet"]) == 0
+    assert main(["generate", *map(str, argv), "--workers", "1"]) == 0
 
 
 def test_rounds_without_data_are_refused_before_round_0(autonomy, tmp_path):

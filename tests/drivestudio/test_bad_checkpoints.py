@@ -80,7 +80,7 @@ def _verbs(ckpt: str, out: Path) -> dict[str, list[str]]:
         "evaluate": ["evaluate", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "eval")],
         "overlay": ["overlay", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "overlays")],
         "export": ["export", "--model", ckpt, "--onnx", str(out / "m.onnx")],
-        "benchmark": ["benchmark", "--model", ckpt, "--out", str(out / "bench"), "--quiet"],
+        "benchmark": ["benchmark", "--model", ckpt, "--out", str(out / "bench")],
         "aggregate": ["aggregate", "--data", str(SMALL), "--model", ckpt, "--out", str(out / "agg"), "--rounds", "1"],
         "train --init": ["train", "--data", str(SMALL), "--model", "alexnet", "--init", ckpt, "--out",
                          str(out / "t.pt")],

@@ -222,7 +222,7 @@ def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
     env = {**os.environ, **worlds}
     data = tmp_path / "data"
     make("generate", "--world", "corridor", "--out", data, "--frames", "200", "--episode-frames", "20", "--workers",
-         "1", "--quiet", env=worlds)
+         "1", env=worlds)
     out = tmp_path / "tiny.pt"
     cmd = [sys.executable, "-m", "drivestudio", "train", "--data", str(data), "--model", "tinyconv", "--out", str(out),
            "--iterations", "10000000", "--batch-size", "4", "--set", "val_every=10000000", "--set",

@@ -365,7 +365,7 @@ def test_in_process_and_over_the_bridge_give_the_same_scores(tmp_path, blind):
     suite = write_suite(tmp_path / "s.json", [ROUTE_A, ROUTE_B])
     boards = []
     for name, extra in (("one", []), ("shm", ["--shm"])):
-        r = ds("benchmark", "--suite", suite, "--model", blind, "--out", tmp_path / name, "--quiet", *extra)
+        r = ds("benchmark", "--suite", suite, "--model", blind, "--out", tmp_path / name, *extra)
         assert r.returncode == 0, r.stderr
         boards.append(json.loads((tmp_path / name / "leaderboard.json").read_text()))
     for x, y in zip(boards[0]["models"], boards[1]["models"]):
@@ -378,7 +378,7 @@ def test_in_process_and_over_the_bridge_give_the_same_scores(tmp_path, blind):
 
 @pytest.mark.slow
 def test_the_oracle_drives_the_default_suite_cleanly(tmp_path):
-    r = ds("benchmark", "--out", tmp_path, "--quiet", timeout=1200)
+    r = ds("benchmark", "--out", tmp_path, timeout=1200)
     assert r.returncode == 0, r.stderr
     o = json.loads((tmp_path / "leaderboard.json").read_text())["models"][0]["overall"]
     assert o["route_completion"] == 1.0 and o["collisions"] == 0 and o["off_road_events"] == 0
@@ -388,7 +388,7 @@ def test_the_oracle_drives_the_default_suite_cleanly(tmp_path):
 @pytest.mark.slow
 def test_the_extended_oracle_drives_controller_hard_cleanly_and_the_oracles_clips_name_the_rule(tmp_path):
     r = ds("benchmark", "--suite", SUITES_DIR / "controller-hard.json", "--model", "oracle-extended", "--workers", "2",
-           "--out", tmp_path, "--quiet", timeout=1800)
+           "--out", tmp_path, timeout=1800)
     assert r.returncode == 0, r.stderr
     oracle, extended = json.loads((tmp_path / "leaderboard.json").read_text())["models"]
     assert extended["model"] == "oracle-extended"

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from tests.helpers import driven_frames
 
-BENCH = [sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle", "--shm", "--workers", "1",
-         "--quiet", "--clips", "0"]
+BENCH = [sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle", "--shm", "--workers", "1", "--clips",
+         "0"]
 
 
 def _segments_of(pids: set[int]) -> list[str]:

@@ -106,7 +106,7 @@ def test_overlay_refuses_options_it_would_ignore(tmp_path, capsys, extra, words)
 @pytest.mark.parametrize("verb, blocked", [
     (["train", "--data", SMALL, "--model", "gist", "--out", "{tmp}/m.pt"], "m.pt.loss.png"),
     (["evaluate", "--data", SMALL, "--model", "{tmp}/model.pt", "--out", "{tmp}"], "mae.png"),
-    (["benchmark", "--model", "oracle", "--out", "{tmp}", "--quiet"], "leaderboard.md"),
+    (["benchmark", "--model", "oracle", "--out", "{tmp}"], "leaderboard.md"),
 ])
 def test_every_file_a_verb_will_write_is_checked_before_work(tmp_path, capsys, verb, blocked):
     """A side output that cannot be written (here: a folder stands where the file goes) is found before any work,

@@ -141,7 +141,7 @@ def _driving(kids) -> bool:
 @pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM, signal.SIGINT])
 def test_benchmark_shm_leaves_no_process_behind_and_a_rerun_starts_clean(tmp_path, signum):
     suite = _suite(tmp_path)
-    argv = DS + ["benchmark", "--model", "oracle", "--shm", "--workers", "1", "--quiet", "--clips", "0", "--suite",
+    argv = DS + ["benchmark", "--model", "oracle", "--shm", "--workers", "1", "--clips", "0", "--suite",
                  str(suite)]
     before = segments()
     first = Started(argv + ["--out", str(tmp_path / "first")], lambda k: _driving(k) and segments() - before,
@@ -176,7 +176,7 @@ def test_generate_leaves_no_worker_behind(tmp_path):
         return sum("drivestudio.pool worker" in ln for ln in _cmdlines(kids)) == 2
 
     started = Started(DS + ["generate", "--out", str(tmp_path / "data"), "--frames", "100000", "--cars", "0",
-                            "--workers", "2", "--quiet"], ready, tmp_path)
+                            "--workers", "2"], ready, tmp_path)
     started.signal_and_check(signal.SIGKILL)
 
 

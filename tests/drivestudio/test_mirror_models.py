@@ -134,7 +134,7 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     for name, extra in (("plain", []), ("mirror", ["--set", "mirror=true", "--lanes", "2,4"]),
                         ("sides", ["--set", "side_views=true"])):
         run = run_cli("generate", "--out", tmp_path / name, "--frames", "24", "--episode-frames", "12",
-                      "--workers", "1", "--cars", "4", "--quiet", *extra)
+                      "--workers", "1", "--cars", "4", *extra)
         assert run.returncode == 0, run.stderr
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""

@@ -137,7 +137,7 @@ def data(tmp_path_factory):
     from drivestudio.cli import main
     root = tmp_path_factory.mktemp("ov") / "ds"
     assert main(["generate", "--out", str(root), "--frames", "40", "--episode-frames", "20", "--tracks", "hairpins",
-                 "--lanes", "2", "--cars", "6", "--workers", "1", "--quiet"]) == 0
+                 "--lanes", "2", "--cars", "6", "--workers", "1"]) == 0
     return root
 
 

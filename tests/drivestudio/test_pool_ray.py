@@ -21,7 +21,7 @@ TIMING = ("wall_s", "loop_rate_hz")   # measured, not driven: they differ betwee
 
 def benchmark(out: Path, suite: Path, env: dict, *extra: str) -> dict:
     r = subprocess.run([sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle", "--suite", str(suite),
-                        "--clips", "0", "--quiet", "--out", str(out), *extra], capture_output=True, text=True,
+                        "--clips", "0", "--out", str(out), *extra], capture_output=True, text=True,
                        env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     board = json.loads((out / "leaderboard.json").read_text())

@@ -44,8 +44,8 @@ def benchmark(folder, tmp_path_factory):
     outs = {}
     for transport in ("in-process", "shm"):
         out = tmp_path_factory.mktemp(transport) / "bench"
-        argv = ["benchmark", "--model", "oracle-extended", "--scenarios", str(folder), "--workers", "2", "--clips", "1",
-                "--quiet", "--out", str(out), *(["--shm"] if transport == "shm" else [])]
+        argv = ["benchmark", "--model", "oracle-extended", "--scenarios", str(folder), "--workers", "2", "--clips",
+                "1", "--out", str(out), *(["--shm"] if transport == "shm" else [])]
         run = subprocess.run([sys.executable, "-m", "drivestudio", *argv], capture_output=True, text=True, timeout=600)
         assert run.returncode == 0, run.stderr
         outs[transport] = out

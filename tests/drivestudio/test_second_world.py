@@ -32,7 +32,7 @@ def cli(*args, check=True):
 def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("corridor") / "ds"
     make("generate", "--world", "corridor", "--out", root, "--frames", 10 * STEPS, "--episode-frames", STEPS,
-         "--workers", 2, "--quiet", env=WORLDS)
+         "--workers", 2, env=WORLDS)
     return root
 
 

@@ -33,8 +33,8 @@ def test_a_child_that_fails_stops_the_others_and_is_named(tmp_path):
     logs = [tmp_path / "slow.log", tmp_path / "bad.log"]
     t0 = time.perf_counter()
     with pytest.raises(RunError, match=r"bad\.log: exit status 2: .*missing\.json"):
-        run_side_by_side([["generate", "--out", str(tmp_path / "g"), "--frames", "1000000", "--workers", "1",
-                           "--quiet"], ["probe", str(tmp_path / "missing.json")]], logs)
+        run_side_by_side([["generate", "--out", str(tmp_path / "g"), "--frames", "1000000", "--workers", "1"],
+                          ["probe", str(tmp_path / "missing.json")]], logs)
     assert time.perf_counter() - t0 < 60          # a million frames were not waited for: the generation was stopped
 
 
@@ -80,8 +80,8 @@ def test_sigterm_to_the_runner_stops_its_children(tmp_path):
 
     out = tmp_path / "gen-stopped"
     code = ("from pathlib import Path\nfrom drivestudio.commands.recipe_steps import run_side_by_side\n"
-            f"run_side_by_side([['generate', '--out', {str(out)!r}, '--frames', '1000000', '--workers', '1', "
-            f"'--quiet']], [Path({str(tmp_path / 'g.log')!r})])\n")
+            f"run_side_by_side([['generate', '--out', {str(out)!r}, '--frames', '1000000', '--workers', '1']], "
+            f"[Path({str(tmp_path / 'g.log')!r})])\n")
     def running() -> set[int]:
         """The processes whose command line names the output folder: the runner and its child."""
         found = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout

@@ -28,7 +28,7 @@ def _generate(out: Path) -> None:
     from drivestudio.cli import main
 
     rc = main(["generate", "--out", str(out), "--frames", str(FRAMES), "--episode-frames", str(EPISODE_FRAMES),
-               "--workers", "1", "--cars", "6-10", "--quiet"])
+               "--workers", "1", "--cars", "6-10"])
     assert rc == 0, "drivestudio generate failed"
 
 

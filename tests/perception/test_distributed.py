@@ -76,8 +76,7 @@ def torchrun(*args):
 @pytest.fixture(scope="module")
 def corridor(tmp_path_factory):
     root = tmp_path_factory.mktemp("corridor") / "ds"
-    cli("generate", "--world", "corridor", "--out", root, "--frames", 300, "--episode-frames", 30, "--workers", 2,
-        "--quiet")
+    cli("generate", "--world", "corridor", "--out", root, "--frames", 300, "--episode-frames", 30, "--workers", 2)
     return root
 
 

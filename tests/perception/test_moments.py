@@ -23,7 +23,7 @@ def data(tmp_path_factory):
     out = tmp_path_factory.mktemp("cache") / "data"
     from tests.helpers import make
     make("generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "40", "--paths", "park",
-         "--workers", "1", "--quiet", "--seed", "3", "--out", out)
+         "--workers", "1", "--seed", "3", "--out", out)
     return out
 
 

@@ -33,8 +33,7 @@ def sidewalk_data(tmp_path_factory):
     out = tmp_path_factory.mktemp("outputs") / "data"
     assert main(["generate", "--world", "sidewalk", "--frames", "120", "--episode-frames", "20",
                  "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park", "--workers", "1",
-                 "--quiet", "--seed", "5",
-                 "--out", str(out)]) == 0
+                 "--seed", "5", "--out", str(out)]) == 0
     return out
 
 

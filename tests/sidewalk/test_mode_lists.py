@@ -23,7 +23,7 @@ def sidewalk_data(tmp_path_factory):
     out = tmp_path_factory.mktemp("modes") / "data"
     assert main(["generate", "--world", "sidewalk", "--frames", "60", "--episode-frames", "30",
                  "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park", "--workers", "1",
-                 "--quiet", "--seed", "5", "--out", str(out)]) == 0
+                 "--seed", "5", "--out", str(out)]) == 0
     return out
 
 
@@ -44,7 +44,7 @@ def test_generate_refuses_modes_naming_no_mode(tmp_path, capsys, text):
     out = tmp_path / "data"
     _refused(capsys, ["generate", "--world", "sidewalk", "--modes", text, "--frames", "30", "--episode-frames",
                       "30", "--set", "stereo.width=168", "--set", "stereo.height=94", "--paths", "park",
-                      "--workers", "1", "--quiet",
+                      "--workers", "1",
                       "--out", str(out)], f"--modes {text!r} names no mode")
     assert not out.exists()
 

@@ -14,7 +14,7 @@ from tests.helpers import make
 GENERATE = ["generate", "--world", "sidewalk", "--frames", "90",
             "--episode-frames", "30", "--set", "stereo.width=168", "--set", "stereo.height=94",
             "--paths", "park,procedural:3",
-            "--workers", "2", "--quiet", "--seed", "5"]
+            "--workers", "2", "--seed", "5"]
 
 
 @pytest.fixture(scope="module")

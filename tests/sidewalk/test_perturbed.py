@@ -71,7 +71,7 @@ def test_the_same_seed_perturbs_the_same_way():
 GENERATE = ["generate", "--world", "sidewalk", "--frames", "400",
             "--episode-frames", "200", "--set", "stereo.width=168", "--set", "stereo.height=94",
             "--paths", "park", "--modes",
-            "direct,furtive", "--workers", "1", "--quiet", "--seed", "5"]
+            "direct,furtive", "--workers", "1", "--seed", "5"]
 
 
 @pytest.fixture(scope="module")

@@ -33,7 +33,7 @@ def merged(tmp_path_factory):
     data = root / "data"
     from drivestudio.cli import main
     assert main(["generate", "--world", "sidewalk", "--out", str(data), "--frames", "240", "--episode-frames", "40",
-                 "--paths", "park", "--workers", "1", "--quiet"]) == 0
+                 "--paths", "park", "--workers", "1"]) == 0
     torch.manual_seed(0)
     model = Regressor(make_spec("z2color", SIDEWALK, modal=True, modes_trained=list(SIDEWALK.modes)))
     save_checkpoint(root / "m.pt", {"spec": model.spec, "state_dict": model.state_dict(), "train": {},

@@ -193,7 +193,7 @@ class Study:
             return
         c = self.cfg
         self.timed("generate", self.verb, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
-                   "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed, "--quiet",
+                   "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed,
                    *(["--perturbed", c.perturbed] if c.perturbed else []),
                    *(["--backend", "ray"] if self.backend == "ray" else []))
 
