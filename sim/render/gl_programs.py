@@ -5,6 +5,8 @@ order, not by depth, as sim/ground_painter.py paints it: each ground vertex carr
 becomes its depth (a later material is nearer), and its colour as the painter's. Objects are lit per pixel as
 PyBullet's TinyRenderer lights them (sim/render/raster_objects.py), without shadows or specular light, and their
 depth is squeezed in front of every ground rank: every object stands on the ground, so nothing of it is in front.
+Beyond the far plane nothing is drawn, as TinyRenderer draws nothing there (the insets' cameras see 150 m and cull
+at 120 m).
 
 Cars are instances: the car's pose and paint are per instance; the static scenery is instance 0, which does not move
 it. Pixel offsets (`ground_shift`, `object_shift`, in NDC) align the ground with the painter's pixel grid and the
@@ -43,8 +45,10 @@ void main() {{
     if (in_kind == {GROUND:g}) {{
         gl_Position.xy += ground_shift * gl_Position.w;
         gl_Position.z = ({GROUND_DEPTH[0]:g} - {GROUND_DEPTH[1]:g} * in_rank) * gl_Position.w;
+        gl_ClipDistance[0] = 1.0;
     }} else {{
         gl_Position.xy += object_shift * gl_Position.w;
+        gl_ClipDistance[0] = gl_Position.w - gl_Position.z;   // the far plane, which the squeezed depth no longer is
         gl_Position.z = {OBJECT_DEPTH[0]:g} * gl_Position.z + ({OBJECT_DEPTH[1]:g}) * gl_Position.w;
     }}
 }}

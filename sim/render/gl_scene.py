@@ -21,6 +21,7 @@ INSTANCE_FORMAT = "2f 2f 3f/i"
 INSTANCE_ATTRIBUTES = ("in_place", "in_heading", "in_paint")
 STILL = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]], dtype=np.float32)   # instance 0: the static scenery
 COMMAND = 5   # uint32 fields of an indirect draw command (below)
+CLIP_DISTANCE0 = 0x3000   # GL_CLIP_DISTANCE0: the objects' far plane (sim/render/gl_programs.py)
 
 
 @dataclass
@@ -117,6 +118,7 @@ class GLScene:
         h, w = self.size
         self._clear_depth(1.0, (0, 0, w, h))
         ctx.enable_only(ctx.DEPTH_TEST | ctx.CULL_FACE)
+        ctx.enable_direct(CLIP_DISTANCE0)
         for v, (first, n_tri, n_lines) in zip(views, spans):
             top, left, vh, vw = v.rect
             fbo.viewport = (left, top, vw, vh)   # the frame's rows are OpenGL's rows: y counts down the frame
