@@ -48,6 +48,7 @@ from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.commands.numbers import count
 from drivestudio.errors import UsageError
+from sim.camera import RENDERERS
 
 
 def register(sub) -> None:
@@ -72,7 +73,8 @@ def register(sub) -> None:
                    help="each route's driver in its own process over shared memory, as `drive` (default: in process)")
     p.add_argument("--clips", type=count(0, 1000), default=10,
                    help="crash clips kept per route and model (default 10; 0: none)")
-    p.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
+    p.add_argument("--renderer", choices=RENDERERS, default="tiny", help="the renderer of the routes' frames "
+                   "(default tiny; docs/rendering.md)")
     add_device_option(p)
     p.add_argument("--out", help="output folder (default runs/benchmark-TIME)")
     p.set_defaults(func=run)

@@ -18,11 +18,11 @@ from drivestudio.errors import UsageError
 HELP_WORLD = ["highway"]   # the world whose options --help lists (cli.main sets it from the command line's --world)
 
 
-def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool = False) -> None:
+def add_world_options(p, verb: str, seed_default: int | None = 0) -> None:
     """--world and every world's options for `verb`: the settings of its configuration that the verb shows
     (drivestudio/commands/world_options.py) and its own options. Every world's options are read, but --help lists
-    those of one world (`--world W --help` another's). --seed and --renderer are added here for the verbs whose
-    worlds are built otherwise (generate's plans)."""
+    those of one world (`--world W --help` another's). --seed is added here for the verbs whose worlds are built
+    otherwise (generate's plans)."""
     g = p.add_argument_group("world")
     g.add_argument("--world", default=None, choices=worlds.names(), help="which world (default highway, or the "
                    "--config file's)")
@@ -32,8 +32,6 @@ def add_world_options(p, verb: str, seed_default: int | None = 0, renderer: bool
     if seed_default is not None and "seed" not in shown:
         g.add_argument("--seed", type=seed_type(), default=seed_default,
                        help=f"seed of the scene and the traffic (default {seed_default})")
-    if renderer and "renderer" not in shown:
-        g.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="PyBullet renderer (default tiny)")
     listed = HELP_WORLD[0] if HELP_WORLD[0] in settings else "highway"
     others = [pl.name for pl in plugins if pl.name != listed and settings[pl.name]]
     if others:

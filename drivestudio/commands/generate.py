@@ -29,7 +29,7 @@ def register(sub) -> None:
                    help="worker processes (default: cores)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
                    help="local worker processes, or Ray tasks on a cluster (pip install 'drivestudio[cluster]')")
-    add_world_options(p, "generate", renderer=True)
+    add_world_options(p, "generate")
     p.set_defaults(func=run)
 
 
@@ -38,10 +38,13 @@ def run(args) -> int:
 
     plugin = plugin_for(args)
     check_output_dir(args.out, "dataset folder")
-    plan = {**args.world_options.values(plugin.name, args), "renderer": args.renderer}
+    config = world_config(plugin, args)
     # a bad track or mode fails here, in one line, before any work
-    options = plugin.generate_options(world_config(plugin, args), plan)
-    cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=args.renderer,
+    options = plugin.generate_options(config, args.world_options.values(plugin.name, args))
+    # the renderer is a setting of a world that has a choice of them (--set renderer=NAME); the sidewalk paints its
+    # own frames and its datasets record the default
+    renderer = getattr(config, "renderer", GenerateConfig.renderer)
+    cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=renderer,
                          encoding=args.encoding, quality=args.quality,
                          episode_frames=episode_length(args.frames, args.episode_frames),
                          warmup=5.0 if args.warmup is None else args.warmup, options=options)

@@ -132,9 +132,6 @@ class Plugin(base.Plugin):
 
     # --- datasets ------------------------------------------------------------------------------------------------
     def generate_options(self, config: SidewalkConfig, plan: dict) -> dict:
-        if plan.get("renderer") == "egl":
-            raise UsageError("the sidewalk world paints its frames with OpenCV (sim/sidewalk/painter.py); "
-                             "--renderer egl does not apply to it")
         modes = mode_list(plan.get("modes"))
         density = DEFAULT_DENSITY if plan.get("obstacles") is None else obstacles_value(plan["obstacles"])
         if isinstance(density, str):
