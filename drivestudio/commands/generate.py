@@ -1,6 +1,7 @@
 """drivestudio generate --out DIR --frames N [--world W]: a labelled dataset of expert driving (docs/dataset.md)."""
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -18,8 +19,8 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="dataset folder")
     p.add_argument("--frames", type=count(1, 10**8), default=20000,
                    help="steps in the dataset (default 20000)")
-    p.add_argument("--encoding", choices=("png", "jpeg"), default="png", help="png (lossless, default) or jpeg")
-    p.add_argument("--quality", type=count(1, 100), default=95, help="JPEG quality (default 95)")
+    p.add_argument("--encoding", type=encoding, default=("png", 95), metavar="png|jpeg[:QUALITY]",
+                   help="the frames' image format: png (lossless, the default) or jpeg at QUALITY 1-100 (default 95)")
     p.add_argument("--episode-frames", type=count(10, 10**6), default=None,
                    help="steps per episode and shard (default 500, shortened so that a small dataset still has "
                         "10 episodes and every split holds frames)")
@@ -45,7 +46,7 @@ def run(args) -> int:
     # own frames and its datasets record the default
     renderer = getattr(config, "renderer", GenerateConfig.renderer)
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=renderer,
-                         encoding=args.encoding, quality=args.quality,
+                         encoding=args.encoding[0], quality=args.encoding[1],
                          episode_frames=episode_length(args.frames, args.episode_frames),
                          warmup=5.0 if args.warmup is None else args.warmup, options=options)
     t0 = time.perf_counter()
@@ -60,3 +61,13 @@ def run(args) -> int:
     print(f"{manifest['frames']} frames in {n} episodes at {args.out} ({dt:.0f} s this run)"
           + ("" if manifest["complete"] else " - incomplete: run the same command again to continue"))
     return 0
+
+
+def encoding(text: str) -> tuple[str, int]:
+    """--encoding png | jpeg | jpeg:QUALITY, as (format, JPEG quality)."""
+    name, _, quality = text.partition(":")
+    if name not in ("png", "jpeg") or (quality and name == "png"):
+        raise argparse.ArgumentTypeError(f"must be png, jpeg or jpeg:QUALITY, got {text!r}")
+    if not quality:
+        return name, 95
+    return name, count(1, 100)(quality)

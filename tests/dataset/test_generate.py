@@ -251,3 +251,25 @@ def test_resuming_over_a_shard_of_another_world_is_refused(run_cli, tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "does not have the columns of a highway dataset" in r.stderr and "give a new --out" in r.stderr
     assert {p.name: p.read_bytes() for p in hw.iterdir() if p.is_file()} == before
+
+
+@pytest.mark.parametrize("given, stored", [("jpeg:40", ("jpeg", 40)), ("jpeg", ("jpeg", 95))])
+def test_jpeg_frames_are_stored_at_the_quality_asked(run_cli, tmp_path, given, stored):
+    """--encoding jpeg[:QUALITY]: the manifest records the format and the quality, and the frames are stored as
+    JPEG."""
+    out = tmp_path / given.replace(":", "-")
+    r = run_cli("generate", "--out", out, "--frames", "10", "--episode-frames", "10", "--workers", 1,
+                "--encoding", given, "--set", "camera.width=70", "--set", "camera.height=52")
+    assert r.returncode == 0, r.stderr
+    config = read_manifest(out)["config"]
+    assert (config["encoding"], config["quality"]) == stored
+    ds = Dataset(out)
+    raw = pq.read_table(out / ds.shards[0].file).column("image_front")[0].as_py()
+    assert raw[:3] == b"\xff\xd8\xff"      # a JPEG's start-of-image marker
+
+
+@pytest.mark.parametrize("given", ["png:90", "gif", "jpeg:0", "jpeg:101", "jpeg:x"])
+def test_a_bad_encoding_is_one_line_before_any_work(run_cli, tmp_path, given):
+    r = run_cli("generate", "--out", tmp_path / "d", "--frames", "10", "--encoding", given)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--encoding" in r.stderr, r.stderr
+    assert not (tmp_path / "d").exists()
