@@ -287,7 +287,7 @@ class SumoTraffic:
             self._last_s = np.zeros(len(self._ids))
         self._last_s[idx] = s
         return CarStates(x, y, yaw, np.atleast_1d(s), np.atleast_1d(d), self.length[idx], self.width[idx],
-                         self.models[idx], self.paints[idx], speed)
+                         self.models[idx], self.paints[idx], speed, idx)
 
     def lane_index(self, i: int) -> int:
         """Our lane (0 = leftmost) that SUMO has car i (of states()' order, actors first) on."""

@@ -26,6 +26,7 @@ class CarStates:
     models: np.ndarray  # index into car_models()
     paints: np.ndarray  # index into PAINTS
     speed: np.ndarray   # [m/s] along the car's heading
+    ids: np.ndarray | None = None   # which car each entry is, the same from step to step (SUMO inserts some late)
 
     @classmethod
     def empty(cls) -> CarStates:
@@ -74,7 +75,7 @@ class ScriptedTraffic:
             return CarStates.empty()
         x, y, yaw = self.track.pose(self.s, self.d)
         return CarStates(x, y, yaw, self.s.copy(), self.d.copy(), self.length, self.width, self.models,
-                         self.paints, self.speed.copy())
+                         self.paints, self.speed.copy(), np.arange(len(self.s)))
 
     def close(self) -> None:
         pass

@@ -5,14 +5,19 @@ import csv
 import json
 import subprocess
 import sys
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from drivestudio.loop import in_process, run_loop
+from drivestudio.worlds.highway.benchmark.replay import replay_scenario
 from drivestudio.worlds.highway.benchmark.scenarios import SCENARIOS_DIR, load_scenarios
 from drivestudio.worlds.highway.drivers import ChenDriver
 from sim.highway.scripted import EVENT_FIELDS, load_scripted
+from sim.highway.traffic import CarStates
 from sim.highway.world import World, WorldConfig
+from sim.track import load_track
 
 # the plain oracle runs into a car braking hard 20 m ahead; the extended oracle (L5) stops in time; both let a
 # slower car cut in 25 m ahead and keep their distance
@@ -99,3 +104,24 @@ def test_the_shipped_suite_has_every_event_kind_on_one_to_four_lanes():
     assert {e.do for s in scenarios for e in s.events} == set(EVENT_FIELDS)
     assert any(e.gap is not None for s in scenarios for e in s.events)
     assert any(len(s.events) > 1 for s in scenarios)   # chains
+
+
+def test_a_replay_keeps_its_whole_window_when_sumo_inserts_a_car_late():
+    """A car SUMO inserts during the window is left out; the cars there throughout keep their identity (not their
+    row), so the replay starts as early as the clip allows."""
+    track = load_track("oval", lanes=2)
+    steps = []
+    for k in range(40):
+        ids = np.array([0, 2]) if k < 20 else np.array([0, 1, 2])   # car 1 inserted at 2 s, before the others' rows
+        s = {0: 30.0 + 1.5 * k * 0.1, 1: 300.0, 2: -20.0 + 2.0 * k * 0.1}
+        n = len(ids)
+        cars = CarStates(np.zeros(n), np.zeros(n), np.zeros(n), np.array([s[i] for i in ids]),
+                         np.array([-2.0 if i == 0 else 2.0 for i in ids]), np.full(n, 4.6), np.full(n, 1.8),
+                         np.zeros(n, int), np.zeros(n, int), np.array([15.0 if i == 0 else 20.0 for i in ids]), ids)
+        truth = SimpleNamespace(ego=np.array([0, 0, 0, 1.8 * k * 0.1, -2.0]), speed=18.0,
+                                indicators=np.zeros(14))
+        steps.append(SimpleNamespace(obs=SimpleNamespace(t=10.0 + k * 0.1, truth=truth), cars=cars))
+    route = SimpleNamespace(track="oval", track_ref="oval", seed=1)
+    obj = replay_scenario(steps, track, route, 13.9, "late", "a test")
+    assert obj["route"]["seconds"] == pytest.approx(5.9) and obj["host"]["lane"] == 1
+    assert [(a["name"], a["gap"], a["lane_offset"]) for a in obj["actors"]] == [("car0", 30.0, 0), ("car2", -20.0, 1)]

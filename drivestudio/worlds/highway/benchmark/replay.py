@@ -28,39 +28,52 @@ LANE_CENTRE = 0.05       # [m] farther than this from its lane's centre, a car h
 
 def replay_scenario(entries: list, track, route, t_event: float, name: str, about: str) -> dict | None:
     """The scenario (a JSON object) of `entries` (the clip's steps up to the collision, each with its `obs` and
-    `cars`), on `route`'s track, lanes and seed; None when the steps do not show every car throughout."""
+    `cars`), on `route`'s track, lanes and seed; None with fewer than two steps."""
     steps = [e for e in entries if e.cars is not None]
-    n = len(steps[-1].cars) if steps else 0
-    steps = [e for e in steps if len(e.cars) == n]   # cars join only at the start of a route: keep the same ones
     if len(steps) < 2:
         return None
+    rows = [_rows_by_car(e.cars) for e in steps]
+    cars = sorted(set.intersection(*(set(r) for r in rows)))   # SUMO inserts some cars late: those there throughout
     t0 = float(steps[0].obs.t)
-    truth = steps[0].obs.truth
-    s0, d0 = float(truth.ego[3]), float(truth.ego[4])
-    lane = int(track.lane_of(d0))
-    half = MAX_OFFSET_SHARE * track.lane_width
-    host = {"s": round(s0, 3), "lane": lane, "speed": round(float(truth.speed), 4),
-            "offset": round(float(np.clip(d0 - track.lane_centres[lane], -half, half)), 4),
-            "heading": round(float(np.clip(-truth.indicators[0], -MAX_HEADING, MAX_HEADING)), 5)}
+    host = _host(steps[0].obs.truth, track)
+    lane = host["lane"]
+
+    def column(field: str) -> np.ndarray:   # (steps, cars)
+        return np.array([[getattr(e.cars, field)[r[c]] for c in cars] for e, r in zip(steps, rows)]).reshape(
+            len(steps), len(cars))
+    s, d, v = column("s"), column("d"), column("speed")
     ego_s = np.array([float(e.obs.truth.ego[3]) for e in steps])
-    s = np.array([e.cars.s for e in steps]).reshape(len(steps), n)
-    d = np.array([e.cars.d for e in steps]).reshape(len(steps), n)
-    v = np.array([e.cars.speed for e in steps]).reshape(len(steps), n)
-    gaps = np.array([track.gap(a, b) for a, b in zip(ego_s, s)]).reshape(len(steps), n)
+    gaps = np.array([track.gap(a, b) for a, b in zip(ego_s, s)]).reshape(len(steps), len(cars))
     t = np.array([float(e.obs.t) for e in steps]) - t0
+    models = column("models")[0]
     actors, events = [], []
     for i in np.flatnonzero(np.abs(gaps).min(axis=0) <= REPLAY_RANGE):
-        actor = f"car{i}"
+        actor = f"car{cars[i]}"
         car_lane = int(track.lane_of(float(d[0, i])))
         actors.append({"name": actor, "lane_offset": lane - car_lane, "gap": round(float(gaps[0, i]), 3),
-                       "speed": round(float(v[0, i]), 4), "model": MODEL_NAMES[int(steps[0].cars.models[i])],
-                       "blind": True})
+                       "speed": round(float(v[0, i]), 4), "model": MODEL_NAMES[int(models[i])], "blind": True})
         events += _lane_changes(actor, t, d[:, i], track) + _speeds(actor, t, v[:, i])
     events.sort(key=lambda e: e["when"]["time"])
     return {"version": VERSION, "name": name, "description": about,
             "route": {"track": route.track_ref or route.track, "lanes": track.lanes, "traffic": 0, "seed": route.seed,
                       "seconds": round(t_event - t0 + REPLAY_AFTER, 1)},
             "host": host, "actors": actors, "events": events, "pass": {"no_collision": True}}
+
+
+def _host(truth, track) -> dict:
+    """The host's start: where it was (its lane, its offset in it), its heading and speed."""
+    d = float(truth.ego[4])
+    lane = int(track.lane_of(d))
+    half = MAX_OFFSET_SHARE * track.lane_width
+    return {"s": round(float(truth.ego[3]), 3), "lane": lane, "speed": round(float(truth.speed), 4),
+            "offset": round(float(np.clip(d - track.lane_centres[lane], -half, half)), 4),
+            "heading": round(float(np.clip(-truth.indicators[0], -MAX_HEADING, MAX_HEADING)), 5)}
+
+
+def _rows_by_car(cars) -> dict[int, int]:
+    """{car id: its row} of one step's cars (rows in order when they carry no ids)."""
+    ids = cars.ids if cars.ids is not None else np.arange(len(cars))
+    return {int(c): k for k, c in enumerate(ids)}
 
 
 def _lane_changes(actor: str, t: np.ndarray, d: np.ndarray, track) -> list[dict]:
