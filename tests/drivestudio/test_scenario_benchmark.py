@@ -125,3 +125,26 @@ def test_a_replay_keeps_its_whole_window_when_sumo_inserts_a_car_late():
     obj = replay_scenario(steps, track, route, 13.9, "late", "a test")
     assert obj["route"]["seconds"] == pytest.approx(5.9) and obj["host"]["lane"] == 1
     assert [(a["name"], a["gap"], a["lane_offset"]) for a in obj["actors"]] == [("car0", 30.0, 0), ("car2", -20.0, 1)]
+
+
+PHYSICS_FORBIDS = {"cut-in-10m-2l", "merge-alongside-3l"}   # docs/scenarios.md, "What physics allows"
+
+
+@pytest.mark.slow
+def test_the_extended_oracle_passes_every_scenario_physics_allows_and_the_oracles_fails_have_clips(tmp_path):
+    out = tmp_path / "suite"
+    run = subprocess.run([sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle-extended",
+                          "--scenarios", str(SCENARIOS_DIR), "--workers", "2", "--out", str(out)],
+                         capture_output=True, text=True, timeout=1800)
+    assert run.returncode == 0, run.stderr
+    got = rows(out)
+    failed = {m: {s for (model, s), r in got.items() if model == m and r["passed"] == "False"}
+              for m in ("oracle", "oracle-extended")}
+    assert failed["oracle-extended"] == PHYSICS_FORBIDS
+    assert failed["oracle"] == {r.name for r in load_scenarios(SCENARIOS_DIR).routes} - {
+        "cut-in-20m-2l", "merge-half-ahead-2l", "van-slows-boxed-in-4l"}
+    board = json.loads((out / "leaderboard.json").read_text())
+    for route in board["models"][0]["routes"]:
+        if got[("oracle", route["route"])]["collision_t"]:
+            clip = next(c for c in route["clips"] if c["event"] == "collision")
+            assert (out / clip["file"]).is_file() and (out / "clips" / "oracle" / clip["scenario"]).is_file()
