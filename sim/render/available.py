@@ -25,9 +25,9 @@ _EGL_USER: list[str] = []   # the renderer that uses EGL in this process, once o
 
 
 def share_egl(name: str) -> str | None:
-    """Renderer `name` ("egl" or "gl") is about to use EGL in this process: None when it may, else why not. PyBullet's
-    EGL plugin keeps its context current from its first frame on, so a frame of OpenGL between two of its frames
-    crashes the process: the two renderers do not share one."""
+    """Renderer `name` ("egl" or "gl") is about to use EGL in this process: None when it may, else why not. A frame
+    of OpenGL between two frames of PyBullet's EGL plugin crashes the process, even with OpenGL's context current only
+    while it draws: the two renderers do not share one."""
     if _EGL_USER and _EGL_USER[0] != name:
         return f"renderer {name} cannot draw in a process where renderer {_EGL_USER[0]} has (their EGL contexts " \
                "collide); use one of them, or another process"
