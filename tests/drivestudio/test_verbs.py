@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from drivestudio import worlds
 from drivestudio.cli import VERBS, build_parser
 
@@ -58,3 +60,21 @@ def test_the_command_line_is_built_without_torch():
     code = "import sys; from drivestudio.cli import build_parser; build_parser(); print('torch' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
+
+
+@pytest.mark.parametrize("world", ["highway", "sidewalk"])
+def test_no_verb_shows_more_than_20_options_and_all_show_at_most_180(world):
+    """The command line stays small: a setting beyond a verb's job is a `--set NAME=VALUE` of its configuration."""
+    import argparse
+
+    from drivestudio import cli
+    cli.listed_world(["--world", world])
+    try:
+        parser = cli.build_parser()
+    finally:
+        cli.listed_world([])
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    shown = {verb: sum(1 for a in p._actions if a.option_strings and a.help != argparse.SUPPRESS
+                       and "-h" not in a.option_strings) for verb, p in sub.choices.items()}
+    assert max(shown.values()) <= 20, shown
+    assert sum(shown.values()) <= 180, shown
