@@ -38,10 +38,8 @@ def checkpoint(tmp_path_factory):
     return path
 
 
-def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint), "--mode",
-                        "direct", "--seconds", "3", "--out", str(tmp_path)], cwd=REPO, capture_output=True,
-                       text=True, timeout=300)
+def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_path, run_cli):
+    r = run_cli("autonomy", "--model", checkpoint, "--mode", "direct", "--seconds", "3", "--out", tmp_path)
     assert r.returncode == 0, r.stderr
     result = json.loads((tmp_path / "autonomy.json").read_text())["rounds"][0]
     ds = Dataset(tmp_path / "corrections-0")
@@ -104,12 +102,9 @@ def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoi
     assert not (tmp_path / "a").exists()
 
 
-def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "drivestudio", "autonomy", "--model", str(checkpoint),
-                        "--mode", "furtive",
-                        "--rule", "strict", "--seconds", "3", "--set", "video=false", "--out", str(tmp_path)],
-                       cwd=REPO,
-                       capture_output=True, text=True, timeout=300)
+def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path, run_cli):
+    r = run_cli("autonomy", "--model", checkpoint, "--mode", "furtive", "--rule", "strict", "--seconds", "3",
+                "--set", "video=false", "--out", tmp_path)
     assert r.returncode == 0, r.stderr
     result = json.loads((tmp_path / "autonomy.json").read_text())["rounds"][0]
     assert result["rule"] == "strict" and result["mode"] == "furtive" and result["corrections"] >= 1
