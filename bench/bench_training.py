@@ -11,8 +11,15 @@ iterations after the first logged row (start-up excluded), and a configuration's
 speed-up that has no option to turn it off, such as the fused optimisers): `git worktree add DIR <commit>`, a
 commit whose `train` takes the settings as `--set NAME=VALUE`.
 
+`--precision` compares float32 (`amp=false`) with the bfloat16 autocast the trainer uses where the CPU computes
+bfloat16 natively (`amp`, the default), both in the fastest configuration above (channels-last, the frame cache, no
+loader process, as the recipe trains): iterations a minute side by side, the median of the rounds (a shared machine
+drifts, so the rounds alternate and the median is the figure), each round's ratio. `--threads 1` measures a
+network as the recipe trains it, one thread each beside the others.
+
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
+    python bench/bench_training.py --precision [--rounds 5] [--threads N] [--families alexnet,mobilenet-h1]
 """
 from __future__ import annotations
 
@@ -20,26 +27,31 @@ import argparse
 import csv
 import json
 import os
+import platform
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
+# each family at its default batch; mobilenet-h1 is the recipe's network (the previous frame too)
 FAMILIES = {"alexnet": (["--model", "alexnet", "--batch-size", "15", "--set", "optimizer=adam", "--lr", "1e-4"], 24),
-            "mobilenet": (["--model", "mobilenet"], 48),
-            "mobilenet-h1": (["--model", "mobilenet", "--set", "history=1"], 48)}
+            "mobilenet": (["--model", "mobilenet", "--batch-size", "32"], 48),
+            "mobilenet-h1": (["--model", "mobilenet", "--batch-size", "32", "--set", "history=1"], 48)}
 VARIANTS = {"before (contiguous, PNG every epoch)": ["--set", "channels_last=false", "--set", "cache=false",
                                                     "--workers", "1"],
             "channels-last": ["--set", "cache=false", "--workers", "1"],
             "channels-last + frame cache": ["--workers", "1"],
             "channels-last + frame cache, no loader process": ["--workers", "0"]}
+PRECISIONS = {"float32": ["--workers", "0", "--set", "amp=false"], "bfloat16 autocast": ["--workers", "0"]}
 
 
-def drivestudio(*args: str, tree: Path | None = None) -> None:
+def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -> None:
     """A verb of this checkout, or of the checkout `tree` (python -m puts the working folder first on the path)."""
     subprocess.run([sys.executable, "-m", "drivestudio", *args], check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL, cwd=tree)
+                   stderr=subprocess.DEVNULL, cwd=tree, env=None if env is None else {**os.environ, **env})
 
 
 def samples_per_s(ckpt: Path) -> float:
@@ -49,16 +61,94 @@ def samples_per_s(ckpt: Path) -> float:
     return len(rates) / sum(1 / r for r in rates) if rates else 0.0
 
 
+def batch_of(options: list[str]) -> int:
+    return int(options[options.index("--batch-size") + 1])
+
+
+def cpu_name() -> str:
+    """The processor's model name and its bfloat16 units, as the kernel lists them."""
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return platform.processor() or platform.machine()
+    name = next((line.split(":", 1)[1].strip() for line in info.splitlines() if line.startswith("model name")),
+                platform.machine())
+    flags = next((line.split(":", 1)[1].split() for line in info.splitlines() if line.startswith("flags")), [])
+    units = [f for f in ("avx512_bf16", "amx_bf16") if f in flags]
+    return f"{name} ({', '.join(units) or 'no native bfloat16'})"
+
+
+def precision(args) -> None:
+    """float32 against bfloat16 autocast, alternating round by round: iterations a minute, medians."""
+    work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-precision-"))
+    families = args.families.split(",")
+    env = {} if args.threads is None else {"OMP_NUM_THREADS": str(args.threads), "MKL_NUM_THREADS": str(args.threads)}
+    threads = args.threads or os.cpu_count()
+    try:
+        data = work / "data"
+        drivestudio("generate", "--out", str(data), "--frames", str(args.frames))
+        per_min: dict = {(fam, p): [] for fam in families for p in PRECISIONS}
+        loads = [os.getloadavg()[0]]
+        for r in range(args.rounds):
+            for fam in families:
+                options, iterations = FAMILIES[fam]
+                # the order flips every round: neither precision always runs first after the other family
+                for name in (list(PRECISIONS) if r % 2 == 0 else list(reversed(PRECISIONS))):
+                    ckpt = work / f"{fam}.pt"
+                    for p in work.glob(f"{fam}.pt*"):
+                        p.unlink()
+                    drivestudio("train", "--data", str(data), "--out", str(ckpt), *options, *PRECISIONS[name],
+                                "--iterations", str(iterations), "--set", f"val_every={10 * iterations}",
+                                "--device", "cpu", env=env)
+                    per_min[(fam, name)].append(samples_per_s(ckpt) * 60 / batch_of(options))
+            loads.append(os.getloadavg()[0])
+            print(f"round {r + 1}/{args.rounds} done, load average {loads[-1]:.1f}", file=sys.stderr, flush=True)
+        fp32, bf16 = PRECISIONS
+        print(f"{cpu_name()}, {threads} thread(s), {args.rounds} alternating rounds, load average "
+              f"{min(loads):.1f}-{max(loads):.1f}, {time.strftime('%Y-%m-%d')}")
+        print(f"{'family':14s} {'batch':>5s} {'float32 it/min':>15s} {'bfloat16 it/min':>16s} {'x float32':>10s}  "
+              "rounds (bfloat16 / float32)")
+        rows = []
+        for fam in families:
+            a, b = per_min[(fam, fp32)], per_min[(fam, bf16)]
+            ratios = [y / x for x, y in zip(a, b)]
+            ma, mb = statistics.median(a), statistics.median(b)
+            print(f"{fam:14s} {batch_of(FAMILIES[fam][0]):5d} {ma:15.1f} {mb:16.1f} {mb / ma:10.2f}  "
+                  + " ".join(f"{x:.2f}" for x in ratios))
+            for name, rates in ((fp32, a), (bf16, b)):
+                rows.append({"family": fam, "configuration": name, "iterations_per_min": statistics.median(rates),
+                             "samples_per_s": statistics.median(rates) * batch_of(FAMILIES[fam][0]) / 60,
+                             "vs_before": statistics.median(rates) / ma, "rounds": rates,
+                             "round_ratios": ratios if name == bf16 else None})
+        if args.json:
+            args.json.write_text(json.dumps({"rows": rows, "frames": args.frames, "cores": os.cpu_count(),
+                                             "threads": threads, "cpu": cpu_name(), "load_average": loads},
+                                            indent=1))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=600, help="frames of the dataset trained on")
-    ap.add_argument("--rounds", type=int, default=2, help="alternating rounds (the best is reported)")
-    ap.add_argument("--families", default=",".join(FAMILIES))
+    ap.add_argument("--rounds", type=int, default=2, help="alternating rounds (the best is reported; with "
+                                                          "--precision, the median)")
+    ap.add_argument("--families", default=None, help=f"of {', '.join(FAMILIES)} (default: all; with --precision, "
+                                                     "alexnet,mobilenet-h1)")
     ap.add_argument("--before-tree", type=Path, help="run the first configuration from this checkout")
+    ap.add_argument("--precision", action="store_true", help="float32 against bfloat16 autocast instead")
+    ap.add_argument("--threads", type=int, help="--precision: threads of each training (default: torch's)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
         ap.error(f"--before-tree: {args.before_tree} is not a checkout of this project")
+    if args.precision and args.before_tree is not None:
+        ap.error("--precision compares two settings of this checkout: leave out --before-tree")
+    if args.families is None:
+        args.families = "alexnet,mobilenet-h1" if args.precision else ",".join(FAMILIES)
+    if args.precision:
+        precision(args)
+        return
     before = next(iter(VARIANTS))
     work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-train-"))
     try:

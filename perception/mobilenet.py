@@ -20,11 +20,16 @@ this trunk here; it trains from scratch, the modern way rather than the papers':
 (the Euclidean one let the gaps' large misses drown the angle) and a moving average of the weights as the model
 (perception/weight_average.py). On validation frames made like the demo's, these two took the angle's error from
 0.048 to 0.036 rad at 1,500 iterations and the markings' down by about a third (docs/aggregation.md).
+
+Under a CPU's bfloat16 autocast (perception/train_sgd.py) the three strided depthwise convolutions compute in float32
+(Float32Conv): oneDNN's bfloat16 gradient of their input is several times slower than float32's, enough to cancel
+what bfloat16 gains in every other layer (docs/benchmarks.md).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
+from torch.nn.utils import skip_init
 from torchvision.models.mobilenetv2 import InvertedResidual
 from torchvision.ops.misc import Conv2dNormActivation
 
@@ -35,13 +40,40 @@ BLOCKS = ((24, 2), (24, 1), (40, 2), (40, 1), (80, 2), (80, 1), (96, 1))   # (ch
 REDUCED = 32
 
 
+class Float32Conv(nn.Conv2d):
+    """A convolution that computes in float32 under a CPU's autocast (its input cast up, its output float32); the same
+    weights and state-dict keys as the nn.Conv2d it replaces, and the same arithmetic without autocast. Why: on an
+    AVX512-BF16 AMD EPYC, one thread, batch 32, the bfloat16 backward of the first strided depthwise convolution
+    took 59 ms against float32's 8, which made the whole bfloat16 step barely faster than float32's; with these
+    convolutions in float32 it is 1.8x faster."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if x.device.type == "cpu" and torch.is_autocast_enabled("cpu"):
+            with torch.autocast("cpu", enabled=False):
+                return super().forward(x.float())
+        return super().forward(x)
+
+
+def float32_conv(conv: nn.Conv2d) -> Float32Conv:
+    """`conv` as a Float32Conv with its weights (built without an initialisation: the random draws of the network's
+    other layers stay what they were)."""
+    new = skip_init(Float32Conv, conv.in_channels, conv.out_channels, conv.kernel_size, stride=conv.stride,
+                    padding=conv.padding, dilation=conv.dilation, groups=conv.groups, bias=conv.bias is not None,
+                    padding_mode=conv.padding_mode)
+    new.load_state_dict(conv.state_dict())
+    return new
+
+
 class MobileNetRegressor(nn.Module):
     def __init__(self, channels: int, height: int, width: int, outputs: int) -> None:
         super().__init__()
         layers: list[nn.Module] = [Conv2dNormActivation(channels, 16, 3, stride=2)]
         c = 16
         for out, stride in BLOCKS:
-            layers.append(InvertedResidual(c, out, stride, expand_ratio=4))
+            block = InvertedResidual(c, out, stride, expand_ratio=4)
+            if stride > 1:   # its depthwise convolution (expansion, depthwise, projection): see Float32Conv
+                block.conv[1][0] = float32_conv(block.conv[1][0])
+            layers.append(block)
             c = out
         layers.append(Conv2dNormActivation(c, REDUCED, 1))
         self.features = nn.Sequential(*layers)

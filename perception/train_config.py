@@ -50,9 +50,9 @@ class TrainConfig:
     momentum: float = setting(0.9, "SGD's momentum", low=0.0, high=0.9999)
     weight_decay: float = setting(0.0, "L2 weight decay", low=0.0, high=1.0)
     device: str = setting("auto", "torch device: auto, cpu, cuda or cuda:N")
-    amp: bool = setting(True, "mixed precision: on CUDA (bfloat16 where supported, else float16) and, for z2color, "
-                              "bfloat16 autocast where the processor computes bfloat16 natively; false: float32 "
-                              "throughout")
+    amp: bool = setting(True, "mixed precision: on CUDA (bfloat16 where supported, else float16) and bfloat16 "
+                              "autocast on a CPU that computes bfloat16 natively (AVX512-BF16 or AMX); false: "
+                              "float32 throughout")
     workers: int = setting(1, "processes decoding frames", low=0, high=64)
     shuffle_buffer: int = setting(16384, "frames mixed across episodes before batching", low=1, high=10**7)
     val_every: int = setting(500, "iterations between validations (and checkpoints)", low=1, high=10**8)

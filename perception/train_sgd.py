@@ -6,6 +6,12 @@ The checkpoint at `out` is written atomically at every validation, every `checkp
 and on Ctrl-C or SIGTERM; running the same training again continues from it (same data order, same optimiser
 state). Loss curves go beside it as `<out>.loss.csv` and `<out>.loss.png`.
 
+Precision (`amp`, the default): the forward pass runs under autocast where its arithmetic is fast, bfloat16 on a CPU
+that computes it natively (AVX512-BF16 or AMX: perception/training.py's bf16_native) as Z2Color's trainer does, and
+on CUDA bfloat16 or float16; the master weights, the optimiser, the loss and its reduction stay float32, and so does
+validation (the drivers run the networks in float32). Elsewhere, and with `amp` false, float32 throughout. The
+checkpoint's train record names the precision (`precision`); a run continued in another one says so.
+
 Several processes (torchrun, perception/distributed.py): each rank trains a DistributedDataParallel copy of the
 model on a disjoint part of the training episodes every epoch (the same shuffled order everywhere, FrameStream's
 rank split) with batches of `batch_size`: the effective batch is world_size x batch_size. The ranks run the same
@@ -51,6 +57,7 @@ from perception.training import (
     LOSSES,
     TrainConfig,
     TrainingError,
+    bf16_native,
     data_summary,
     history_moment,
     input_statistics,
@@ -219,6 +226,27 @@ def frame_cache(data: Dataset, dist: Distributed, log) -> FrameCache:
     return FrameCache(data)
 
 
+def amp_dtype(cfg: TrainConfig, device: torch.device, log) -> torch.dtype | None:
+    """The dtype of the forward pass's autocast, None for float32 throughout (`amp` false, or a CPU without native
+    bfloat16, where oneDNN emulates it several times slower than float32): on CUDA bfloat16 where supported, else
+    float16 (with the gradient scaler); on a CPU bfloat16 where it is native (AVX512-BF16 or AMX), as Z2Color's
+    trainer does. The master weights, the optimiser, the loss and its reduction stay float32 either way."""
+    if not cfg.amp:
+        return None
+    if device.type == "cuda":
+        return torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
+    if bf16_native(device):
+        return torch.bfloat16
+    log(f"bfloat16 is not native on this {device.type} (no AVX512-BF16 or AMX): training in float32, which is "
+        "faster here")
+    return None
+
+
+def precision(dtype: torch.dtype | None) -> str:
+    """The name a checkpoint's train record gives the arithmetic of the forward pass: float32, bfloat16 or float16."""
+    return str(dtype or torch.float32).removeprefix("torch.")
+
+
 def _one_thread(worker_id: int) -> None:  # decoding workers leave the cores to the training process
     worker_initializer(worker_id)   # and die with it
     torch.set_num_threads(1)
@@ -274,9 +302,7 @@ class SGDTrainer:
         self.opt = make_optimizer(setup.optimizer, self.params, setup.lr, cfg)
         self.sched = torch.optim.lr_scheduler.StepLR(self.opt, step_size=cfg.lr_step, gamma=cfg.lr_gamma)
         self.average = WeightAverage(self.model, setup.ema) if setup.ema else None
-        self.amp_dtype = None
-        if cfg.amp and self.device.type == "cuda":
-            self.amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
+        self.amp_dtype = amp_dtype(cfg, self.device, log)
         self.scaler = torch.amp.GradScaler("cuda", enabled=self.amp_dtype == torch.float16)
         return Plan(steps=setup.iterations, validate_every=cfg.val_every)
 
@@ -296,6 +322,10 @@ class SGDTrainer:
             if ckpt["train"].get("world_size", 1) != self.dist.world_size:
                 self.log(f"note: {out} was trained by {ckpt['train'].get('world_size', 1)} process(es), this run "
                          f"has {self.dist.world_size}: the data order from here on differs from an uninterrupted run")
+            trained = ckpt["train"].get("precision")   # None: a checkpoint from before the record had it
+            if trained is not None and trained != precision(self.amp_dtype):
+                self.log(f"note: {out} was trained in {trained}, this run trains in {precision(self.amp_dtype)}: the "
+                         "weights from here on differ from an uninterrupted run's")
             if ckpt["data"]["frames"] != data_summary(self.data)["frames"]:
                 self.log(f"note: {out} was trained on data with {ckpt['data']['frames']} frames per split; "
                          f"continuing on {self.cfg.data} with {data_summary(self.data)['frames']}")
@@ -446,7 +476,7 @@ class SGDTrainer:
                  + f" on {self.device}: {setup.iterations} iterations of "
                  f"{setup.batch_size}, {setup.loss} loss, {setup.optimizer} lr {setup.lr:g} x{cfg.lr_gamma} every "
                  f"{cfg.lr_step}"
-                 + (f", {self.amp_dtype}" if self.amp_dtype else "")
+                 + (f", {precision(self.amp_dtype)} autocast" if self.amp_dtype else "")
                  + (f"; {dist.world_size} processes ({torch.distributed.get_backend()}), {setup.batch_size} samples "
                     f"each per iteration, {setup.batch_size * dist.world_size} in all" if dist.active else ""))
 
@@ -470,7 +500,8 @@ class SGDTrainer:
         payload: dict = {"spec": setup.spec, "state_dict": self.used().state_dict(),
                          "optimizer": self.opt.state_dict(), "scheduler": self.sched.state_dict(),
                          "rng": torch.get_rng_state(),
-                         "train": {**self.state, "config": config, "device": str(self.device), "finished": final},
+                         "train": {**self.state, "config": config, "device": str(self.device),
+                                   "precision": precision(self.amp_dtype), "finished": final},
                          "data": data_summary(self.data)}
         if self.average is not None:   # the weights it trains, to continue from; the average is what is used
             payload["training_state_dict"] = self.model.state_dict()
