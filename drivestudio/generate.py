@@ -48,6 +48,7 @@ from perception.shards import (
     verify_shard,
     write_manifest,
 )
+from sim.camera import DEFAULT_RENDERER
 
 PROGRESS_EVERY = 25  # steps between progress reports from a worker
 MIN_EPISODES = 10    # the split rule takes every tenth episode: fewer would leave the validation or test split empty
@@ -71,7 +72,7 @@ class GenerateConfig:
     world: str = "highway"
     frames: int = 20000
     seed: int = 0
-    renderer: str = "tiny"
+    renderer: str = DEFAULT_RENDERER
     encoding: str = "png"
     quality: int = 95
     episode_frames: int | None = None   # None: DEFAULT_EPISODE_FRAMES, shortened for small datasets

@@ -11,6 +11,8 @@ from core.worlds.highway import FRAME
 
 # how frames are drawn (sim/highway/renderer.py): PyBullet's TinyRenderer or EGL plugin, the compiled rasteriser, OpenGL
 RENDERERS = ("tiny", "egl", "numba", "gl")
+# the compiled rasteriser draws TinyRenderer's frames (docs/rendering.md) about nine times as fast on a CPU
+DEFAULT_RENDERER = "numba"
 
 @dataclass(frozen=True)
 class CameraConfig:

@@ -14,6 +14,14 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def pytest_configure(config):
+    """The default renderer's kernels compile once (about 20 s on a fresh clone, then numba's cache), here in the
+    process that starts pytest's workers, before any of them renders."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        from sim.render.raster import compile_kernels
+        compile_kernels()
+
+
 @pytest.fixture
 def run_cli(capfd):
     """`run_cli("render", "-o", path, cwd=..., env=...)`: the command in this process (tests/helpers.py), returning

@@ -48,7 +48,7 @@ from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.commands.numbers import count
 from drivestudio.errors import UsageError
-from sim.camera import RENDERERS
+from sim.camera import DEFAULT_RENDERER, RENDERERS
 
 
 def register(sub) -> None:
@@ -73,8 +73,8 @@ def register(sub) -> None:
                    help="each route's driver in its own process over shared memory, as `drive` (default: in process)")
     p.add_argument("--clips", type=count(0, 1000), default=10,
                    help="crash clips kept per route and model (default 10; 0: none)")
-    p.add_argument("--renderer", choices=RENDERERS, default="tiny", help="the renderer of the routes' frames "
-                   "(default tiny; docs/rendering.md)")
+    p.add_argument("--renderer", choices=RENDERERS, default=DEFAULT_RENDERER, help="the renderer of the routes' frames "
+                   f"(default {DEFAULT_RENDERER}; docs/rendering.md)")
     add_device_option(p)
     p.add_argument("--out", help="output folder (default runs/benchmark-TIME)")
     p.set_defaults(func=run)

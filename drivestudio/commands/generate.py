@@ -43,8 +43,8 @@ def run(args) -> int:
     # a bad track or mode fails here, in one line, before any work
     options = plugin.generate_options(config, args.world_options.values(plugin.name, args))
     # the renderer is a setting of a world that has a choice of them (--set renderer=NAME); the sidewalk paints its
-    # own frames and its datasets record the default
-    renderer = getattr(config, "renderer", GenerateConfig.renderer)
+    # own frames (sim/sidewalk/stereo.py)
+    renderer = getattr(config, "renderer", "painter")
     cfg = GenerateConfig(world=plugin.name, frames=args.frames, seed=args.seed, renderer=renderer,
                          encoding=args.encoding[0], quality=args.encoding[1],
                          episode_frames=episode_length(args.frames, args.episode_frames),

@@ -234,7 +234,7 @@ class Session:
         decl = self.world.declaration
         meta = {"config": {"world": decl.name, "studio": {**self._scene(), **self.plugin.describe_run(
                     self.world, self.config, self.spec)}},
-                "seed": int(self.config.seed), "renderer": getattr(self.config, "renderer", "tiny"),
+                "seed": int(self.config.seed), "renderer": getattr(self.config, "renderer", "painter"),
                 "recorded_by": "drivestudio studio", "software": _software()}
         try:
             self.recorder = DatasetRecorder(self.out / "recordings" / name, decl, meta, self.shard_steps)

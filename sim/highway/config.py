@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 from core.settings import MAX_SEED, setting
 from core.worlds.highway import MAX_LANES
-from sim.camera import RENDERERS, CameraConfig
+from sim.camera import DEFAULT_RENDERER, RENDERERS, CameraConfig
 from sim.highway.errors import RendererError
 from sim.highway.vehicle import VehicleParams
 from sim.mirror import inset_name
@@ -27,8 +27,9 @@ class WorldConfig:
     dt: float = 0.1                 # [s] one world step (10 Hz, as DeepDriving's loop)
     seed: int = setting(0, "seed of the scene and the traffic", low=0, high=MAX_SEED)
     render: bool = True
-    renderer: str = setting("tiny", "how frames are drawn: PyBullet's TinyRenderer (tiny) or EGL plugin (egl), the "
-                            "compiled rasteriser (numba), OpenGL (gl); docs/rendering.md", choices=RENDERERS)
+    renderer: str = setting(DEFAULT_RENDERER, "how frames are drawn: the compiled rasteriser (numba), PyBullet's "
+                            "TinyRenderer (tiny) or EGL plugin (egl), OpenGL (gl); docs/rendering.md",
+                            choices=RENDERERS)
     camera: CameraConfig = field(default_factory=CameraConfig)
     mirror: bool = setting(False, "paste a rear-view mirror into the top of the frame (docs/rendering.md)")
     side_views: bool = setting(False, "with the mirror (implied): the views out of both side windows below it, where "

@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from sim.camera import CameraConfig
+from sim.camera import DEFAULT_RENDERER, CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
 from sim.highway.errors import RendererError
@@ -32,7 +32,7 @@ CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 
 class Renderer:
-    def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = "tiny",
+    def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = DEFAULT_RENDERER,
                  mirror: bool = False, sides: bool = False):
         self.camera = camera = camera or CameraConfig()
         self.look: Look = make_look(seed)

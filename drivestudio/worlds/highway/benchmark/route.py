@@ -28,6 +28,7 @@ from drivestudio.errors import RunError
 from drivestudio.loop import in_process, run_loop
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.suite import Route
+from sim.camera import DEFAULT_RENDERER
 from sim.highway.config import WorldConfig
 
 BLOCKED_SECONDS = 60.0    # [s] a host car that drove less than BLOCKED_METRES in this long is blocked ...
@@ -41,7 +42,7 @@ SHM_PREFIX = "drivestudio-"
 class RunOptions:
     transport: str = "in-process"    # or "shm"
     device: str = "cpu"
-    renderer: str = "tiny"
+    renderer: str = DEFAULT_RENDERER
     clips: int = 10                  # clips kept per route (0: none)
     clip_before: float = 5.0         # [s] of the clip before the event
     clip_after: float = 1.0          # [s] after it
@@ -157,7 +158,7 @@ class RouteWorld:
         self.world.close()
 
 
-def world_for(route: Route, renderer: str = "tiny", inset: str = ""):
+def world_for(route: Route, renderer: str = DEFAULT_RENDERER, inset: str = ""):
     """The route's world: the highway's configuration (its defaults, as `drive` has them) of the route's track,
     lanes, seed, cars and start lane, with the inset (the rear-view mirror, the side views) of a model that learned
     one."""
