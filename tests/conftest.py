@@ -18,8 +18,8 @@ def pytest_configure(config):
     """The default renderer's kernels compile once (about 20 s on a fresh clone, then numba's cache), here in the
     process that starts pytest's workers, before any of them renders."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
-        from sim.render.raster import compile_kernels
-        compile_kernels()
+        from sim.highway.kernels import compile_numba_kernels
+        compile_numba_kernels()
 
 
 @pytest.fixture

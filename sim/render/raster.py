@@ -205,14 +205,3 @@ class Rasteriser:
                    float(x), float(y), float(yaw), cx, cy, cyaw, models, paints, self._light, self._ambient,
                    self._diffuse)
         return frame
-
-
-def compile_kernels() -> None:
-    """Compile (or load from numba's cache) every kernel by drawing one frame with the mirror and the side views: a
-    process that is about to start others that render compiles once for them all."""
-    from sim.highway.renderer import Renderer  # lazy: the renderer imports this module
-    from sim.highway.traffic import CarStates
-    from sim.track import load_track
-
-    Renderer(load_track("oval", lanes=2), 0, renderer="numba", mirror=True, sides=True).render(
-        0.0, 0.0, 0.0, CarStates.empty())
