@@ -110,7 +110,7 @@ def _children_of(pid: int) -> list[int]:
     return [int(x) for x in out.split()]
 
 
-@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+@pytest.mark.parametrize("sig", [signal.SIGKILL, pytest.param(signal.SIGINT, marks=pytest.mark.long)])
 def test_killed_run_resumes_without_loss_or_duplicates(reference, run_cli, tmp_path, sig):
     out = tmp_path / "ds"
     cmd = [sys.executable, "-m", "drivestudio", "generate", "--out", str(out), *SMALL, "--workers", "2"]
@@ -223,6 +223,7 @@ def test_stats_reports_coverage_and_writes_histograms(reference, run_cli, tmp_pa
     assert (tmp_path / "histograms.png").stat().st_size > 1000 and (tmp_path / "hist-dist_MM.png").exists()
 
 
+@pytest.mark.long
 def test_ray_backend_produces_the_same_shards(reference, run_cli, tmp_path):
     pytest.importorskip("ray", reason="the Ray backend is optional: pip install 'drivestudio[cluster]'")
     out = tmp_path / "ray"

@@ -159,6 +159,7 @@ def test_a_folder_with_an_earlier_run_is_refused(autonomy, tmp_path):
     assert (tmp_path / "model-round1.pt").read_bytes() == b"an earlier run's model"    # untouched
 
 
+@pytest.mark.long
 def test_sigterm_ends_the_run_in_order_and_the_report_says_it_is_incomplete(tmp_path):
     """Cut off during the retraining after round 0: exit 128 + 15 with one line; autonomy.json holds round 0 and
     "complete": false; no temporary file is left."""

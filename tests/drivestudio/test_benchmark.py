@@ -312,6 +312,7 @@ def test_help_explains_the_verb(run_cli):
 
 
 # --- driving ---------------------------------------------------------------------------------------------------
+@pytest.mark.long
 def test_a_route_drives_the_same_twice(tmp_path, blind):
     route = load_suite(write_suite(tmp_path / "s.json", [ROUTE_A])).routes[0]
     oracle = ModelSpec("oracle", None)

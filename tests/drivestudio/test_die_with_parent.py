@@ -138,7 +138,8 @@ def _driving(kids) -> bool:
     return any("drive --shm" in ln for ln in _cmdlines(kids)) and bool(segments())
 
 
-@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("signum", [pytest.param(signal.SIGKILL, marks=pytest.mark.long), signal.SIGTERM,
+                                    pytest.param(signal.SIGINT, marks=pytest.mark.long)])
 def test_benchmark_shm_leaves_no_process_behind_and_a_rerun_starts_clean(tmp_path, signum):
     suite = _suite(tmp_path)
     argv = DS + ["benchmark", "--model", "oracle", "--shm", "--workers", "1", "--clips", "0", "--suite",

@@ -126,6 +126,7 @@ def test_training_goes_on_only_with_frames_like_the_models_own(models):
         check_inset("p.pt", make_spec("gist", HIGHWAY), MIRRORED)
 
 
+@pytest.mark.long
 def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_without(tmp_path, run_cli):
     """...and aggregation rounds drive the lane counts of the expert data they are merged with."""
     from perception.merge import Source, merge

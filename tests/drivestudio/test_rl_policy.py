@@ -31,6 +31,7 @@ def trained(tmp_path_factory):
     return model
 
 
+@pytest.mark.long
 def test_smoke_training_saves_a_policy_the_benchmark_ranks(tmp_path, trained):
     out = tmp_path / "board"
     short = {**ROUTE_B, "seconds": 4}   # the smoke run: that the row is driven and ranked, not how well
@@ -43,6 +44,7 @@ def test_smoke_training_saves_a_policy_the_benchmark_ranks(tmp_path, trained):
     assert "PPO policy (ppo.zip)" in r.stdout
 
 
+@pytest.mark.long
 def test_drive_takes_a_saved_policy_over_the_bridge(tmp_path, trained):
     r = ds("drive", "--model", trained, "--track", "oval", "--lanes", "2", "--cars", "4", "--seconds", "2",
            "--out", tmp_path / "run")

@@ -38,6 +38,7 @@ def test_a_child_that_fails_stops_the_others_and_is_named(tmp_path):
     assert time.perf_counter() - t0 < 60          # a million frames were not waited for: the generation was stopped
 
 
+@pytest.mark.long
 def test_a_child_after_another_starts_once_that_one_has_succeeded_and_never_after_a_failure(tmp_path):
     logs = [tmp_path / "bad.log", tmp_path / "after-bad.log"]
     with pytest.raises(RunError, match=r"bad\.log: exit status 2"):

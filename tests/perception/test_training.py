@@ -127,6 +127,7 @@ def test_loss_curves_are_written_beside_the_checkpoint():
     assert png_path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.long
 def test_rerunning_the_same_training_continues_from_the_checkpoint():
     """4 iterations, then the same training to 8, ends where the straight 8-iteration run ended (same data
     order, same optimiser state, same learning-rate schedule)."""

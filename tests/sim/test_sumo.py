@@ -122,6 +122,7 @@ def test_ai_cars_pass_a_slow_host_car_by_changing_lanes():
         assert sum(len(v) > 1 for v in lanes_seen.values()) >= 3  # several cars changed lanes
 
 
+@pytest.mark.long
 def test_no_ai_collisions_in_ten_minutes_and_cars_keep_circulating():
     with World(WorldConfig(track="mixed", lanes=3, cars=12, seed=5, render=False, start_speed=15)) as w:
         obs = w.observe()

@@ -151,6 +151,7 @@ def test_a_second_page_watches_and_takes_the_wheel_only_when_it_is_free(sidewalk
     run(go())
 
 
+@pytest.mark.long
 def test_a_recording_killed_at_any_moment_is_a_dataset_up_to_its_last_whole_shard(tmp_path):
     s = Studio(["studio", "--world", "sidewalk", "--port", "0", "--model", "expert", "--fast", "--shard-steps", "30",
                 "--out", str(tmp_path)], tmp_path)
