@@ -223,14 +223,13 @@ def test_a_port_in_use_gets_one_line_and_exit_status_2(verb, tmp_path):
     assert not (tmp_path / "run").exists()      # refused before any work
 
 
-def test_bad_studio_options_get_one_line_and_exit_status_2(tmp_path):
+def test_bad_studio_options_get_one_line_and_exit_status_2(tmp_path, run_cli):
     for args, says in ((["--checkpoint", str(tmp_path / "missing.pt")], "no such file"),
                        (["--checkpoint", str(tmp_path)], "holds no *.pt"),
                        (["--world", "sidewalk", "--track", "oval"], "belongs to the highway world"),
                        (["--port", "70000"], "must be an integer from 0 to 65535"),
                        (["--world", "sidewalk", "--path", "procedural:x"], "procedural")):
-        r = subprocess.run([sys.executable, "-m", "drivestudio", "studio", "--port", "0", *args, "--out",
-                            str(tmp_path / "run")], cwd=REPO, capture_output=True, text=True, timeout=120)
+        r = run_cli("studio", "--port", "0", *args, "--out", tmp_path / "run")
         assert r.returncode == 2, (args, r.stderr)
         assert len(r.stderr.strip().splitlines()) == 1 and says in r.stderr, (args, r.stderr)
 
