@@ -11,6 +11,8 @@ import numpy as np
 from numba import njit
 
 DEGENERATE = 1e-2   # TinyRenderer drops a triangle whose doubled screen area is no more than this [px^2]
+# A corner exactly in the eye's plane (clip w = 0) divides by zero: the kernels that divide by w take IEEE's infinities,
+# as TinyRenderer's C++ does (error_model="numpy"), where numba's default would raise ZeroDivisionError mid-frame.
 
 
 @njit(cache=True)
@@ -33,7 +35,7 @@ def matmul(a, b):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _screen(clip, w, h):
     """The viewport of TinyRenderer in float32: x' = w/2 x + w/2 w, y' = h/2 y + h/2 w, each divided by w; as
     (x0, x1, x2), (y0, y1, y2)."""
@@ -53,7 +55,7 @@ def _edges(sx, sy):
     return ax, ay, cax, bax, cay, bay, cax * bay - bax * cay
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _barycentric(e, px, py):
     """TinyRenderer's barycentric() of the pixel corner (px, py) in the triangle of _edges `e`: the cross product of
     (C-A, B-A, A-P) in x and in y."""
@@ -64,7 +66,7 @@ def _barycentric(e, px, py):
     return 1.0 - (ux + uy) / uz, uy / uz, ux / uz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diffuse, near, far):
     """One triangle of clip-space corners clip (3, 4) into img and zbuf; `whole` is the triangle it was clipped
     from (itself when not `clipped`), whose corners carry the world normals (3, 3); base: its colour (3,)."""
