@@ -406,6 +406,12 @@ class WorldDeclaration:
         self.camera(name)
         return replace(self, cameras=cams)
 
+    def with_column(self, column: Column) -> WorldDeclaration:
+        """This declaration with `column` recorded too (a world's optional metadata: the named condition)."""
+        if any(c.name == column.name for c in self.columns):
+            return self
+        return replace(self, columns=self.columns + (column,))
+
     # --- identity and JSON ---------------------------------------------------------------------------------------
     def to_json(self) -> dict:
         def plain(obj):

@@ -34,13 +34,14 @@ class Setting:
     choices: tuple[str, ...] = ()
     flag: str = ""                     # the command-line flag when it is not --field-name
     parse: Any = None                  # str -> value, for a setting whose text is not its type (a file or a number)
+    several: bool = False              # the value may name several choices, comma-separated (a mix to draw from)
 
 
 def setting(default: Any = dataclasses.MISSING, help: str = "", *, unit: str = "", low: float | None = None,
             high: float | None = None, choices: tuple[str, ...] = (), flag: str = "", parse: Any = None,
-            default_factory: Any = dataclasses.MISSING) -> Any:
+            several: bool = False, default_factory: Any = dataclasses.MISSING) -> Any:
     """A dataclass field that is a setting (see the module's docstring)."""
-    meta = {"setting": Setting(help, unit, low, high, tuple(choices), flag, parse)}
+    meta = {"setting": Setting(help, unit, low, high, tuple(choices), flag, parse, several)}
     if default_factory is not dataclasses.MISSING:
         return field(default_factory=default_factory, metadata=meta)
     return field(default=default, metadata=meta)
@@ -110,9 +111,21 @@ def check_value(entry: Entry, value: Any, what: str | None = None) -> Any:
                                f"{s.low:g} to {s.high:g}{unit}, got {value!r}")
     if entry.kind is str and not isinstance(value, str):
         raise SettingError(f"{name} must be a text, got {value!r}")
+    if s.choices and s.several:
+        return _several(name, s.choices, value)
     if s.choices and value not in s.choices:
         raise SettingError(f"{name}: invalid choice: {value!r} (choose from {', '.join(s.choices)})")
     return value
+
+
+def _several(name: str, choices: tuple[str, ...], value: str) -> str:
+    """A value naming one or more of `choices`, comma-separated, as `a,b` (spaces dropped); each name checked."""
+    picked = [v.strip() for v in value.split(",")]
+    for v in picked:
+        if v not in choices:
+            raise SettingError(f"{name}: invalid choice: {v!r} (choose one or more of {', '.join(choices)}, "
+                               "comma-separated)")
+    return ",".join(picked)
 
 
 def read(entry: Entry, text: str, what: str = "") -> Any:

@@ -22,6 +22,8 @@ def _help(e: Entry, defaults: dict[str, Any]) -> str:
     limits = f", {s.low:g}-{s.high:g}" if s.low is not None and s.high is not None and e.kind in (int, float) and \
         s.high < 10**6 else ""
     shown = {w: d for w, d in defaults.items() if d is not None and d is not False}
+    if s.several:
+        limits += f"; one of {', '.join(s.choices)}, or several comma-separated (each seed draws one)"
     if e.kind is bool or not shown:
         return f"{s.help}{unit}{limits}"
     if len(set(map(str, shown.values()))) == 1:
@@ -57,9 +59,10 @@ class WorldOptions:
         for path in paths:
             e = table[path]
             if e.flag not in self._dest:
+                metavar = e.flag[2:].upper().replace("-", "_")
                 kw: dict[str, Any] = {"action": "store_true"} if e.kind is bool else \
-                    {"type": _reader(e), "metavar": e.flag[2:].upper().replace("-", "_")}
-                if e.setting.choices:
+                    {"type": _reader(e), "metavar": f"{metavar}[,{metavar}...]" if e.setting.several else metavar}
+                if e.setting.choices and not e.setting.several:   # a mix of several is checked by the setting
                     kw["choices"] = e.setting.choices
                 shown = argparse.SUPPRESS if self.hidden else _help(e, defaults[e.flag])
                 self._dest[e.flag] = group.add_argument(e.flag, default=None, help=shown, **kw).dest
