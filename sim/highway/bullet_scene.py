@@ -108,6 +108,7 @@ class BulletScene:
         self._projections = {camera: camera.projection_matrix()}
         self._n_shapes = 0
         self._frames = 0
+        self.depth = np.zeros((0, 0), dtype=np.float32)   # the last frame's depth buffer (OpenGL's, 0-1)
 
         # static objects: one body per (chunk, material), all hidden until their chunk comes into view
         self._chunk_bodies: list[list[tuple[int, tuple]]] = []
@@ -209,7 +210,8 @@ class BulletScene:
         self._frames += 1
         rgba = np.asarray(rgba, dtype=np.uint8).reshape(cam.height, cam.width, 4)
         rgb = cv2.cvtColor(rgba, cv2.COLOR_RGBA2RGB)  # numpy's strided copy is 10x slower here
-        drawn = np.asarray(depth, dtype=np.float32).reshape(cam.height, cam.width) < 0.999999
+        self.depth = np.asarray(depth, dtype=np.float32).reshape(cam.height, cam.width)
+        drawn = self.depth < 0.999999
         return rgb, drawn.view(np.uint8)
 
     def close(self) -> None:

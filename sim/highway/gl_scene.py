@@ -73,8 +73,9 @@ class HighwayGL:
         per_model = [inst[models == m] for m in range(self._n_models)]
         return camera_view(camera, x, y, yaw, rect, groups, per_model, mirrored, keep)
 
-    def render(self, views: list[View]) -> np.ndarray:
-        return self._scene.render(views)
+    def render(self, views: list[View], depth: np.ndarray | None = None) -> np.ndarray:
+        """The frame of `views`; `depth`, when given, gets the objects' distances (sim/render/gl_scene.py)."""
+        return self._scene.render(views, depth)
 
     def close(self) -> None:
         self._scene.release()

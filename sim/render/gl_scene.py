@@ -14,7 +14,7 @@ import numpy as np
 
 from sim.render.gl_context import gl_context
 from sim.render.gl_geometry import VERTEX_ATTRIBUTES, VERTEX_FORMAT, WIDTH
-from sim.render.gl_programs import FRAGMENT, VERTEX
+from sim.render.gl_programs import FRAGMENT, OBJECT_DEPTH, VERTEX
 from sim.render.gl_views import View
 
 INSTANCE_FORMAT = "2f 2f 3f/i"
@@ -99,20 +99,23 @@ class GLScene:
             spans.append((start, n_tri, len(commands) - start - n_tri))
         return np.concatenate(instances), np.asarray(commands, dtype=np.uint32).reshape(-1, COMMAND), spans
 
-    def render(self, views: list[View]) -> np.ndarray:
-        """The frame with `views` drawn in order, (h, w, 3) uint8 RGB."""
+    def render(self, views: list[View], depth: np.ndarray | None = None) -> np.ndarray:
+        """The frame with `views` drawn in order, (h, w, 3) uint8 RGB; `depth` (h, w) float32, when given, gets the
+        objects' distances along each view's axis [m] (inf where none)."""
         # current only while drawing, then the one before again: another EGL context of this process (PyBullet's
         # EGL plugin) may be made current between frames
         with self._ctx:
-            return self._render(views)
+            return self._render(views, depth)
 
-    def _render(self, views: list[View]) -> np.ndarray:
+    def _render(self, views: list[View], depth: np.ndarray | None = None) -> np.ndarray:
         ctx, fbo, prog = self._ctx, self._fbo, self._program
         instances, commands, spans = self._commands_of(views)
         for buf, data in ((self._instances, instances), (self._commands, commands)):
             if data.nbytes > buf.size:
                 buf.orphan(2 * data.nbytes)
             buf.write(data.tobytes())
+        if depth is not None:
+            depth[:] = np.inf
         ctx.copy_framebuffer(fbo, self._base_fbo)
         fbo.use()
         h, w = self.size
@@ -131,6 +134,8 @@ class GLScene:
                 self._vao.render_indirect(self._commands, mode=ctx.TRIANGLES, count=n_tri, first=first)
             if n_lines:
                 self._vao.render_indirect(self._commands, mode=ctx.LINES, count=n_lines, first=first + n_tri)
+            if depth is not None:   # before a kept view's depth is cleared
+                self._read_depth(depth, v)
             if v.keep is not None:
                 kt, kl, kh, kw = v.keep
                 self._clear_depth(0.0, (kl, kt, kw, kh))
@@ -138,6 +143,23 @@ class GLScene:
         out = np.empty((h, w, 3), dtype=np.uint8)
         fbo.read_into(out, components=3)
         return out
+
+    def _read_depth(self, depth: np.ndarray, v: View) -> None:
+        """A view's objects' distances [m] into its rectangle of `depth`, where later views do not draw: an object's
+        window depth is (z' + 1) / 2 of its squeezed NDC depth z' = a z + b (gl_programs.OBJECT_DEPTH), every
+        ground's lies beyond them all."""
+        top, left, vh, vw = v.rect
+        window = np.frombuffer(self._fbo.read(viewport=(left, top, vw, vh), components=1, attachment=-1, dtype="f4"),
+                               dtype=np.float32).reshape(vh, vw)
+        a, b = OBJECT_DEPTH
+        z = ((2.0 * window - 1.0) - b) / a
+        n, f = v.clip
+        with np.errstate(divide="ignore"):
+            metres = np.where(window < (a + b + 1.0) / 2 + 1e-4, 2 * f * n / ((f + n) - z * (f - n)), np.inf)
+        area = depth[top:top + vh, left:left + vw]
+        if v.keep is None:   # a later view: the insets' rectangles, kept at depth 0, hold their own distances
+            metres = np.where(window == 0.0, area, metres)
+        area[:] = metres
 
     def _clear_depth(self, depth: float, box: tuple[int, int, int, int]) -> None:
         """Set the depth of a box (x, y, width, height) of the frame, its colour untouched."""

@@ -23,6 +23,7 @@ class View:
     groups: np.ndarray                       # (n_groups,) bool: the groups (chunks) in view
     cars: list[np.ndarray]                   # per model: (k, 7) instances in view (x, y, cos, sin, paint 0-255)
     keep: tuple[int, int, int, int] | None = None   # a rectangle later views leave as this one drew it
+    clip: tuple[float, float] = (0.3, 300.0)         # [m] the camera's near and far planes (its depth's scale)
 
 
 def camera_view(camera: CameraConfig, x: float, y: float, yaw: float, rect: tuple[int, int, int, int],
@@ -40,4 +41,5 @@ def camera_view(camera: CameraConfig, x: float, y: float, yaw: float, rect: tupl
     def shift(px):
         return (fx * 2.0 * px[0] / w, 2.0 * px[1] / h)
 
-    return View(rect, matrix, shift(GROUND_SHIFT_PX), shift(OBJECT_SHIFT_PX), not mirrored, groups, cars, keep)
+    return View(rect, matrix, shift(GROUND_SHIFT_PX), shift(OBJECT_SHIFT_PX), not mirrored, groups, cars, keep,
+                (camera.near, camera.far))

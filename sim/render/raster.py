@@ -21,6 +21,7 @@ from sim.render.raster_view import draw_frame, draw_view
 from sim.scene import Chunk, Look
 
 KERNELS = ("raster_ground.py", "raster_objects.py", "raster_view.py")   # the compiled functions' files
+NO_DEPTH = np.zeros((0, 0), dtype=np.float32)   # draw_frame's depth when none is wanted
 
 
 def drop_stale_kernels(folder: Path = Path(__file__).parent) -> None:
@@ -194,14 +195,16 @@ class Rasteriser:
         return Layout(np.ascontiguousarray(slots[0].backdrop, dtype=np.uint8), np.concatenate(flat), offsets, places,
                       cameras, projections, np.asarray(border, dtype=np.uint8))
 
-    def render(self, layout: Layout, x: float, y: float, yaw: float, cars: Cars, car_radius: float) -> np.ndarray:
+    def render(self, layout: Layout, x: float, y: float, yaw: float, cars: Cars, car_radius: float,
+               depth: np.ndarray | None = None) -> np.ndarray:
         """The frame (h, w, 3) uint8 RGB of `layout`'s views from a host car at (x, y) [m] with yaw [rad], the
-        chunks and the cars (bounding circles of car_radius [m]) in each view's wedge drawn in it."""
+        chunks and the cars (bounding circles of car_radius [m]) in each view's wedge drawn in it; `depth` (h, w)
+        float32, when given, gets the objects' distances along each view's axis [m] (inf where none)."""
         frame = layout.front.copy()   # numpy's copies: numba's element loops copy bytes ten times slower
         cx, cy, cyaw, models, paints = self._cars(cars)
         draw_frame(frame, layout.insets.copy(), layout.offsets, layout.places, layout.cameras, layout.projections,
                    self._centres, self._radii, float(car_radius), layout.border, self._ground, self._spans,
                    self._by_rank, self._colours, self._v, self._n, self._c, self._p, self._first, self._end,
                    float(x), float(y), float(yaw), cx, cy, cyaw, models, paints, self._light, self._ambient,
-                   self._diffuse)
+                   self._diffuse, NO_DEPTH if depth is None else depth)
         return frame

@@ -102,18 +102,33 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, f
             b = n_chunks + car_models[k]
             draw_body(img, zbuf, verts, normals, bases, painted, firsts[b], ends[b], car_model(car_x[k], car_y[k],
                       car_yaw[k]), car_paints[k], view, projection, eye32, light, ambient, diffuse, False)
+    return zbuf
+
+
+@njit(cache=True)
+def keep_depth(depth, zbuf, projection, top, left, mirrored):
+    """The objects' depth of a view (its zbuf: minus the clip-space z, -inf where none) into depth (h, w) float32 of
+    the frame at (top, left), flipped left to right if `mirrored`, as distances along the view's axis [m] (inf where
+    no object): clip z is p22 z + p23 of the eye-space z, which is minus that distance."""
+    h, w = zbuf.shape
+    p22, p23 = projection[2, 2], projection[2, 3]
+    for r in range(h):
+        for c in range(w):
+            z = zbuf[r, c]
+            depth[top + r, left + (w - 1 - c if mirrored else c)] = (z + p23) / p22 if z > -np.inf else np.inf
 
 
 @njit(cache=True)
 def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, radii, car_radius, border,
                ground, spans, by_rank, colours, verts, normals, bases, painted, firsts, ends, x, y, yaw,
-               car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse):
+               car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse, depth):
     """Every view of a frame, as sim/highway/renderer.py composes them: view 0 fills the frame (its backdrop when
     called), each later one is drawn apart, onto its backdrop at insets[offsets[v]:] (height x width x 3 bytes, C
     order), and pasted into the frame (flipped left to right where it is a mirror) inside a border of colour
     `border`. Per view v: layout[v] (outer top, left, height, width; glass top, left, height, width; mirrored),
     cameras[v] (forward, left, height, pitch, near, fx, fy, yaw offset, hfov, cull) and projections[v]. The chunks'
-    bounding circles (centres, radii) and the cars' (car_radius) choose what each view draws (in_wedge)."""
+    bounding circles (centres, radii) and the cars' (car_radius) choose what each view draws (in_wedge). depth: the
+    frame's (h, w) float32 objects' distances (keep_depth), or (0, 0) when none is wanted."""
     n_chunks = len(radii)
     chunks = np.empty(n_chunks, dtype=np.bool_)
     cars = np.empty(len(car_x), dtype=np.bool_)
@@ -126,9 +141,11 @@ def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, ra
             cars[k] = in_wedge(car_x[k], car_y[k], car_radius, x, y, heading, cam[8], cam[9])
         gt, gl, gh, gw = layout[v, 4], layout[v, 5], layout[v, 6], layout[v, 7]
         img = frame if v == 0 else insets[offsets[v]:offsets[v] + gh * gw * 3].reshape(gh, gw, 3)
-        draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6], verts, normals,
-                  bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw, car_models,
-                  car_paints, cars, light, ambient, diffuse)
+        zbuf = draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6], verts,
+                         normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw,
+                         car_models, car_paints, cars, light, ambient, diffuse)
+        if depth.shape[0]:
+            keep_depth(depth, zbuf, projections[v], gt if v else 0, gl if v else 0, v > 0 and layout[v, 8] != 0)
         if v:
             ot, ol, oh, ow = layout[v, 0], layout[v, 1], layout[v, 2], layout[v, 3]
             for i in range(3):
