@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from core.conditions import CONDITIONS, SEEDED
 from core.settings import MAX_SEED, setting
 from core.worlds.highway import MAX_LANES
 from sim.camera import DEFAULT_RENDERER, RENDERERS, CameraConfig
@@ -34,6 +35,9 @@ class WorldConfig:
     mirror: bool = setting(False, "paste a rear-view mirror into the top of the frame (docs/rendering.md)")
     side_views: bool = setting(False, "with the mirror (implied): the views out of both side windows below it, where "
                                "a car level with the host shows (docs/rendering.md)")
+    condition: str = setting(SEEDED, "the named condition frames are drawn in: seeded (the seed's own sunny or "
+                             "overcast look, as always), clear, overcast, low_sun, night, fog or rain "
+                             "(docs/conditions.md)", choices=CONDITIONS, several=True)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     # scenarios set their own speeds
     start_speed: float = setting(15.0, "host car's speed at the start", unit="m/s", low=0.0, high=60.0)

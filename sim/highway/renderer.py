@@ -21,11 +21,13 @@ import numpy as np
 from sim.camera import DEFAULT_RENDERER, CameraConfig
 from sim.ground_painter import GroundPainter
 from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
+from sim.highway.conditions import HighwayEffects, condition_look
 from sim.highway.errors import RendererError
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
 from sim.highway.traffic import CarStates
 from sim.mirror import BORDER_RGB, RearMirror, SideViews, glass
 from sim.render.available import share_egl
+from sim.render.conditions import Condition, Place
 from sim.track import Track
 
 CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
@@ -33,14 +35,17 @@ CAR_RADIUS = 3.0  # [m] bounding circle of a car, for culling
 
 class Renderer:
     def __init__(self, track: Track, seed: int, camera: CameraConfig | None = None, renderer: str = DEFAULT_RENDERER,
-                 mirror: bool = False, sides: bool = False):
+                 mirror: bool = False, sides: bool = False, condition: Condition | None = None):
+        """condition: a named condition's parameters (sim/highway/conditions.py), None: the seeded look."""
         self.camera = camera = camera or CameraConfig()
-        self.look: Look = make_look(seed)
+        self.look: Look = make_look(seed) if condition is None else condition_look(seed, condition)
         chunks = build_scenery(track, seed)
         self._centres = np.array([c.centre for c in chunks]).reshape(-1, 2)
         self._radii = np.array([c.radius for c in chunks])
         self.mirror = RearMirror(camera.height, camera.width) if mirror or sides else None   # sides need it
         self.sides = SideViews(camera.height, camera.width) if sides else None
+        self.effects = None if condition is None or not condition.drawn else \
+            HighwayEffects(condition, self.look, track, seed, (camera.height, camera.width), self._places())
         self._backdrops = {cam: self._make_backdrop(cam) for cam in self._cameras()}
         self._gl = self._raster = self._objects = None
         self._painters: dict[CameraConfig, GroundPainter] = {}
@@ -68,6 +73,17 @@ class Renderer:
             from sim.highway.bullet_scene import BulletScene  # lazy: pybullet loads only when frames are wanted
             self._objects = BulletScene(chunks, self.look, camera, renderer)
             self._painters = {cam: GroundPainter(chunks, self.look, cam, GROUND_MATERIALS) for cam in self._cameras()}
+
+    def _places(self) -> list[Place]:
+        """Where each view goes in the frame: the front camera's, then the insets' glass."""
+        cam = self.camera
+        places = [Place(cam, 0.0, (0, 0, cam.height, cam.width))]
+        if self.mirror is not None:
+            places.append(Place(self.mirror.camera, np.pi, glass(self.mirror.rect), True))
+        if self.sides is not None:
+            places += [Place(self.sides.camera, turn, glass(rect))
+                       for rect, turn in zip(self.sides.rects, (np.pi / 2, -np.pi / 2))]
+        return places
 
     def _cameras(self) -> list[CameraConfig]:
         """The front camera and those of the insets."""
@@ -107,20 +123,42 @@ class Renderer:
         return in_wedge & (dist - radii < camera.cull_distance)
 
     def render(self, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
-        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in."""
+        """(height, width, 3) uint8 RGB seen from a host car at (x, y) [m] with yaw [rad], the insets pasted in, the
+        condition drawn over it."""
+        if self.effects is None:
+            return self._draw(x, y, yaw, cars, None)
+        depth = np.empty((self.camera.height, self.camera.width), np.float32)
+        return self.effects.apply(self._draw(x, y, yaw, cars, depth), depth, x, y, yaw, cars)
+
+    def _draw(self, x: float, y: float, yaw: float, cars: CarStates, depth: np.ndarray | None) -> np.ndarray:
+        """The renderer's frame; `depth` (h, w), when given, gets the objects' distances along each view's axis [m]
+        (inf where the renderer drew no object: the ground, the sky)."""
         if self._gl is not None:
-            return self._gl.render(self._gl_views(x, y, yaw, cars))
+            return self._gl.render(self._gl_views(x, y, yaw, cars), depth)
         if self._raster is not None:
             from sim.render.raster import Cars  # loaded with the rasteriser (above); this names its argument
             return self._raster.render(self._layout, x, y, yaw, Cars(cars.x, cars.y, cars.yaw, cars.models,
-                                                                     cars.paints), CAR_RADIUS)
-        frame = self._view(self.camera, x, y, yaw, cars)
+                                                                     cars.paints), CAR_RADIUS, depth)
+        want = depth is not None
+        frame, front = self._view(self.camera, x, y, yaw, cars, want)
+        views = [front]
         if self.mirror is not None:
-            self.mirror.composite(frame, self._view(self.mirror.camera, x, y, yaw + np.pi, cars))
+            rear, d = self._view(self.mirror.camera, x, y, yaw + np.pi, cars, want)
+            self.mirror.composite(frame, rear)
+            views.append(d)
         if self.sides is not None:
             cam = self.sides.camera
-            self.sides.composite(frame, self._view(cam, x, y, yaw + np.pi / 2, cars),
-                                 self._view(cam, x, y, yaw - np.pi / 2, cars))
+            left, dl = self._view(cam, x, y, yaw + np.pi / 2, cars, want)
+            right, dr = self._view(cam, x, y, yaw - np.pi / 2, cars, want)
+            self.sides.composite(frame, left, right)
+            views += [dl, dr]
+        if depth is not None:
+            depth[:] = np.inf
+            assert self.effects is not None
+            for place, d in zip(self.effects.effects.geometry.places, views):
+                assert d is not None
+                top, left_, h, w = place.rect
+                depth[top:top + h, left_:left_ + w] = d[:, ::-1] if place.mirrored else d
         return frame
 
     def _visible(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates):
@@ -132,8 +170,10 @@ class Renderer:
                             camera)
         return seen[:n], seen[n:]
 
-    def _view(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates) -> np.ndarray:
-        """One camera's image: backdrop, ground, then the objects in its view wedge."""
+    def _view(self, camera: CameraConfig, x: float, y: float, yaw: float, cars: CarStates,
+              depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """One camera's image: backdrop, ground, then the objects in its view wedge; with `depth`, the objects'
+        distances along its axis [m] (inf where none) too."""
         visible, car_visible = self._visible(camera, x, y, yaw, cars)
         frame = self._backdrops[camera].copy()
         assert self._objects is not None
@@ -142,7 +182,12 @@ class Renderer:
         self._painters[camera].paint(frame, visible, x, y, yaw)
         rgb, drawn = self._objects.render(x, y, yaw, camera)
         cv2.copyTo(rgb, drawn, frame)
-        return frame
+        if not depth:
+            return frame, None
+        window = self._objects.depth   # OpenGL's window depth, 0-1: near n and far f give f n / (f - d (f - n))
+        n, f = camera.near, camera.far
+        with np.errstate(divide="ignore"):
+            return frame, np.where(drawn > 0, f * n / (f - window * (f - n)), np.inf).astype(np.float32)
 
     def _gl_views(self, x: float, y: float, yaw: float, cars: CarStates) -> list:
         """The views of the GL renderer, the insets first (each kept from the views after it), the front last."""

@@ -25,14 +25,18 @@ MARKING_LIFT = 0.03       # [m] above the asphalt, against depth fighting
 GROUND_MATERIALS = ("asphalt", "verge", "patch_dark", "patch_light", "marking")  # in painting order
 
 
-def make_look(seed: int) -> Look:
+def make_look(seed: int, sky: str | None = None) -> Look:
+    """The seed's palette and light: a clear or an overcast sky drawn from the seed, or the one `sky` names ("clear"
+    or "overcast": the same draws, the sky's kept or overridden, so a seed that draws a clear sky looks the same
+    either way)."""
     rng = np.random.default_rng([int(seed), 0x100C])
     grey = rng.uniform(0.24, 0.40)
     asphalt = (grey, grey, grey * rng.uniform(1.0, 1.08), 1.0)
     dry = rng.uniform(0.0, 1.0)
     grass = (0.22 + 0.25 * dry, 0.45 + 0.05 * dry, 0.15 + 0.05 * dry)
     verge = tuple(np.r_[np.array([0.55, 0.50, 0.42]) * rng.uniform(0.8, 1.1), 1.0])
-    overcast = rng.uniform() < 0.3
+    drawn = rng.uniform() < 0.3   # drawn whatever `sky` says: the draws after it stay the seed's
+    overcast = drawn if sky is None else sky == "overcast"
     sky_top = (0.62, 0.65, 0.70) if overcast else (0.25, 0.45, 0.85)
     sky_horizon = (0.85, 0.86, 0.88) if overcast else (0.72, 0.82, 0.95)
     az, el = rng.uniform(0, 2 * math.pi), rng.uniform(math.radians(25), math.radians(75))
@@ -161,7 +165,7 @@ def _poles(out: dict, track: Track, s0: float, s1: float, style: dict, edge: flo
     if style["poles"]:
         first = math.ceil(s0 / 50.0) * 50.0
         for a in np.arange(first, s1, 50.0):
-            x, y, h = track.pose(a, style["pole_side"] * (edge + 0.8))
+            x, y, h = track.pose(a, style["pole_side"] * (edge + 0.8))   # as light_poles says
             out.setdefault("pole", []).append(style["templates"]["trunk"].transformed(x, y, h, (0.22, 0.22, 8.0)))
 
 
@@ -207,13 +211,25 @@ def _grass_patches(out: dict, track: Track, rng: np.random.Generator, s0: float,
         out.setdefault("patch_dark" if rng.uniform() < 0.5 else "patch_light", []).append(patch)
 
 
+def _style(rng: np.random.Generator) -> dict:
+    """The roadside's style, the first draws of the scenery's stream."""
+    return {"tree_density": rng.uniform(0.03, 0.08), "poles": rng.uniform() < 0.7,
+            "pole_side": float(rng.choice([-1.0, 1.0])), "building_rate": rng.uniform(0.1, 0.4),
+            "barriers": rng.uniform() < 0.6, "patch_density": rng.uniform(0.1, 0.3)}
+
+
+def light_poles(track: Track, seed: int) -> tuple[np.ndarray, float]:
+    """Where build_scenery puts light poles along the track for `seed` (none on some seeds): their s [m] and their
+    lateral offset d [m] (one side of the road)."""
+    style = _style(np.random.default_rng([int(seed), 0x5CE7E]))
+    s = np.arange(0.0, track.length, 50.0) if style["poles"] else np.zeros(0)
+    return s, style["pole_side"] * (track.half_width + VERGE_WIDTH + 0.8)
+
+
 def build_scenery(track: Track, seed: int) -> list[Chunk]:
     """Static geometry of the whole loop, cut into chunks along s. Same track and seed, same scene."""
     rng = np.random.default_rng([int(seed), 0x5CE7E])
-    style = {"templates": _templates(), "tree_density": rng.uniform(0.03, 0.08),
-             "poles": rng.uniform() < 0.7, "pole_side": float(rng.choice([-1.0, 1.0])),
-             "building_rate": rng.uniform(0.1, 0.4), "barriers": rng.uniform() < 0.6,
-             "patch_density": rng.uniform(0.1, 0.3)}
+    style = {"templates": _templates(), **_style(rng)}
     n = max(1, int(round(track.length / CHUNK_LENGTH)))
     edges = np.linspace(0.0, track.length, n + 1)
     chunks = []

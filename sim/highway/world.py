@@ -14,8 +14,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from core.conditions import CONDITION_COLUMN, SEEDED, pick
 from core.worlds.highway import HIGHWAY, Action
 from sim.collision import overlaps
+from sim.highway.conditions import condition_of
 from sim.highway.config import WorldConfig
 from sim.highway.renderer import Renderer
 from sim.highway.scenario import Scenario
@@ -68,6 +70,8 @@ class World:
         self.config = config
         cam = config.camera
         self.declaration = HIGHWAY.with_camera("front", cam.height, cam.width, config.inset)
+        if config.condition != SEEDED:   # a world of named conditions records each frame's
+            self.declaration = self.declaration.with_column(CONDITION_COLUMN)
         self.dt = config.dt
         self.scenario = scenario
         if scenario is not None:
@@ -172,6 +176,11 @@ class World:
             self._run.observe(obs, self.last_cars)
         return obs
 
+    @property
+    def condition(self) -> str:
+        """The named condition this episode's frames are drawn in (its seed's draw from the configuration's mix)."""
+        return pick(self.config.condition, self.seed)
+
     def scenario_report(self) -> dict | None:
         """A scripted scenario's events carried out and its verdict so far (None without one)."""
         return None if self._run is None else self._run.report()
@@ -199,6 +208,7 @@ class World:
             if self._renderer is not None:
                 self._renderer.close()
             self._renderer = Renderer(self.track, self.seed, self.config.camera, self.config.renderer,
-                                      self.config.mirror, self.config.side_views)
+                                      self.config.mirror, self.config.side_views,
+                                      condition_of(self.config.condition, self.seed))
             self._renderer_seed = self.seed
         return self._renderer.render(ego[0], ego[1], ego[2], cars)

@@ -1,0 +1,213 @@
+"""The conditions' effects on the ground and the objects of a frame, compiled with numba (sim/render/effects.py
+builds the tables read here and says what each effect is).
+
+Where the renderer drew no object, a pixel shows the sky or the flat ground, the same in every frame: the sky is the
+Look's and left as it is; on the ground the effect (the tint, the darkness and the host's headlights, the fog) is
+`colour x gain(lit) x t + fog x (1 - t)` with the pixel's fog transmittance t and headlight `lit` stored once, a
+byte each. Where the renderer drew an object (a finite depth) they come from its distance. The tables are bytes and
+the rays are computed from each view's camera, so that what a frame reads stays in the processor's caches.
+
+Arrays of pixels are flat (row after row), colours 3 a pixel. `cams` holds a row per view (effects.py CAMS).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+INF = np.float32(np.inf)
+# fast maths, but not the flags that assume no infinities: an infinite depth means nothing was drawn there
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+STEP = 4.0          # table entries per metre of the distance tables (fog, headlights)
+TOP = np.float32(255.0)
+LIT = 64.0          # the headlights' light in a byte: 64 is 1, a byte reaches 4
+BLOCK = 16          # pixels whose depths are tested together: most hold no object
+
+
+@njit(cache=True, fastmath=FAST)
+def headlight(px, py, pz, beam):
+    """The host's low beams' light [0-1+] at a point (car frame [m]); beam: x, z [m] of the beams' source, reach
+    [m], the cut-off's slope above which the beam fades, its fade, half width as a slope across."""
+    qx = px - beam[0]
+    if qx < 0.5:
+        return 0.0
+    up = (pz - beam[1]) / qx - beam[3]
+    across = py / qx / beam[5]
+    vertical = 1.0 if up < 0.0 else math.exp(-(up / beam[4]) ** 2)
+    r = qx / beam[2]
+    return vertical * math.exp(-across * across) / (1.0 + r * r)
+
+
+@njit(cache=True)
+def ray(cams, v, r, c):
+    """The ray of frame pixel (r, c) of view v in the car frame, per metre along the view's axis."""
+    top, left, vh, vw = cams[v, 14], cams[v, 15], cams[v, 16], cams[v, 17]
+    col = (vw - (c - left) - 0.5) if cams[v, 18] else (c - left + 0.5)
+    x, y = (col - vw / 2) / cams[v, 12], (vh / 2 - (r - top + 0.5)) / cams[v, 13]
+    return (x * cams[v, 3] + y * cams[v, 6] + cams[v, 9], x * cams[v, 4] + y * cams[v, 7] + cams[v, 10],
+            x * cams[v, 5] + y * cams[v, 8] + cams[v, 11])
+
+
+@njit(cache=True)
+def beams(lit, cone, view, ground, cams, beam, width):
+    """Per pixel, the headlights on the ground it shows and the beams' cone along its ray (headlight() at one reach
+    over the falloff there: an object's light at distance d is about cone x falloff(d)), as bytes (LIT a unit)."""
+    for p in range(view.shape[0]):
+        v = view[p]
+        if v < 0:
+            continue
+        rx, ry, rz = ray(cams, v, p // width, p % width)
+        for d, out, scale in ((np.float64(ground[p]), lit, 1.0), (beam[2], cone, 2.0)):
+            if d < np.inf:
+                h = scale * headlight(cams[v, 0] + d * rx, cams[v, 1] + d * ry, cams[v, 2] + d * rz, beam)
+                out[p] = np.uint8(min(255.0, round(h * LIT)))
+
+
+# --- per frame -----------------------------------------------------------------------------------------------
+@njit(cache=True, fastmath=FAST)
+def _ground_run(out, src, fog, lit, gain, dark, fog_rgb):
+    # one run of pixels, as arrays of their own (the compiler vectorises the loop only so)
+    for i in range(fog.shape[0]):
+        t = np.float32(fog[i]) * np.float32(1.0 / 255.0)
+        h = np.float32(lit[i]) * np.float32(1.0 / LIT)
+        u = np.float32(1.0) - t
+        for c in range(3):
+            out[3 * i + c] = np.uint8(min(src[3 * i + c] * (dark[c] + gain[c] * h) * t + fog_rgb[c] * u, TOP))
+
+
+@njit(cache=True, fastmath=FAST)
+def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
+    """The ground's pixels (flat ranges `spans` (n, 2)): colour x (dark + gain x lit) x t + fog_rgb x (1 - t), t the
+    fog byte / 255, lit the headlights' byte / LIT; dark (3,): the tint times the night's light (the tint alone by
+    day), gain (3,): the tint times the headlights' colour (0 by day)."""
+    for k in range(spans.shape[0]):
+        lo, hi = spans[k, 0], spans[k, 1]
+        _ground_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], lit[lo:hi], gain, dark, fog_rgb)
+
+
+@njit(cache=True, fastmath=FAST)
+def drawn(depth, view, width, index, rows):
+    """The pixels where an object was drawn (depth finite) in a view: their flat indices into `index` and their rows
+    into `rows`; how many. Most stretches of BLOCK pixels hold none and are passed over at once."""
+    n = 0
+    whole = depth.shape[0] - depth.shape[0] % BLOCK
+    for b in range(0, depth.shape[0], BLOCK):
+        some = True
+        if b < whole:   # a whole block: one test the compiler vectorises
+            some = False
+            for i in range(b, b + BLOCK):
+                some |= depth[i] != INF
+        if some:
+            r = b // width
+            for p in range(b, min(b + BLOCK, depth.shape[0])):
+                if depth[p] != INF and view[p] >= 0:
+                    index[n] = p
+                    rows[n] = r + (1 if p - r * width >= width else 0)   # a block spans at most two rows
+                    n += 1
+    return n
+
+
+@njit(cache=True, fastmath=FAST)
+def objects(out, src, depth, index, rows, view, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, reach, lamp_rgb,
+            width):
+    """The pixels where an object was drawn (`index`, `rows`: drawn), from the renderer's colour and the object's
+    distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t + fog_rgb x
+    (1 - t), t = fog[d x ray length] (tables by STEP a metre; fall of one entry: no headlights), pools: the street
+    lamps' (lamps (n, 2) [m, car frame], `reach` [m] their radius)."""
+    nf, nl = fall.shape[0] - 1, fog.shape[0] - 1
+    r2 = reach * reach
+    lit = nf > 0
+    for k in range(index.shape[0]):
+        p, r = index[k], rows[k]
+        d, v = depth[p], view[p]
+        top, left, vh, vw = cams[v, 14], cams[v, 15], cams[v, 16], cams[v, 17]
+        c = p - r * width
+        col = (vw - (c - left) - 0.5) if cams[v, 18] else (c - left + 0.5)
+        x = (col - vw / 2) / cams[v, 12]
+        y = (vh / 2 - (r - top + 0.5)) / cams[v, 13]
+        g0, g1, g2 = dark[0], dark[1], dark[2]
+        if lit:
+            h = cone[p] * (1.0 / LIT) * fall[min(np.int32(d * STEP), nf)]
+            pool = 0.0
+            if lamps.shape[0]:
+                rx, ry = x * cams[v, 3] + y * cams[v, 6] + cams[v, 9], x * cams[v, 4] + y * cams[v, 7] + cams[v, 10]
+                for j in range(lamps.shape[0]):
+                    dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
+                    f = max(0.0, 1.0 - (dx * dx + dy * dy) / r2)
+                    pool += f * f
+            g0 += gain[0] * h + lamp_rgb[0] * pool
+            g1 += gain[1] * h + lamp_rgb[1] * pool
+            g2 += gain[2] * h + lamp_rgb[2] * pool
+        t = fog[min(np.int32(d * math.sqrt(1.0 + x * x + y * y) * STEP), nl)]
+        u = 1.0 - t
+        q = 3 * p
+        out[q] = np.uint8(min(src[q] * g0 * t + fog_rgb[0] * u, 255.0))
+        out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + fog_rgb[1] * u, 255.0))
+        out[q + 2] = np.uint8(min(src[q + 2] * g2 * t + fog_rgb[2] * u, 255.0))
+
+
+@njit(cache=True, fastmath=FAST)
+def reflections(out, src, depth, index, rows, view, contact, wetness, road, tall, width):
+    """A wet road mirrors the objects standing on it: the object pixel (`index`, `rows`: drawn) at row r, distance
+    d, shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each distance along
+    its axis, -1 where none), blended in by that pixel's wetness byte / 255 where the renderer drew the asphalt
+    there (colour `road`, within a level) and no object; tall: rows x metres above its ground row beyond which an
+    object pixel is not mirrored (the height of a car x the focal length: not the crowns of trees). out holds the
+    objects' colours."""
+    nc = contact.shape[1] - 1
+    height = view.shape[0] // width
+    for k in range(index.shape[0]):
+        p, r = index[k], rows[k]
+        d, v = depth[p], view[p]
+        g = contact[v, min(np.int32(d * STEP), nc)]
+        target = 2 * g - r
+        if g < 0 or (g - r) * d > tall or target <= r or target >= height:
+            continue
+        tp = p + (target - r) * width
+        tq, q = 3 * tp, 3 * p
+        if view[tp] != v or depth[tp] != INF or abs(np.int32(src[tq]) - road[0]) > 1 or \
+                abs(np.int32(src[tq + 1]) - road[1]) > 1 or abs(np.int32(src[tq + 2]) - road[2]) > 1:
+            continue
+        a = np.float32(wetness[tp]) * np.float32(1.0 / 255.0)
+        for i in range(3):
+            x = np.float32(out[tq + i])
+            out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))
+
+
+@njit(cache=True, fastmath=FAST)
+def _pool_run(out, src, depth, ex, ey, bx, by, r2, rgb):
+    # one row's pixels inside one disc, as arrays of their own (the compiler vectorises the loop only so)
+    for i in range(depth.shape[0]):
+        dx, dy = ex + i * bx, ey + i * by
+        f = max(0.0, 1.0 - (dx * dx + dy * dy) / r2)
+        f = f * f * (depth[i] == INF)
+        for c in range(3):
+            out[3 * i + c] = np.uint8(min(TOP, out[3 * i + c] + src[3 * i + c] * f * rgb[c]))
+
+
+@njit(cache=True, fastmath=FAST)
+def pools(out, src, depth, rows, spots, lamps, reach, rgb):
+    """The street lamps' pools of light on the ground, added where no object was drawn: each a smooth disc of
+    radius `reach` [m] around its centre (lamps (n, 2) [m, car frame]), lighting the renderer's colour by rgb at its
+    middle. rows (n, 2): the ground's row segments (flat index of the first pixel, of the end), spots (n, 4): the
+    car-frame point [m] of the first pixel's ground and its step a pixel along the row (a row's ground points lie
+    on a line): only the pixels inside a disc are visited."""
+    r2 = reach * reach
+    for k in range(rows.shape[0]):
+        p0, p1 = rows[k, 0], rows[k, 1]
+        ax, ay, bx, by = spots[k, 0], spots[k, 1], spots[k, 2], spots[k, 3]
+        bb = bx * bx + by * by
+        for j in range(lamps.shape[0]):
+            ex, ey = ax - lamps[j, 0], ay - lamps[j, 1]
+            half = bx * ex + by * ey
+            disc = half * half - bb * (ex * ex + ey * ey - r2)   # |e + i b|^2 < r2 for i between the roots
+            if disc <= 0.0 or bb == 0.0:
+                continue
+            root = math.sqrt(disc)
+            lo = max(p0, p0 + int(math.ceil((-half - root) / bb)))
+            hi = min(p1, p0 + int((-half + root) / bb) + 1)
+            if hi > lo:
+                i = lo - p0
+                _pool_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], ex + i * bx, ey + i * by, bx, by,
+                          r2, rgb)

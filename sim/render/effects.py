@@ -1,0 +1,201 @@
+"""A named condition drawn over the frames of a Geometry (sim/render/conditions.py), whatever renderer drew them,
+from the frame and its depth:
+
+- the ground (where no object was drawn and the ray goes down): the tint, the night's darkness and the host's
+  headlights, the fog, all known from the pixel alone and computed once (sim/render/effect_kernels.py `ground`);
+- the objects (a finite depth): the same from their distance (`objects`); at night the street lamps' pools light the
+  ground and the objects near them (`pools`); a wet road mirrors the objects standing on it (`reflections`);
+- lights over the rest (sim/render/light_kernels.py): the cars' tail and head lights and the lamps, the sun's glare
+  and its disc, the rain's streaks;
+- the sky is left as the renderer drew it: the world's Look for the condition gives it its colours.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from sim.render.conditions import CarLights, Condition, Geometry, Lamps
+from sim.render.effect_kernels import STEP, beams, drawn, ground, objects, pools, reflections
+from sim.render.light_kernels import car_lights, glare, lamp_heads, near_lamps, streaks
+
+NO_LAMPS = np.zeros((0, 2), dtype=np.float32)
+POOLS_REACH = 150.0   # [m] the street lamps' pools are drawn on the ground nearer than this
+LIT_OBJECTS = 70.0    # [m] ... and on the objects near those nearer than this (farther ones are a few pixels)
+STREAK_RGB = np.array([205.0, 210.0, 218.0])   # rain streaks: lit drops against the sky
+TAIL_RGB, HEAD_RGB = np.array([255.0, 38.0, 26.0]), np.array([255.0, 246.0, 222.0])
+HEADLIGHT_RGB = np.array([1.0, 0.96, 0.88])    # the host's beams: warm white
+GLARE_WIDTH = 0.008   # 1 - cos of the angle from the sun where its glare falls by e (about 7 degrees)
+SUN_DISC = 1.5e-4     # 1 - cos of the sun's apparent radius, a little over its 0.27 degrees: a pixel or two
+RAIN_FALL = 23        # [px] the streaks fall a frame
+MIRRORED = 2.0        # [m] a wet road mirrors what stands up to this high on it (cars; not the crowns of trees)
+
+
+class Effects:
+    """Draws `condition` over the frames of `geometry`. road_rgb: the asphalt's colour as the renderers draw it
+    (a wet road mirrors where the asphalt shows); headlight: the host's low beams (x, z [m] of their source in the
+    car frame); seed: the rain's streaks; lamps, car_lights: what lights there are (None: none)."""
+
+    def __init__(self, condition: Condition, geometry: Geometry, road_rgb, seed: int,
+                 headlight: tuple[float, float] = (1.0, 0.65), lamps: Lamps | None = None,
+                 car_lights: CarLights | None = None, lamp_reach: float = 16.0):
+        self.condition, self.geometry = c, g = condition, geometry
+        self.lamps = lamps if c.night >= 0 and c.street_lights > 0 and lamps is not None and len(lamps.pools) \
+            else None
+        self.car_lights = car_lights if car_lights is not None and car_lights.strength > 0 else None
+        self._lamp_reach = lamp_reach
+        self._road = np.asarray(road_rgb, dtype=np.int64)
+        self._beam = np.array([headlight[0], headlight[1], max(c.headlight_reach, 1e-3), -0.004, 0.04, 0.6])
+        tint = np.asarray(c.tint, dtype=np.float64)
+        self._dark = (tint * (c.night if c.night >= 0 else 1.0)).astype(np.float32)
+        self._gain = (tint * HEADLIGHT_RGB if c.night >= 0 else np.zeros(3)).astype(np.float32)
+        self._lamp_rgb = np.asarray(c.lamp_rgb, dtype=np.float64) * c.street_lights
+        self._fog_rgb = (np.asarray(c.fog_rgb, dtype=np.float64) * 255.0).astype(np.float32)
+        d = np.arange(int(400 * STEP) + 1) / STEP   # the distance tables, STEP entries a metre
+        fall = 1.0 / (1.0 + (d / max(c.headlight_reach, 1e-3)) ** 2) if c.night >= 0 else np.zeros(1)
+        self._fall = fall.astype(np.float32)
+        self._fog_table = (np.exp(-c.density * d) if c.density > 0 else np.ones(1)).astype(np.float32)
+        self._view = g.view.reshape(-1)
+        self._border = np.flatnonzero(self._view < 0)
+        self._index = np.empty(g.view.size, dtype=np.int64)        # the pixels of objects of a frame, and their rows
+        self._index_rows = np.empty(g.view.size, dtype=np.int64)
+        self._statics()
+        self._rows, self._spots = self._ground_rows()
+        self._contact, self._wetness = self._wet_road()
+        self._sprite = glare_sprite(c.glare, g.cams[0, 12]) if c.glare > 0 else None
+        texture = rain_streaks(g.view.shape, c.rain, seed)
+        self._period = max(1, texture.shape[0])
+        rows, cols = np.nonzero(texture)   # by row
+        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols].astype(np.float64))
+        self._streak_rows = np.searchsorted(rows, np.arange(self._period + 1))
+        self._frames = 0
+
+    def _statics(self) -> None:
+        """Per pixel, as bytes: the ground's fog transmittance (x 255), the headlights on the ground and the beams'
+        cone (x LIT); the runs of pixels of ground (spans)."""
+        c, g = self.condition, self.geometry
+        w = g.view.shape[1]
+        on = g.ground_mask
+        lit = np.zeros(g.view.size, dtype=np.uint8)
+        self._cone = np.zeros(g.view.size, dtype=np.uint8)
+        if c.night >= 0:
+            beams(lit, self._cone, self._view, g.ground.reshape(-1), g.cams, self._beam, w)
+        self._lit = lit
+        with np.errstate(invalid="ignore", over="ignore"):
+            t = np.where(on, np.exp(-c.density * g.ground * g.lengths), 1.0)
+        self._fog = np.round(t * 255.0).astype(np.uint8).reshape(-1)
+        edges = np.flatnonzero(np.diff(np.r_[0, on.reshape(-1).astype(np.int8), 0]))
+        self._spans = edges.reshape(-1, 2).astype(np.int64)
+
+    def _ground_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every view's rows of ground: (flat index of the first pixel, of the end) and the car-frame ground point
+        [m] of the first pixel and its step a pixel (a row's ground points lie on a line)."""
+        g, w = self.geometry, self.geometry.view.shape[1]
+        rows, spots = [], []
+        for v, p in enumerate(g.places):
+            top, left, vh, vw = p.rect
+            for r in range(top, top + vh):
+                d = g.ground[r, left:left + 2]
+                if np.isfinite(d).all():
+                    a, b = (g.eyes[v, :2] + d[:, None] * g.rays[r, left:left + 2, :2]).astype(np.float64)
+                    rows.append((r * w + left, r * w + left + vw))
+                    spots.append((*a, *(b - a)))
+        return np.array(rows, dtype=np.int64).reshape(-1, 2), np.array(spots, dtype=np.float64).reshape(-1, 4)
+
+    def _wet_road(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per view, the row of the ground at each distance along its axis (STEP a metre; the lowest row's below
+        its distance, -1 in a view without ground), and per pixel how much a wet road mirrors there (x 255): more at
+        grazing angles, far away."""
+        g = self.geometry
+        contact = np.full((len(g.places), int(400 * STEP) + 1), -1, dtype=np.int64)
+        for v, p in enumerate(g.places):
+            top, left, vh, vw = p.rect
+            near = g.ground[top:top + vh, left + vw // 2]
+            for r in np.flatnonzero(np.isfinite(near)):   # the ground's distance falls row by row down the view
+                contact[v, :min(int(round(near[r] * STEP)), contact.shape[1] - 1) + 1] = top + r
+        far = np.minimum(1.0, np.where(g.ground_mask, g.ground, 0.0) / 60.0)
+        wetness = np.where(g.ground_mask, self.condition.wetness * (0.35 + 0.65 * far), 0.0)
+        return contact, np.round(wetness * 255.0).astype(np.uint8).reshape(-1)
+
+    def apply(self, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
+              cars: tuple | None = None) -> np.ndarray:
+        """The frame with the condition drawn over it (a new array) seen from a car at (x, y) [m] with yaw [rad]:
+        depth (h, w) float32, the objects' distances along each view's axis [m] (inf where none; the insets'
+        borders are set to inf here); cars: (x, y, yaw, model) arrays of the other cars."""
+        g, c = self.geometry, self.condition
+        w = g.view.shape[1]
+        out = frame.copy()
+        flat, src, deep = out.reshape(-1), frame.reshape(-1), depth.reshape(-1)
+        deep[self._border] = np.inf
+        ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
+        near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS)
+        n = drawn(deep, self._view, w, self._index, self._index_rows)
+        index, rows = self._index[:n], self._index_rows[:n]
+        objects(flat, src, deep, index, rows, self._view, g.cams, self._cone, self._fall, self._fog_table, self._dark,
+                self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
+        if c.wetness > 0:
+            reflections(flat, src, deep, index, rows, self._view, self._contact, self._wetness, self._road,
+                        MIRRORED * g.cams[0, 13], w)
+        if self.lamps is not None:
+            pools(flat, src, deep, self._rows, self._spots, near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH),
+                  self._lamp_reach, self._lamp_rgb)
+            lamp_heads(out, depth, g.view, g.cams, x, y, yaw, self.lamps.heads, self.lamps.height,
+                       np.asarray(c.lamp_rgb) * 255.0)
+        self._lights(out, depth, yaw, x, y, cars)
+        self._frames += 1
+        return out
+
+    def _lights(self, out: np.ndarray, depth: np.ndarray, yaw: float, x: float, y: float, cars: tuple | None) -> None:
+        """What is drawn over the rest: the cars' lights, the sun's glare, the rain."""
+        g, c = self.geometry, self.condition
+        if self.car_lights is not None and cars is not None and len(cars[0]):
+            lights = self.car_lights
+            car_x, car_y, car_yaw, models = cars
+            car_lights(out, depth, g.view, g.cams, x, y, yaw, car_x, car_y, car_yaw, models, lights.tails,
+                       lights.heads, TAIL_RGB, HEAD_RGB, lights.strength, c.density, 1.0 if c.wetness else 0.0)
+        if self._sprite is not None:
+            sun, ch, sh = c.sun, math.cos(yaw), math.sin(yaw)
+            glare(out, g.view, g.cams, np.array([ch * sun[0] + sh * sun[1], -sh * sun[0] + ch * sun[1], sun[2]]),
+                  self._sprite)
+        if len(self._streaks[0]):
+            offset = (self._frames * RAIN_FALL) % self._period
+            first = (self._period - offset) % self._period   # the texture's row shown at the top, then h more
+            last = first + g.view.shape[0]
+            at = self._streak_rows
+            spans = [(at[first], at[min(last, self._period)])] + \
+                ([(at[0], at[last - self._period])] if last > self._period else [])
+            streaks(out, g.view, *self._streaks, np.array(spans, dtype=np.int64), self._period, offset, STREAK_RGB)
+
+
+def glare_sprite(strength: float, focal: float) -> np.ndarray:
+    """How far each pixel around the sun goes to white (2 k + 1 square, k where the glare falls under a level), for
+    a camera of focal length `focal` [px]: the sun's disc white, its glare exp(-(1 - cos angle) / GLARE_WIDTH)."""
+    reach = GLARE_WIDTH * math.log(strength * 255.0)   # 1 - cos where it falls under a level
+    k = int(math.ceil(math.tan(math.acos(1.0 - reach)) * focal))
+    dy, dx = np.mgrid[-k:k + 1, -k:k + 1]
+    off = 1.0 - np.cos(np.arctan(np.hypot(dx, dy) / focal))
+    sprite = np.where(off < SUN_DISC, 1.0, strength * np.exp(-off / GLARE_WIDTH))
+    return np.where(sprite * 255.0 < 1.0, 0.0, sprite).astype(np.float32)
+
+
+def rain_streaks(shape: tuple[int, int], density: float, seed: int) -> np.ndarray:
+    """The rain's streaks (2 h, w) uint8 alpha: slanted, anti-aliased lines, read a frame's height at a time from
+    a row that moves down every frame, seamless across the wrap; (0, w) without rain."""
+    h, w = shape
+    if density <= 0:
+        return np.zeros((0, w), dtype=np.uint8)
+    rng = np.random.default_rng([int(seed), 0x4A1])
+    rows = 2 * h
+    out = np.zeros((rows + h, w), dtype=np.uint8)
+    slant = rng.uniform(-0.25, 0.25)
+    for _ in range(int(density * rows * w / 1000)):
+        x, y = rng.uniform(0, w), rng.uniform(0, rows)
+        length = rng.uniform(0.04, 0.12) * h
+        alpha = int(rng.uniform(40, 110))
+        p0 = (int(x * 16), int(y * 16))
+        p1 = (int((x + slant * length) * 16), int((y + length) * 16))
+        cv2.line(out, p0, p1, alpha, 1, cv2.LINE_AA, 4)
+    out[:h] = np.maximum(out[:h], out[rows:])   # what ran past the bottom comes back at the top
+    return np.ascontiguousarray(out[:rows])
+

@@ -1,0 +1,153 @@
+"""The lights a condition draws over a frame, compiled with numba (sim/render/effects.py says what each is): the
+glows of cars' lights and street lamps (hidden behind what the renderer drew in front of them, reflected by a wet
+road), the sun's glare and the rain's streaks.
+
+`cams` holds a row per view of the frame (sim/render/effects.py CAMS): where its camera is, where it looks and
+where its image is in the frame.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sim.render.effect_kernels import FAST
+
+FAR = 200.0         # [m] lights and lamps farther from the host are not drawn
+
+
+@njit(cache=True)
+def to_car(px, py, x, y, yaw):
+    """A world point (px, py) [m] in the frame of a car at (x, y) with yaw [rad] (x forward, y left)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = px - x, py - y
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+@njit(cache=True)
+def near_lamps(centres, x, y, yaw, within):
+    """The lamps' pool centres (n, 2) [m, world] within `within` [m] of a car at (x, y) with yaw [rad], in its
+    frame."""
+    out = np.empty((centres.shape[0], 2), dtype=np.float32)
+    n = 0
+    for k in range(centres.shape[0]):
+        lx, ly = to_car(centres[k, 0], centres[k, 1], x, y, yaw)
+        if lx * lx + ly * ly < within * within:
+            out[n, 0], out[n, 1] = lx, ly
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True)
+def project(cams, v, px, py, pz):
+    """A car-frame point [m] in view v of cams (views, 22: eye (3), right, up, forward rows (9), fx, fy [px], rect
+    (top, left, height, width), mirrored, near [m], hfov [rad], reach [m]): frame column, row [px] and distance
+    along the view's axis [m]; distance < 0: behind the camera."""
+    qx, qy, qz = px - cams[v, 0], py - cams[v, 1], pz - cams[v, 2]
+    a = qx * cams[v, 3] + qy * cams[v, 4] + qz * cams[v, 5]
+    b = qx * cams[v, 6] + qy * cams[v, 7] + qz * cams[v, 8]
+    d = qx * cams[v, 9] + qy * cams[v, 10] + qz * cams[v, 11]
+    if d <= cams[v, 19]:
+        return 0.0, 0.0, -1.0
+    top, left, vh, vw = cams[v, 14], cams[v, 15], cams[v, 16], cams[v, 17]
+    x = a / d * cams[v, 12] + vw / 2
+    col = left + (vw - x if cams[v, 18] else x)
+    return col, top + vh / 2 - b / d * cams[v, 13], d
+
+
+@njit(cache=True, fastmath=FAST)
+def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, streak):
+    """A light at a car-frame point [m] added to view v of out (h, w, 3) as a glow of `radius` [m] (at least 0.6
+    px), colour rgb (0-255) at full strength, hidden where the depth shows an object more than a metre in front of
+    it, dimmed by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below."""
+    col, row, d = project(cams, v, px, py, pz)
+    if d < 0.0 or d > cams[v, 21]:
+        return
+    ic, ir = int(math.floor(col)), int(math.floor(row))
+    top, left, vh, vw = int(cams[v, 14]), int(cams[v, 15]), int(cams[v, 16]), int(cams[v, 17])
+    if not (top <= ir < top + vh and left <= ic < left + vw) or view[ir, ic] != v or depth[ir, ic] < d - 1.0:
+        return
+    rad = max(0.6, radius * cams[v, 13] / d)
+    s = strength * (math.exp(-fog * d) if fog > 0.0 else 1.0)
+    reach = int(math.ceil(rad * 3.0))
+    below = int(math.ceil(rad * 3.0 * streak))
+    for r in range(max(top, ir - reach), min(top + vh, ir + reach + below + 1)):
+        for c in range(max(left, ic - reach), min(left + vw, ic + reach + 1)):
+            if view[r, c] != v:
+                continue
+            dx, dy = (c + 0.5 - col) / rad, (r + 0.5 - row) / rad
+            if dy > 0.0 and streak > 0.0:
+                dy = dy / (1.0 + streak)
+            q = dx * dx + dy * dy
+            if q < 9.0:
+                g = s * math.exp(-q)
+                for i in range(3):
+                    out[r, c, i] = np.uint8(min(255.0, out[r, c, i] + g * rgb[i]))
+
+
+@njit(cache=True, fastmath=FAST)
+def car_lights(out, depth, view, cams, x, y, yaw, car_x, car_y, car_yaw, car_models, tails, heads, tail_rgb,
+               head_rgb, strength, fog, streak):
+    """The tail lights of the cars seen from behind and the headlights of those seen from ahead: tails, heads
+    (models, 2, 3) [m] each model's pair in its car's frame."""
+    for k in range(len(car_x)):
+        ax, ay = to_car(car_x[k], car_y[k], x, y, yaw)
+        if ax * ax + ay * ay > FAR * FAR:
+            continue
+        c, s = math.cos(car_yaw[k]), math.sin(car_yaw[k])
+        behind = (x - car_x[k]) * c + (y - car_y[k]) * s < 0.0
+        pair, rgb, radius = (tails, tail_rgb, 0.16) if behind else (heads, head_rgb, 0.2)
+        m = car_models[k]
+        for i in range(2):
+            lx, ly = to_car(car_x[k] + c * pair[m, i, 0] - s * pair[m, i, 1],
+                            car_y[k] + s * pair[m, i, 0] + c * pair[m, i, 1], x, y, yaw)
+            for v in range(cams.shape[0]):
+                glow(out, depth, view, cams, v, lx, ly, pair[m, i, 2], radius, rgb, strength, fog, streak)
+
+
+@njit(cache=True, fastmath=FAST)
+def lamp_heads(out, depth, view, cams, x, y, yaw, heads, height, rgb):
+    """The street lamps themselves: heads (n, 2) world [m], `height` [m] up."""
+    for k in range(heads.shape[0]):
+        lx, ly = to_car(heads[k, 0], heads[k, 1], x, y, yaw)
+        if lx * lx + ly * ly < FAR * FAR:
+            for v in range(cams.shape[0]):
+                glow(out, depth, view, cams, v, lx, ly, height, 0.35, rgb, 0.9, 0.0, 0.0)
+
+
+@njit(cache=True, fastmath=FAST)
+def glare(out, view, cams, sun, sprite):
+    """The sun's glare and disc: sprite (2 k + 1, 2 k + 1) of how far each pixel around the sun goes to white, in
+    the front view's pixels, added where the sun (sun: unit vector, car frame) is in a view."""
+    k = sprite.shape[0] // 2
+    for v in range(cams.shape[0]):
+        col, row, d = project(cams, v, cams[v, 0] + sun[0] * 1e3, cams[v, 1] + sun[1] * 1e3,
+                              cams[v, 2] + sun[2] * 1e3)
+        if d <= 0.0:
+            continue
+        ic, ir = int(math.floor(col)), int(math.floor(row))
+        top, left, vh, vw = int(cams[v, 14]), int(cams[v, 15]), int(cams[v, 16]), int(cams[v, 17])
+        for r in range(max(top, ir - k), min(top + vh, ir + k + 1)):
+            for c in range(max(left, ic - k), min(left + vw, ic + k + 1)):
+                if view[r, c] == v:
+                    g = sprite[r - ir + k, c - ic + k]
+                    out[r, c, 0] = np.uint8(out[r, c, 0] + g * (255.0 - out[r, c, 0]))
+                    out[r, c, 1] = np.uint8(out[r, c, 1] + g * (250.0 - out[r, c, 1]))
+                    out[r, c, 2] = np.uint8(out[r, c, 2] + g * (230.0 - out[r, c, 2]))
+
+
+@njit(cache=True, fastmath=FAST)
+def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
+    """Rain streaks: pixels (rows, cols, alpha 0-255, sorted by row) of a texture `period` rows tall, shown `offset`
+    rows further down each frame (wrapping), blended towards rgb over every view; spans (n, 2): the ranges of the
+    pixels that show this frame."""
+    for k in range(spans.shape[0]):
+        for i in range(spans[k, 0], spans[k, 1]):
+            r, c = rows[i] + offset, cols[i]
+            if r >= period:
+                r -= period
+            if view[r, c] >= 0:
+                a = alpha[i] / 255.0
+                for j in range(3):
+                    out[r, c, j] = np.uint8(out[r, c, j] + a * (rgb[j] - out[r, c, j]))
