@@ -14,6 +14,7 @@ os.environ.setdefault("LP_NUM_THREADS", "0")   # before anything loads Mesa: llv
 
 import numpy as np  # noqa: E402  (below the thread setting, which Mesa reads when it loads)
 
+from core.conditions import SEEDED  # noqa: E402
 from core.worlds.highway import Action  # noqa: E402
 from sim.highway.errors import RendererError  # noqa: E402
 from sim.highway.scenario import scenario_from_dict  # noqa: E402
@@ -22,17 +23,18 @@ from sim.highway.world import World, WorldConfig  # noqa: E402
 SPEED = 15.0   # [m/s]
 
 
-def world_for(track: str, renderer: str, inset: str) -> World:
-    """12 cars 8-74 m ahead in three lanes; with the mirror 4 more behind, with the side views 2 more level."""
+def world_for(track: str, renderer: str, inset: str, condition: str = SEEDED, seed: int = 1) -> World:
+    """12 cars 8-74 m ahead in three lanes; with the mirror 4 more behind, with the side views 2 more level; the
+    scene of `seed`, drawn in `condition` (docs/conditions.md)."""
     cars = [{"s": 8.0 + 6.0 * i, "d": (4.0, 0.0, -4.0)[i % 3], "speed": SPEED} for i in range(12)]
     if inset != "none":   # the same 12 ahead (the lap is long enough that none of them is behind) and 4 behind
         cars += [{"s": -10.0 - 8.0 * i, "d": (4.0, -4.0)[i % 2], "speed": SPEED} for i in range(4)]
     if inset == "sides":
         cars += [{"s": 0.5, "d": d, "speed": SPEED} for d in (4.0, -4.0)]
-    scenario = scenario_from_dict({"track": track, "lanes": 3, "seed": 1,
+    scenario = scenario_from_dict({"track": track, "lanes": 3, "seed": seed,
                                    "ego": {"s": 0.0, "d": 0.0, "speed": SPEED}, "cars": cars})
-    return World(WorldConfig(renderer=renderer, cars=0, mirror=inset != "none", side_views=inset == "sides"),
-                 scenario=scenario)
+    return World(WorldConfig(renderer=renderer, cars=0, mirror=inset != "none", side_views=inset == "sides",
+                             condition=condition), scenario=scenario)
 
 
 def drive(world: World, frames: int) -> dict:
