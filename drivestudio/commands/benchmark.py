@@ -43,12 +43,23 @@ import os
 import sys
 from pathlib import Path
 
+from core.conditions import CONDITIONS, SEEDED
 from core.files import check_output, check_output_dir
+from core.settings import entries, read
 from drivestudio.checkpoints import check_device
 from drivestudio.commands.common import add_device_option, run_dir
 from drivestudio.commands.numbers import count
 from drivestudio.errors import UsageError
 from sim.camera import DEFAULT_RENDERER, RENDERERS
+from sim.highway.config import WorldConfig
+
+
+def condition_type(text: str) -> str:
+    """--condition: the world configuration's setting, read and checked by it (argparse's one line on a bad name)."""
+    try:
+        return read(entries(WorldConfig)["condition"], text, "--condition")
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--condition: ")) from None
 
 
 def register(sub) -> None:
@@ -75,6 +86,9 @@ def register(sub) -> None:
                    help="crash clips kept per route and model (default 10; 0: none)")
     p.add_argument("--renderer", choices=RENDERERS, default=DEFAULT_RENDERER, help="the renderer of the routes' frames "
                    f"(default {DEFAULT_RENDERER}; docs/rendering.md)")
+    p.add_argument("--condition", type=condition_type, default=SEEDED, metavar="CONDITION[,CONDITION...]",
+                   help=f"the named condition of the routes' frames, one of {', '.join(CONDITIONS)}, or several "
+                   f"comma-separated that each route's seed draws one of (default {SEEDED}; docs/conditions.md)")
     add_device_option(p)
     p.add_argument("--out", help="output folder (default runs/benchmark-TIME)")
     p.set_defaults(func=run)
@@ -107,7 +121,7 @@ def run(args) -> int:
         from shm_bridge.endpoints import reclaim  # lazy: the bridge loads only when it runs, not for --help
         reclaim(SHM_PREFIX)
     opts = RunOptions(transport="shm" if args.shm else "in-process", device=args.device, renderer=args.renderer,
-                      clips=args.clips)
+                      clips=args.clips, condition=args.condition)
     workers = min(args.workers or os.cpu_count() or 1, len(suite.routes) * len(models))
     print(f"benchmark: suite '{suite.name}' ({len(suite.routes)} routes, {suite.seconds / 60:.1f} simulated "
           f"minutes) x {len(models)} models ({', '.join(m.label for m in models)}), {workers} workers, "

@@ -35,9 +35,8 @@ class WorldConfig:
     mirror: bool = setting(False, "paste a rear-view mirror into the top of the frame (docs/rendering.md)")
     side_views: bool = setting(False, "with the mirror (implied): the views out of both side windows below it, where "
                                "a car level with the host shows (docs/rendering.md)")
-    condition: str = setting(SEEDED, "the named condition frames are drawn in: seeded (the seed's own sunny or "
-                             "overcast look, as always), clear, overcast, low_sun, night, fog or rain "
-                             "(docs/conditions.md)", choices=CONDITIONS, several=True)
+    condition: str = setting(SEEDED, "the named condition the frames are drawn in (docs/conditions.md; seeded: the "
+                             "seed's own sunny or overcast look, as always)", choices=CONDITIONS, several=True)
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     # scenarios set their own speeds
     start_speed: float = setting(15.0, "host car's speed at the start", unit="m/s", low=0.0, high=60.0)

@@ -18,6 +18,8 @@ canonical order, lanes_left, lanes, speed, the poses, collision, off_road and t.
 `scenario=` (a scripted scenario file, docs/scenarios.md) replaces track, lanes and cars by its route: every reset
 replays it, at its own seed, an episode is truncated at its end (or at max_steps, if sooner), and info["scenario"]
 holds the events carried out and the verdict of its criteria so far.
+`condition=` draws the frames in a named condition, or each reset's seed draws one of several ("clear,fog,night";
+docs/conditions.md), then named in info["condition"]; the truth does not change with it.
 Every option is checked here, before any SUMO starts; the world opens on the first reset().
 """
 from __future__ import annotations
@@ -30,6 +32,7 @@ from dataclasses import replace
 import gymnasium as gym
 import numpy as np
 
+from core.conditions import SEEDED
 from core.worlds.highway import GAP_INACTIVE, GAPS, HIGHWAY, INDICATORS, Action
 from sim import gym_options as opt
 from sim.highway.scripted import load_scripted
@@ -63,12 +66,12 @@ class HighwayEnv(gym.Env):
                  renderer: str = DEFAULTS.renderer, width: int = DEFAULTS.camera.width,
                  height: int = DEFAULTS.camera.height, max_steps: int = 3000,
                  start_speed: float = DEFAULTS.start_speed, render_mode: str | None = "rgb_array",
-                 observation: str = "camera", scenario: str | None = None):
+                 observation: str = "camera", scenario: str | None = None, condition: str = DEFAULTS.condition):
         self.observation = opt.check_choice(ENV, "observation", observation, opt.OBSERVATIONS)
         config = opt.check_settings(ENV, DEFAULTS, {
             "lanes": ("lanes", lanes), "cars": ("cars", cars), "renderer": ("renderer", renderer),
             "width": ("camera.width", width), "height": ("camera.height", height),
-            "start_speed": ("start_speed", start_speed)})
+            "start_speed": ("start_speed", start_speed), "condition": ("condition", condition)})
         lanes, cars, width, height = config.lanes, config.cars, config.camera.width, config.camera.height
         self.max_steps = opt.check_int(ENV, "max_steps", max_steps, 1, MAX_EPISODE)
         if render_mode is not None:
@@ -117,6 +120,8 @@ class HighwayEnv(gym.Env):
         report = self._world.scenario_report() if self._world is not None else None
         if report is not None:
             info["scenario"] = report
+        if self._world is not None and self._config.condition != SEEDED:   # the one this reset's seed drew
+            info["condition"] = self._world.condition
         return info
 
     def _observation(self, obs: Observation):

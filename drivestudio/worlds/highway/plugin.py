@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from controller.highway.metrics import HighwayMetrics
+from core.conditions import CONDITION_COLUMN, SEEDED
 from core.worlds.highway import HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.driver_spec import DriverSpec
@@ -43,8 +44,10 @@ class Plugin(base.Plugin):
     verbs = ("probe", "benchmark", "suite", "aggregate", "recipe", "ppo")
 
     # the settings each verb shows as flags; every other one is `--set NAME=VALUE`
-    verb_settings = {"render": ("track", "lanes", "cars", "seed"),
-                     **{verb: ("track", "lanes", "cars", "seed", "scenario") for verb in ("drive", "serve")}}
+    verb_settings = {"render": ("track", "lanes", "cars", "seed", "condition"),
+                     "drive": ("track", "lanes", "cars", "seed", "scenario", "condition"),
+                     "serve": ("track", "lanes", "cars", "seed", "scenario"),
+                     "generate": ("condition",)}
 
     config_type = WorldConfig
 
@@ -164,8 +167,9 @@ class Plugin(base.Plugin):
         return HighwayCoverage()
 
     def describe_run(self, world, config, spec: DriverSpec | None) -> dict:
+        named = {"condition": world.condition} if world.config.condition != SEEDED else {}
         return {"track": world.track.name, "lanes": world.track.lanes, "cars": world.config.cars,
-                "mirror": world.config.mirror, "side_views": world.config.side_views}
+                "mirror": world.config.mirror, "side_views": world.config.side_views, **named}
 
     def studio(self) -> StudioKit:
         from drivestudio.worlds.highway.studio import KIT  # lazy: the overlays and presets only for the studio
@@ -190,15 +194,18 @@ class Plugin(base.Plugin):
             raise UsageError(f"--procedural must be an integer from 0 to 1000, got {procedural}")
         options = {"tracks": tracks, "procedural": procedural, "lanes": list(lanes), "cars": list(cars),
                    "width": config.camera.width, "height": config.camera.height, "fov": config.camera.fov_deg,
-                   **inset_options(config.inset)}
+                   **inset_options(config.inset),
+                   # only when named: a dataset of the seeded look keeps the plan (and the resumption) of before
+                   **({"condition": config.condition} if config.condition != SEEDED else {})}
         for track in self.track_list(options, 0):   # a bad track fails here, in one line, before any work
             for n in set(lanes):
                 load_track(track, lanes=n)
         return options
 
     def declaration_for(self, options: dict):
-        return HIGHWAY.with_camera("front", options["height"], options["width"],
+        decl = HIGHWAY.with_camera("front", options["height"], options["width"],
                                    inset_name(bool(options.get("mirror")), bool(options.get("side_views"))))
+        return decl.with_column(CONDITION_COLUMN) if options.get("condition") else decl
 
     @staticmethod
     def track_list(options: dict, seed_: int) -> list[str]:
@@ -230,12 +237,13 @@ class Plugin(base.Plugin):
         p = ep.params
         world = World(WorldConfig(track=p["track"], lanes=p["lanes"], cars=p["cars"], seed=ep.seed,
                                   renderer=renderer, camera=camera, render=False,
-                                  mirror=bool(options.get("mirror")), side_views=bool(options.get("side_views"))))
+                                  mirror=bool(options.get("mirror")), side_views=bool(options.get("side_views")),
+                                  condition=options.get("condition", SEEDED)))
         expert = ExpertDriver(p["lanes"], world.track.lane_width, ep.seed, world.dt)
 
         def columns(obs) -> dict:
             return {"track": p["track"], "perturbation": expert.label,
-                    "cars": obs.truth.cars.astype(np.float32).tolist()}
+                    "cars": obs.truth.cars.astype(np.float32).tolist(), "condition": world.condition}
         return world, expert, columns
 
 

@@ -78,7 +78,7 @@ class HighwayView:
 
     def columns(self, rec: StepRecord, who: str) -> dict:
         return {"track": self.track_ref, "perturbation": who,
-                "cars": _truth(rec).cars.astype(np.float32).tolist()}
+                "cars": _truth(rec).cars.astype(np.float32).tolist(), "condition": self.world.condition}
 
     def metrics(self, report: dict) -> dict:
         return {"distance_m": report["distance_m"], "collisions": report["collisions"],

@@ -23,6 +23,7 @@ import numpy as np
 
 from controller.highway.metrics import HighwayMetrics
 from core.children import popen
+from core.conditions import SEEDED
 from core.worlds.highway import lane_centres
 from drivestudio.errors import RunError
 from drivestudio.loop import in_process, run_loop
@@ -43,6 +44,7 @@ class RunOptions:
     transport: str = "in-process"    # or "shm"
     device: str = "cpu"
     renderer: str = DEFAULT_RENDERER
+    condition: str = SEEDED          # the named condition(s) of the routes' frames: each route's seed draws one
     clips: int = 10                  # clips kept per route (0: none)
     clip_before: float = 5.0         # [s] of the clip before the event
     clip_after: float = 1.0          # [s] after it
@@ -158,15 +160,15 @@ class RouteWorld:
         self.world.close()
 
 
-def world_for(route: Route, renderer: str = DEFAULT_RENDERER, inset: str = ""):
+def world_for(route: Route, renderer: str = DEFAULT_RENDERER, inset: str = "", condition: str = SEEDED):
     """The route's world: the highway's configuration (its defaults, as `drive` has them) of the route's track,
     lanes, seed, cars and start lane, with the inset (the rear-view mirror, the side views) of a model that learned
-    one."""
+    one, drawn in `condition` (a mix: the route's seed draws one)."""
     from sim.highway.world import World  # lazy: pybullet and SUMO, only in a route's process
     from sim.mirror import inset_options  # lazy: with the world
     return World(WorldConfig(track=route.track_ref or route.track, lanes=route.lanes, seed=route.seed,
                              cars=route.cars, renderer=renderer, start_lane=route.start_lane,
-                             scenario=route.scenario or None, **inset_options(inset)))
+                             scenario=route.scenario or None, condition=condition, **inset_options(inset)))
 
 
 # --- drivers --------------------------------------------------------------------------------------------------
@@ -204,7 +206,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
         ClipRecorder,  # lazy: OpenCV video writing, only in a route's process
     )
 
-    world = world_for(route, opts.renderer, model.inset)
+    world = world_for(route, opts.renderer, model.inset, opts.condition)
     t0 = time.perf_counter()
     try:
         metrics = RouteMetrics(world, HighwayMetrics.of(world))
@@ -237,7 +239,7 @@ def run_route(route: Route, model: ModelSpec, opts: RunOptions, clip_dir: Path |
         world.close()
     if progress is not None:   # what was not reported yet: the last steps, and the rest of a route that ended early
         progress(route.seconds - (steps[0] // PROGRESS_EVERY) * PROGRESS_EVERY * world.dt)
-    return {"route": route.name, "model": model.key, "end": end, "seconds": route.seconds,
+    return {"route": route.name, "model": model.key, "condition": world.condition, "end": end, "seconds": route.seconds,
             "driven_s": round(report["simulated_time_s"], 3), "metrics": report, "clips": clips,
             "clips_skipped": recorder.skipped, "wall_s": round(time.perf_counter() - t0, 2),
             "controller_agreed": recorder.agreed, "scenario": scenario}

@@ -85,6 +85,7 @@ def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: 
     board = leaderboard(suite, models, results)
     board["run"] = {"transport": opts.transport, "workers": max(1, min(workers, len(jobs))),
                     "wall_time_s": round(time.perf_counter() - t0, 1), "device": opts.device,
-                    "renderer": opts.renderer, "clips_per_route": opts.clips, "python": platform.python_version(),
+                    "renderer": opts.renderer, "condition": opts.condition, "clips_per_route": opts.clips,
+                    "python": platform.python_version(),
                     "machine": f"{platform.machine()}, {os.cpu_count()} cores", "threads_per_worker": 1}
     return board

@@ -64,7 +64,8 @@ def route_row(result: dict, oracle: dict | None) -> dict:
     ds, penalty = driving_score(rc, m["collisions"], m["off_road_events"])
     km = m["distance_m"] / 1000.0
     ref = oracle["metrics"]["mean_speed_mps"] if oracle is not None else 0.0
-    return {"route": result["route"], "driving_score": round(ds, 4), "penalty": round(penalty, 4),
+    return {"route": result["route"], "condition": result.get("condition"), "driving_score": round(ds, 4),
+            "penalty": round(penalty, 4),
             "route_completion": round(rc, 4), "end": result["end"], "driven_s": result["driven_s"],
             "distance_km": round(km, 3), "collisions": m["collisions"], "off_road_events": m["off_road_events"],
             "collisions_per_km": round(m["collisions"] / km, 4) if km else 0.0,
