@@ -30,7 +30,7 @@ def headlight(px, py, pz, beam):
     """The host's low beams' light [0-1+] at a point (car frame [m]); beam: x, z [m] of the beams' source, reach
     [m], the cut-off's slope above which the beam fades, its fade, half width as a slope across."""
     qx = px - beam[0]
-    if qx < 0.5:
+    if qx < 0.02 * beam[2]:   # behind the lamps, or at them
         return 0.0
     up = (pz - beam[1]) / qx - beam[3]
     across = py / qx / beam[5]

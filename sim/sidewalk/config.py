@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from core.conditions import CONDITIONS, SEEDED
 from core.settings import MAX_SEED, setting
 from core.worlds.sidewalk import MODES, OPERATIONS, RULES
 from sim.camera import CameraConfig
@@ -97,3 +98,5 @@ class SidewalkConfig:
     rule: str = setting("safety", "the correction rule of correctional operation: safety (take over for leaving "
                         "the path, an imminent collision, a stalled car) or strict (also for deviating from the "
                         "expert)", choices=RULES)
+    condition: str = setting(SEEDED, "the named condition the frames are drawn in (docs/conditions.md; seeded: the "
+                             "seed's own time of day, as always)", choices=CONDITIONS, several=True)

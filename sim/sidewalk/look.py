@@ -53,9 +53,12 @@ def _c(rgb, tint, scale: float = 1.0) -> tuple:
     return tuple(float(v) for v in np.clip(np.asarray(rgb) * tint * scale, 0, 1)) + (1.0,)
 
 
-def make_look(seed: int, style: str) -> SidewalkLook:
+def make_look(seed: int, style: str, time: str | None = None) -> SidewalkLook:
+    """The seed's look for a path of `style`: its time of day drawn from the seed, or the one `time` names (the
+    same draws, the time's kept or overridden: a seed that draws that time looks the same either way)."""
     rng = np.random.default_rng([int(seed), 0x5EE])
-    time = TIMES[int(rng.integers(len(TIMES)))]
+    drawn = TIMES[int(rng.integers(len(TIMES)))]   # drawn whatever `time` says: the draws after it stay the seed's
+    time = drawn if time is None else time
     (el0, el1), tint_rgb, sky_top, sky_hor, amb, dif = _TIME[time]
     tint = np.array(tint_rgb)
     az = rng.uniform(0, 2 * math.pi)

@@ -105,10 +105,12 @@ class StereoObjectPainter:
         return np.clip(np.stack([u, v], axis=-1), -2e8, 2e8).astype(np.int32)
 
     def paint_pair(self, left: np.ndarray, right: np.ndarray, static: PieceSet, chunk_visible: np.ndarray, x: float,
-                   y: float, yaw: float, dynamic: tuple | None = None) -> int:
+                   y: float, yaw: float, dynamic: tuple | None = None, depths: tuple | None = None) -> int:
         """Paint the visible static pieces and the `dynamic` ones ((faces, normals, colours, piece centres, piece
-        index per face), e.g. the lead car) into both frames, for a car at (x, y, yaw). Returns the faces filled
-        in the left frame."""
+        index per face), e.g. the lead car) into both frames, for a car at (x, y, yaw); `depths` (left, right)
+        (h, w) float32, when given, get each painted face's distance along the camera's axis [m] where it is
+        painted (its corners' mean: what a condition's fog and dark read). Returns the faces filled in the left
+        frame."""
         eye, basis = self.camera.basis(x, y, yaw)
         idx, dist = self._static_faces(static, chunk_visible, eye, basis)
         faces, normals, colours = static.faces[idx], static.normals[idx], static.colours[idx]
@@ -127,8 +129,9 @@ class StereoObjectPainter:
         whole_all = cam[..., 2].min(axis=1) >= self.camera.near
         order = np.lexsort((np.arange(len(piece)), -dist[piece]))   # far pieces first, stable within a piece
         n = 0
-        for frame, sign in ((left, 1.0), (right, -1.0)):
-            filled = self._paint_eye(frame, sign, order, facing, across, cam, colours, whole_all)
+        for frame, sign, depth in ((left, 1.0, None if depths is None else depths[0]),
+                                   (right, -1.0, None if depths is None else depths[1])):
+            filled = self._paint_eye(frame, sign, order, facing, across, cam, colours, whole_all, depth)
             if sign > 0:
                 n = filled
         return n
@@ -172,8 +175,10 @@ class StereoObjectPainter:
                 across[keep][inside])
 
     def _paint_eye(self, frame: np.ndarray, sign: float, order: np.ndarray, facing: np.ndarray,
-                   across: np.ndarray, cam: np.ndarray, colours: np.ndarray, whole_all: np.ndarray) -> int:
-        """Fill the faces one eye sees (sign 1: left, -1: right), far pieces first; returns how many."""
+                   across: np.ndarray, cam: np.ndarray, colours: np.ndarray, whole_all: np.ndarray,
+                   depth: np.ndarray | None = None) -> int:
+        """Fill the faces one eye sees (sign 1: left, -1: right), far pieces first, and their distances into
+        `depth` when given; returns how many."""
         # the eye at eye_c - sign * half * side: n . (eye - p) changes by -sign * half * (n . side)
         idx = order[(facing - sign * across > 0)[order]]
         c = cam[idx] + sign * np.array([self.half, 0.0, 0.0])
@@ -193,4 +198,8 @@ class StereoObjectPainter:
         for poly, col in zip(polys, colours[idx].tolist()):
             if poly is not None:
                 fill(frame, poly, col, line, SUBPIXEL_BITS)
+        if depth is not None:
+            for poly, z in zip(polys, c[..., 2].mean(axis=1).tolist()):
+                if poly is not None:
+                    fill(depth, poly, z, line, SUBPIXEL_BITS)
         return len(idx)

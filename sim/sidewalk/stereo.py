@@ -21,6 +21,8 @@ from dataclasses import replace
 import numpy as np
 
 from sim.camera import CameraConfig
+from sim.render.conditions import Condition
+from sim.sidewalk.conditions import condition_look, eye_effects
 from sim.sidewalk.config import (  # noqa: F401  (the rig's constants and configuration, re-exported)
     BASELINE,
     CULL,
@@ -53,9 +55,12 @@ def in_view(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: flo
 
 
 class StereoRenderer:
-    def __init__(self, layout: Layout, seed: int, config: StereoConfig = DEFAULT_RIG):
+    def __init__(self, layout: Layout, seed: int, config: StereoConfig = DEFAULT_RIG,
+                 condition: Condition | None = None):
+        """condition: a named condition's parameters (sim/sidewalk/conditions.py), None: the seeded look."""
         self.config = config
-        self.look: SidewalkLook = make_look(seed, layout.path.style)
+        self.look: SidewalkLook = make_look(seed, layout.path.style) if condition is None else \
+            condition_look(seed, layout.path.style, condition)
         chunks = build_scenery(layout, self.look)
         self._centres = np.array([c.ground.centre for c in chunks]).reshape(-1, 2)
         self._radii = np.array([c.ground.radius for c in chunks])
@@ -72,6 +77,8 @@ class StereoRenderer:
         self._sky, self._pano, self._band = self._make_backdrop(self.cameras["left"], layout.seed)
         self._cols = {side: self._column_angles(cam) for side, cam in self.cameras.items()}
         self.faces_painted = 0
+        self.effects = None if condition is None or not condition.drawn else \
+            {side: eye_effects(condition, self.look, cam, seed) for side, cam in self.cameras.items()}
 
     # --- backdrop ----------------------------------------------------------------------------------------------
     def _make_backdrop(self, cam: CameraConfig, seed: int):
@@ -146,8 +153,15 @@ class StereoRenderer:
             out.append(frame)
         near = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, DETAIL)
         self._ground.paint_pair(out[0], out[1], visible, near, x, y, yaw)
-        self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
-        return out[0], out[1]
+        if self.effects is None:
+            self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
+            return out[0], out[1]
+        depths = tuple(np.full(cam.height * cam.width, np.inf, np.float32).reshape(cam.height, cam.width)
+                       for _ in range(2))
+        self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic,
+                                                       depths)
+        return self.effects["left"].apply(out[0], depths[0], x, y, yaw), \
+            self.effects["right"].apply(out[1], depths[1], x, y, yaw)
 
 
 def with_size(config: StereoConfig, width: int | None, height: int | None, fov: float | None) -> StereoConfig:

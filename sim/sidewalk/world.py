@@ -16,9 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.conditions import CONDITION_COLUMN, SEEDED, pick
 from core.worlds.sidewalk import MODES, OPERATIONS, SIDEWALK, STEP
 from sim.collision import overlaps
 from sim.sidewalk.car import CAR, CarState, step_car
+from sim.sidewalk.conditions import condition_of
 from sim.sidewalk.config import SidewalkConfig
 from sim.sidewalk.errors import PathError
 from sim.sidewalk.layout import Layout, build_layout
@@ -61,6 +63,8 @@ class SidewalkWorld:
         self.layout: Layout = build_layout(self.path, config.seed, config.obstacles, config.start_s)
         st = config.stereo
         self.declaration = SIDEWALK.with_camera("left", st.height, st.width).with_camera("right", st.height, st.width)
+        if config.condition != SEEDED:   # a world of named conditions records each frame's
+            self.declaration = self.declaration.with_column(CONDITION_COLUMN)
         self.dt = STEP
         self.seed = int(config.seed)
         self.timings = {"render": 0.0, "physics": 0.0, "truth": 0.0}
@@ -116,8 +120,14 @@ class SidewalkWorld:
     @property
     def renderer(self) -> StereoRenderer:
         if self._renderer is None:
-            self._renderer = StereoRenderer(self.layout, self.seed, self.config.stereo)
+            self._renderer = StereoRenderer(self.layout, self.seed, self.config.stereo,
+                                            condition_of(self.config.condition, self.seed, self.path.style))
         return self._renderer
+
+    @property
+    def condition(self) -> str:
+        """The named condition the frames are drawn in (the seed's draw from the configuration's mix)."""
+        return pick(self.config.condition, self.seed)
 
     def recover(self) -> None:
         """Put a lost car back on the path: on the centreline (or beside an obstacle standing there), along the

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from controller.sidewalk import SidewalkMetrics
+from core.conditions import CONDITION_COLUMN, SEEDED
 from core.worlds.sidewalk import SIDEWALK
 from drivestudio.checkpoints import load_predictor_for
 from drivestudio.driver_spec import DriverSpec
@@ -81,7 +82,8 @@ class Plugin(base.Plugin):
                 run_loop(world, in_process(ExpertDriver()), warmup, render=False, when_lost="recover")
             obs = world.observe(render=True)
             truth = {**obs.truth, "t": obs.t, "path": world.path.ref, "style": world.path.style, "seed": world.seed,
-                     "time_of_day": world.renderer.look.time, "stereo": world.config.stereo.describe()}
+                     "time_of_day": world.renderer.look.time, "condition": world.condition,
+                     "stereo": world.config.stereo.describe()}
             return {"left": obs.frames[0], "right": obs.frames[1]}, truth
 
     def driver(self, spec: DriverSpec, device: str = "cpu", declaration=None, seed: int = 0):
@@ -153,14 +155,17 @@ class Plugin(base.Plugin):
         options = {"modes": modes, "paths": paths, "procedural": procedural, "obstacles": density,
                    "correctional": shares["correctional"],
                    **({"perturbed": shares["perturbed"]} if shares["perturbed"] else {}),
-                   "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg}
+                   "width": stereo.width, "height": stereo.height, "fov": stereo.fov_deg,
+                   # only when named: a dataset of the seeded look keeps the plan (and the resumption) of before
+                   **({"condition": config.condition} if config.condition != SEEDED else {})}
         for ref in self.path_list(options, 0):   # a bad path fails here, in one line (PathError), before any work
             load_path(ref)
         return options
 
     def declaration_for(self, options: dict):
         h, w = options["height"], options["width"]
-        return SIDEWALK.with_camera("left", h, w).with_camera("right", h, w)
+        decl = SIDEWALK.with_camera("left", h, w).with_camera("right", h, w)
+        return decl.with_column(CONDITION_COLUMN) if options.get("condition") else decl
 
     @staticmethod
     def path_list(options: dict, seed_: int) -> list[str]:
@@ -195,11 +200,12 @@ class Plugin(base.Plugin):
         p = ep.params
         stereo = StereoConfig(width=options["width"], height=options["height"], fov_deg=options["fov"])
         world = SidewalkWorld(SidewalkConfig(path=p["path"], seed=ep.seed, mode=p["mode"],
-                                             obstacles=options["obstacles"], stereo=stereo, render=False))
+                                             obstacles=options["obstacles"], stereo=stereo, render=False,
+                                             condition=options.get("condition", SEEDED)))
         drivers = {"correctional": CorrectionalDriver, "perturbed": PerturbedDriver}
         make = drivers.get(p.get("operation", "expert"))
         driver = make(world, ep.seed) if make else ExpertDriver()
 
         def columns(obs) -> dict:
-            return {"path": p["path"]}
+            return {"path": p["path"], "condition": world.condition}
         return world, driver, columns

@@ -61,7 +61,7 @@ class SidewalkView:
         return out
 
     def columns(self, rec: StepRecord, who: str) -> dict:
-        return {"path": self.path_ref}
+        return {"path": self.path_ref, "condition": self.world.condition}
 
     def metrics(self, report: dict) -> dict:
         return {"distance_m": report["distance_m"], "collisions": report["collisions"],
