@@ -39,7 +39,7 @@ def draw_condition(name: str, seed: int) -> Condition:
         sodium = rng.uniform() < 0.5
         return Condition(name, math.radians(60.0), rng.uniform(0.0, 2 * math.pi),
                          night=float(rng.uniform(0.05, 0.10)), headlight_reach=float(rng.uniform(22.0, 32.0)),
-                         street_lights=float(rng.uniform(0.9, 1.3)),
+                         street_lights=float(rng.uniform(0.35, 0.55)),
                          lamp_rgb=(1.0, 0.72, 0.40) if sodium else (0.92, 0.95, 1.0))
     if name == "fog":
         grey = float(rng.uniform(0.70, 0.82))
