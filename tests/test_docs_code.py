@@ -1,4 +1,4 @@
-"""Every ```python block of README.md and docs/*.md that a user would paste runs: the blocks of a page run in order
+"""Every ```python block of README.md and docs/**/*.md that a user would paste runs: the blocks of a page run in order
 in one namespace (a later block may use what an earlier one made), in a scratch folder, in this process. A block
 that is not meant to run as it stands says so on the line before its fence:
 
@@ -20,7 +20,7 @@ import pytest
 from drivestudio.cli import build_parser
 
 REPO = Path(__file__).resolve().parents[1]
-PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 PACKAGES = ("core", "sim", "controller", "perception", "shm_bridge", "drivestudio")
 FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
 MARKER = re.compile(r"<!--\s*(fragment|slow)\b[^>]*-->\s*$")
