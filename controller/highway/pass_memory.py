@@ -2,38 +2,33 @@
 
 A car the host passes in the next lane leaves the 280x210 camera's view (75 degrees across) while it is still a few
 metres ahead, so a network reads its gap (`dist_LL` / `dist_RR`) as "no car" from then on, whereas the true
-indicator follows the car until it is level with the host. The Chen controller then counts the lane clear too
-early, and its lane-preference rule moves the host into the car alongside. The filter carries the gap on through
+indicator follows the car until it is level with the host. The Chen controller would then count the lane clear too
+early, and its lane-preference rule would move the host into the car alongside. The filter carries the gap on through
 the unseen stretch at the rate at which it was closing while seen (a straight-line fit of the last second of near
 readings), and reads 0 once the car is level, until it is `clear_behind` behind the host or `max_s` passed; only
-then does the controller's clear-lane timer start. Carrying the car only until level (where the true gap ends)
-was tried first: the two-lane timer of 30 frames after an overtake then still let the host move back beside a car
-passed at 1-2 m/s, as it does on the true indicators (docs/aggregation.md).
+then does the controller's clear-lane timer start. Carrying the car only until level (where the true gap ends) is
+not enough: the two-lane timer of 30 frames after an overtake would still let the host move back beside a car passed
+slowly.
 
-Given the host's speed, the carried gap also closes by what the host gained on the car since it was lost (the
-other car assumed to hold its speed): a host that slows down to follow the car ahead while passing, as in dense
-traffic, keeps a car alongside for longer than its closing rate when seen said, and the crash clips showed the
-lane-preference rule moving into it (docs/aggregation.md). A car that the prediction puts back beyond `near`
-ahead has pulled away into the camera's view and is no longer carried.
-
-The host's speed only ever shortens the carry where it must not: a host that speeds up after losing the car
-reckons it behind sooner, but the traffic it passes often speeds up with it (a platoon moving off together), and
-then the car stays beside the host while the reckoning has it gone. So the lane is given up only once the car is
-`clear_behind` at the rate it was seen closing too (the slower of the two reckonings: the lane stays taken as long
-as either says the car could still be beside the host).
+Two reckonings decide when the car is behind. Given the host's speed, the carried gap also closes by what the host
+gained on the car since it was lost (the other car assumed to hold its speed): a host that slows down to follow the
+car ahead while passing keeps a car alongside for longer than its closing rate when seen said. But the traffic a
+host passes often speeds up with it (a platoon moving off together), so the host's speed must not shorten the
+carry: the lane is given up only once the car is `clear_behind` at the rate it was seen closing too (the lane stays
+taken as long as either reckoning says the car could still be beside the host). A car that the prediction puts back
+beyond `near` ahead has pulled away into the camera's view and is no longer carried.
 
 With the rear-view mirror, a passed car is handed over rather than reckoned away: the lane is given up only once
 the rear view reads a car near behind in it too (the rear memory's driver passes `behind_seen`), since a car the
-reckoning has behind but the mirror does not show is still alongside, in neither view. A car the host passed
-that then speeds up stays beside it for as long as it likes (a crash clip of the design suites: closing at 4.3
-m/s when lost, at 1.2 m/s two seconds later, and still alongside when the reckoning had it 10 m behind).
+reckoning has behind but the mirror does not show may have sped up and still be alongside, in neither view.
 
-The view also loses a car at its side in a way that looks like the car pulling away: a network reads a car that
-the frame's edge cuts off as farther and farther (a replay of that clip: read at 0.2-8 m, then 10, 19, 25, 45 m
-within 1.5 s while the true gap stayed 3 m and then 0). A car cannot open a gap faster than traffic moves apart,
-so with a mirror a car read nearer than `beside` whose readings then open faster than `exit_rate` before it is
-lost is taken to have left the view beside the host: the lane reads 0 until the mirror has the car near behind
-(or `max_s` passed).
+The view also loses a car at its side in a way that looks like the car pulling away: a network reads a car that the
+frame's edge cuts off as farther and farther. A car cannot open a gap faster than traffic moves apart, so with a
+mirror a car read nearer than `beside` whose readings then open faster than `exit_rate` before it is lost is taken
+to have left the view beside the host: the lane reads 0 until the mirror has the car near behind (or `max_s`
+passed).
+
+How each rule was found, from the crash clips that asked for it: docs/log.md.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """drivestudio recipe: from nothing to the best learned highway driver in one command (docs/aggregation.md):
 a dataset of the expert, three MobileNets with the previous frame trained side by side from three seeds, their
 ensemble with the pass memory, and the benchmark of every member and the ensemble beside the oracle, ending with
-the leaderboard. `--set members=1 --set rounds=N` is the recipe as it was: one network and N data-aggregation rounds.
+the leaderboard. `--set members=1 --set rounds=N` trains one network and runs N data-aggregation rounds instead.
 `--extended` is the recipe of the extended label set's best driver (drivestudio/commands/recipe_extended.py).
 Each step continues where an interrupted run stopped."""
 from __future__ import annotations
@@ -31,7 +31,7 @@ class Size(RecipeRun):
     round_frames: int = setting(4000, "frames each aggregation round drives", low=20, high=10**7)
     round_iterations: int = setting(1500, "fine-tuning iterations of each aggregation round", low=1, high=10**7)
     history: int = setting(1, "earlier frames each network reads", low=0, high=2)
-    # docs/aggregation.md
+    # docs/aggregation.md, emphasis on the decisive frames
     emphasis: int = setting(4, "times every epoch shows a decisive frame (a car closer than 20 m ahead in the host's "
                                "or a neighbouring lane), in the trainings and the rounds", low=1, high=100)
 

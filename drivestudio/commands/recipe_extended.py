@@ -1,12 +1,14 @@
 """`drivestudio recipe --extended`: the best learned driver of the extended label set (docs/aggregation.md, the
-recipe): networks of the paper's 13 and one of the cars behind, all reading the frame with the rear-view mirror and
-the side views, the forward ones improved by an aggregation round each, driven as one ensemble by the lookout
-controller.
+extended set's driver): networks of the paper's 13 and one of the cars behind, all reading the frame with the
+rear-view mirror and the side views, the forward ones improved by an aggregation round each, driven as one ensemble
+by the lookout controller with the pass and rear memories.
 
-Why the side views: a car level with the host is in neither the front view nor the mirror, and such cars were most
-of the collisions left to the driver built with the mirror alone; with them the rear network reads the gap beside
-the host (its validation error on dist_LB fell from 10.1 to 5.9 m) and the driver passed the random suite's target
-with one rear network (docs/aggregation.md, results). `--set side_views=false` builds the driver of the mirror alone.
+Why the side views: a car level with the host is in neither the front view nor the mirror, and the views out of the
+side windows show it, so the rear network reads the gap beside the host as well as behind it. `--set
+side_views=false` builds the driver of the mirror alone.
+
+Why a separate network of the cars behind: the hard rear outputs, sharing one trunk with the forward gaps, cost the
+forward gaps their accuracy; each output of the ensemble is combined over the members that estimate it.
 
 The steps, as the verbs a user would run: two datasets with the mirror (the forward networks' of 1-3 lanes, the
 rear network's with four-lane roads too: more lanes with a car beside the host on both sides); the
@@ -15,10 +17,9 @@ and one aggregation round for each forward network, started as soon as that netw
 own frames with the expert's share `beta`); the ensemble of the rounds' networks and the rear networks; the
 benchmark beside both oracles. A training's or a round's result does not depend on what runs beside it.
 
-Why a second rear network is possible (`--set rear_members=2`): networks from two seeds misread different cars, and the
-ensemble believes the nearer gap either reads; with the mirror alone a second one trained on two threads made the
-random suite's target, but the recipe's own (one thread, or 4,000 iterations) did not, and it does not fit the 90
-minutes (docs/aggregation.md, "Tried"). Off by default."""
+`--set rear_members=2` adds a second rear network (networks from two seeds misread different cars, and the
+ensemble believes the nearer gap either reads). It is off by default: it adds a training that does not fit the
+recipe's time on 2 cores, and the recipe's own second network has not driven better than one (docs/log.md)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
