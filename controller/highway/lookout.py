@@ -4,7 +4,7 @@ DeepDriving's indicators see only cars ahead, so the Chen controller changes lan
 arriving from behind, and pulls out from a short following gap while still accelerating. This controller reads
 the extended labels too (core/worlds/highway.py REAR: the bumper gap to the nearest car alongside or behind in
 the lanes left and right, and its closing speed) and adds five rules to docs/controller.md's seven
-(docs/controller.md, "The lookout"; every number argued there):
+(docs/controller.md, "The lookout"; docs/explanation/lookout.md argues every number):
 
     L1  look: a change (rule 2 or 3) starts only when the target lane's rear gap is at least the safe gap
         need(c, T) = min_gap + c+ T + c+^2 / (2 follower_decel), c+ = max(c, 0), with T = crossing(v) + margin_time:
@@ -47,7 +47,7 @@ NOTHING_BEHIND = (REAR_RANGE, REAR_RANGE, CLOSING_INACTIVE, CLOSING_INACTIVE)   
 
 @dataclass(frozen=True)
 class LookoutParams:
-    """The lookout's constants (docs/controller.md, "The lookout", argues each)."""
+    """The lookout's constants (docs/controller.md, "The lookout"; docs/explanation/lookout.md argues each)."""
 
     min_gap: float = 5.0             # [m] bumper gap to a car alongside or behind that is never cut in front of
     crossing_distance: float = 14.0  # [m] road the host covers from the decision until its centre crosses the marking
@@ -143,7 +143,7 @@ class LookoutController(ChenController):
         follow speed of the car ahead in the lane it leaves, and the closing speed of the car there then."""
         k = "L" if side == "left" else "R"
         if self._rear[f"dist_{k}B"] >= REAR_RANGE:
-            return True   # no car within the labels' range: nothing known to reach the host (docs/controller.md)
+            return True   # nothing known within the labels' range can reach the host (docs/explanation/lookout.md)
         speed = min(self._speed, self._change_speed_limit(v, side))
         closing = self._rear[f"closing_{k}B"] + (self._speed - speed)
         return self._rear[f"dist_{k}B"] >= safe_gap(closing, speed, self.lookout, abort)

@@ -113,7 +113,7 @@ def _highway(step: _Steps, size: Size, hw: Path) -> None:
          size.frames, "--episode-frames", size.episode_frames)
     step("highway: what the dataset covers", "stats", data, "--out", hw / "stats")
     step("highway: the GIST baseline", "train", "--data", data, "--model", "gist", "--out", models / "gist.pt")
-    step(f"highway: a MobileNet ({size.iterations} iterations of 32 frames; docs/aggregation.md)",
+    step(f"highway: a MobileNet ({size.iterations} iterations of 32 frames; docs/explanation/learned-driving.md)",
          "train", "--data", data, "--model", "mobilenet", "--out", models / "mobilenet.pt", "--iterations",
          size.iterations, "--set", f"val_every={max(5, size.iterations // 3)}", "--set", "val_frames=200",
          "--workers", 0, "--device", "cpu")

@@ -11,7 +11,8 @@ def register(sub) -> None:
     p = sub.add_parser("ensemble", help="make one checkpoint of several trained regressors of a world",
                        description="Make one checkpoint of several trained regressors of a world: the closest gap "
                                    "any of them reads, the mean of every other output, each over the members that "
-                                   "estimate it (docs/aggregation.md). The members must read the same input.")
+                                   "estimate it (docs/explanation/learned-driving.md). The members must read the "
+                                   "same input.")
     p.add_argument("checkpoints", nargs="+", help="the members' checkpoint files (two or more)")
     p.add_argument("--out", required=True, help="the ensemble's checkpoint file to write (.pt)")
     p.add_argument("--gaps", default="min", help="the gaps: the closest reading (min, the default) or the mean")

@@ -69,7 +69,7 @@ def run_side_by_side(commands: list[list], logs: list[Path], every: float = 60.0
     returns when all have succeeded, raises RunError (JobFailed) naming the first that failed (the others are
     stopped); their progress (the last `N/M` count of each log) on one line every `every` seconds. On a machine with
     fewer cores than commands, one thread each keeps the cores busy without the trainings' thread pools fighting
-    (two trainings side by side on 2 cores take 1.4x one training's time, not 2x: docs/aggregation.md); a child's
+    (two trainings side by side on 2 cores take 1.4x one training's time, not 2x: docs/log.md); a child's
     results do not depend on what runs beside it."""
     n = len(commands)
     after = after or [None] * n
