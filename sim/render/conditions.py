@@ -93,8 +93,9 @@ class Geometry:
     """Per pixel of a frame of `places` (later views drawn over earlier ones), what the effects read and that does
     not change from frame to frame: the view (-1: none, the insets' borders), the ray in the car frame (per metre
     along the view's axis) and the ground's distance along the view's axis (inf: the ray goes up, the sky); per
-    view, its camera
-    (`cams`, sim/render/effects.py project)."""
+    view, its camera: a row of `cams`, its eye (3) [m, car frame], its right, up and forward unit vectors (9), focal
+    lengths fx, fy [px], where its image is in the frame (top, left, height, width [px]), mirrored, near plane [m],
+    horizontal field of view [rad], reach [m], 1 / fx and 1 / fy."""
 
     def __init__(self, shape: tuple[int, int], places: list[Place]):
         h, w = shape
@@ -104,7 +105,7 @@ class Geometry:
         self.ground = np.full((h, w), np.inf, dtype=np.float32)
         self.eyes = np.zeros((len(places), 3), dtype=np.float32)
         self.horizons = np.zeros(len(places), dtype=np.int64)
-        self.cams = np.zeros((len(places), 22))
+        self.cams = np.zeros((len(places), 24))
         for v, p in enumerate(places):
             self._add(v, p)
 
@@ -136,4 +137,4 @@ class Geometry:
         self.eyes[v] = eye
         self.horizons[v] = top + int(round(cam.horizon_row()))
         self.cams[v] = (*eye, *basis.reshape(-1), fx, fy, top, left, vh, vw, p.mirrored, cam.near, cam.hfov,
-                        min(cam.far, cam.cull_distance))
+                        min(cam.far, cam.cull_distance), 1.0 / fx, 1.0 / fy)

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 INF = np.float32(np.inf)
+INF_BITS = np.uint32(0x7F800000)   # infinity's bits, float32
 # fast maths, but not the flags that assume no infinities: an infinite depth means nothing was drawn there
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 STEP = 4.0          # table entries per metre of the distance tables (fog, headlights)
@@ -44,7 +45,7 @@ def ray(cams, v, r, c):
     """The ray of frame pixel (r, c) of view v in the car frame, per metre along the view's axis."""
     top, left, vh, vw = cams[v, 14], cams[v, 15], cams[v, 16], cams[v, 17]
     col = (vw - (c - left) - 0.5) if cams[v, 18] else (c - left + 0.5)
-    x, y = (col - vw / 2) / cams[v, 12], (vh / 2 - (r - top + 0.5)) / cams[v, 13]
+    x, y = (col - vw / 2) * cams[v, 22], (vh / 2 - (r - top + 0.5)) * cams[v, 23]
     return (x * cams[v, 3] + y * cams[v, 6] + cams[v, 9], x * cams[v, 4] + y * cams[v, 7] + cams[v, 10],
             x * cams[v, 5] + y * cams[v, 8] + cams[v, 11])
 
@@ -89,57 +90,57 @@ def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
 @njit(cache=True, fastmath=FAST)
 def drawn(depth, view, width, index, rows):
     """The pixels where an object was drawn (depth finite) in a view: their flat indices into `index` and their rows
-    into `rows`; how many. Most stretches of BLOCK pixels hold none and are passed over at once."""
+    into `rows`; how many. Most stretches of BLOCK pixels hold none: the AND of their bits is infinity's only then
+    (a finite float's exponent is never all ones), one test the compiler vectorises."""
     n = 0
+    bits = depth.view(np.uint32)
     whole = depth.shape[0] - depth.shape[0] % BLOCK
     for b in range(0, depth.shape[0], BLOCK):
-        some = True
-        if b < whole:   # a whole block: one test the compiler vectorises
-            some = False
+        if b < whole:
+            every = np.uint32(0xFFFFFFFF)
             for i in range(b, b + BLOCK):
-                some |= depth[i] != INF
-        if some:
-            r = b // width
-            for p in range(b, min(b + BLOCK, depth.shape[0])):
-                if depth[p] != INF and view[p] >= 0:
-                    index[n] = p
-                    rows[n] = r + (1 if p - r * width >= width else 0)   # a block spans at most two rows
-                    n += 1
+                every &= bits[i]
+            if every == INF_BITS:
+                continue
+        r = b // width
+        for p in range(b, min(b + BLOCK, depth.shape[0])):
+            if depth[p] != INF and view[p] >= 0:
+                index[n] = p
+                rows[n] = r + (1 if p - r * width >= width else 0)   # a block spans at most two rows
+                n += 1
     return n
 
 
 @njit(cache=True, fastmath=FAST)
-def objects(out, src, depth, index, rows, view, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, reach, lamp_rgb,
-            width):
+def objects(out, src, depth, index, rows, view, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
+            lamp_rgb, width):
     """The pixels where an object was drawn (`index`, `rows`: drawn), from the renderer's colour and the object's
     distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t + fog_rgb x
-    (1 - t), t = fog[d x ray length] (tables by STEP a metre; fall of one entry: no headlights), pools: the street
-    lamps' (lamps (n, 2) [m, car frame], `reach` [m] their radius)."""
+    (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables STEP a
+    metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car frame],
+    then the distance along each view's axis of the pool's centre; `radius` [m] their radius)."""
     nf, nl = fall.shape[0] - 1, fog.shape[0] - 1
-    r2 = reach * reach
+    r2 = radius * radius
     lit = nf > 0
     for k in range(index.shape[0]):
-        p, r = index[k], rows[k]
-        d, v = depth[p], view[p]
-        top, left, vh, vw = cams[v, 14], cams[v, 15], cams[v, 16], cams[v, 17]
-        c = p - r * width
-        col = (vw - (c - left) - 0.5) if cams[v, 18] else (c - left + 0.5)
-        x = (col - vw / 2) / cams[v, 12]
-        y = (vh / 2 - (r - top + 0.5)) / cams[v, 13]
+        p = index[k]
+        d = depth[p]
         g0, g1, g2 = dark[0], dark[1], dark[2]
         if lit:
             h = cone[p] * (1.0 / LIT) * fall[min(np.int32(d * STEP), nf)]
             pool = 0.0
-            if lamps.shape[0]:
-                rx, ry = x * cams[v, 3] + y * cams[v, 6] + cams[v, 9], x * cams[v, 4] + y * cams[v, 7] + cams[v, 10]
-                for j in range(lamps.shape[0]):
-                    dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
-                    f = max(0.0, 1.0 - (dx * dx + dy * dy) / r2)
-                    pool += f * f
+            v = view[p]
+            for j in range(lamps.shape[0]):
+                if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
+                    continue
+                rx, ry, _ = ray(cams, v, rows[k], p - rows[k] * width)
+                dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
+                f = max(0.0, 1.0 - (dx * dx + dy * dy) / r2)
+                pool += f * f
             g0 += gain[0] * h + lamp_rgb[0] * pool
             g1 += gain[1] * h + lamp_rgb[1] * pool
             g2 += gain[2] * h + lamp_rgb[2] * pool
-        t = fog[min(np.int32(d * math.sqrt(1.0 + x * x + y * y) * STEP), nl)]
+        t = fog[min(np.int32(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)]
         u = 1.0 - t
         q = 3 * p
         out[q] = np.uint8(min(src[q] * g0 * t + fog_rgb[0] * u, 255.0))
@@ -151,10 +152,10 @@ def objects(out, src, depth, index, rows, view, cams, cone, fall, fog, dark, gai
 def reflections(out, src, depth, index, rows, view, contact, wetness, road, tall, width):
     """A wet road mirrors the objects standing on it: the object pixel (`index`, `rows`: drawn) at row r, distance
     d, shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each distance along
-    its axis, -1 where none), blended in by that pixel's wetness byte / 255 where the renderer drew the asphalt
-    there (colour `road`, within a level) and no object; tall: rows x metres above its ground row beyond which an
-    object pixel is not mirrored (the height of a car x the focal length: not the crowns of trees). out holds the
-    objects' colours."""
+    its axis, -1 where none), blended in by wetness[v, that row] where the renderer drew the asphalt there (colour
+    `road`, within a level: tested first, it fails most) and no object; tall: rows x metres above its ground row
+    beyond which an object pixel is not mirrored (the height of a car x the focal length: not the crowns of trees).
+    out holds the objects' colours."""
     nc = contact.shape[1] - 1
     height = view.shape[0] // width
     for k in range(index.shape[0]):
@@ -166,10 +167,10 @@ def reflections(out, src, depth, index, rows, view, contact, wetness, road, tall
             continue
         tp = p + (target - r) * width
         tq, q = 3 * tp, 3 * p
-        if view[tp] != v or depth[tp] != INF or abs(np.int32(src[tq]) - road[0]) > 1 or \
-                abs(np.int32(src[tq + 1]) - road[1]) > 1 or abs(np.int32(src[tq + 2]) - road[2]) > 1:
+        if abs(np.int32(src[tq]) - road[0]) > 1 or abs(np.int32(src[tq + 1]) - road[1]) > 1 or \
+                abs(np.int32(src[tq + 2]) - road[2]) > 1 or depth[tp] != INF or view[tp] != v:
             continue
-        a = np.float32(wetness[tp]) * np.float32(1.0 / 255.0)
+        a = wetness[v, target]
         for i in range(3):
             x = np.float32(out[tq + i])
             out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))

@@ -20,9 +20,9 @@ from sim.render.conditions import CarLights, Condition, Geometry, Lamps
 from sim.render.effect_kernels import STEP, beams, drawn, ground, objects, pools, reflections
 from sim.render.light_kernels import car_lights, glare, lamp_heads, near_lamps, streaks
 
-NO_LAMPS = np.zeros((0, 2), dtype=np.float32)
+NO_LAMPS = np.zeros((0, 3), dtype=np.float32)
 POOLS_REACH = 150.0   # [m] the street lamps' pools are drawn on the ground nearer than this
-LIT_OBJECTS = 70.0    # [m] ... and on the objects near those nearer than this (farther ones are a few pixels)
+LIT_OBJECTS = 45.0    # [m] ... and on the objects near those nearer than this (farther ones are a few pixels)
 STREAK_RGB = np.array([205.0, 210.0, 218.0])   # rain streaks: lit drops against the sky
 TAIL_RGB, HEAD_RGB = np.array([255.0, 38.0, 26.0]), np.array([255.0, 246.0, 222.0])
 HEADLIGHT_RGB = np.array([0.75, 0.72, 0.66])   # the host's beams: warm white, the road near them lit to 3/4 of day
@@ -51,6 +51,9 @@ class Effects:
         self._dark = (tint * (c.night if c.night >= 0 else 1.0)).astype(np.float32)
         self._gain = (tint * HEADLIGHT_RGB if c.night >= 0 else np.zeros(3)).astype(np.float32)
         self._lamp_rgb = np.asarray(c.lamp_rgb, dtype=np.float64) * c.street_lights
+        self._lamp_glow = np.asarray(c.lamp_rgb, dtype=np.float64) * 255.0
+        self._density, self._sun = c.density, c.sun
+        self._streak = 1.0 if c.wetness else 0.0   # a wet road streaks the lights' reflections
         self._fog_rgb = (np.asarray(c.fog_rgb, dtype=np.float64) * 255.0).astype(np.float32)
         d = np.arange(int(400 * STEP) + 1) / STEP   # the distance tables, STEP entries a metre
         fall = 1.0 / (1.0 + (d / max(c.headlight_reach, 1e-3)) ** 2) if c.night >= 0 else np.zeros(1)
@@ -82,6 +85,9 @@ class Effects:
         if c.night >= 0:
             beams(lit, self._cone, self._view, g.ground.reshape(-1), g.cams, self._beam, w)
         self._lit = lit
+        # a ray's length (a metre along the view's axis is that far along the ray: 1 to 1.5 in these cameras) in
+        # 128ths, a byte a pixel (at most 2: a camera wider than 90 degrees has its corners' fog a little thin)
+        self._reach = np.round(np.minimum(g.lengths, 255.0 / 128.0) * 128.0).astype(np.uint8).reshape(-1)
         with np.errstate(invalid="ignore", over="ignore"):
             t = np.where(on, np.exp(-c.density * g.ground * g.lengths), 1.0)
         self._fog = np.round(t * 255.0).astype(np.uint8).reshape(-1)
@@ -105,7 +111,7 @@ class Effects:
 
     def _wet_road(self) -> tuple[np.ndarray, np.ndarray]:
         """Per view, the row of the ground at each distance along its axis (STEP a metre; the lowest row's below
-        its distance, -1 in a view without ground), and per pixel how much a wet road mirrors there (x 255): more at
+        its distance, -1 in a view without ground), and per view and row how much a wet road mirrors there: more at
         grazing angles, far away."""
         g = self.geometry
         contact = np.full((len(g.places), int(400 * STEP) + 1), -1, dtype=np.int64)
@@ -114,9 +120,13 @@ class Effects:
             near = g.ground[top:top + vh, left + vw // 2]
             for r in np.flatnonzero(np.isfinite(near)):   # the ground's distance falls row by row down the view
                 contact[v, :min(int(round(near[r] * STEP)), contact.shape[1] - 1) + 1] = top + r
-        far = np.minimum(1.0, np.where(g.ground_mask, g.ground, 0.0) / 60.0)
-        wetness = np.where(g.ground_mask, self.condition.wetness * (0.35 + 0.65 * far), 0.0)
-        return contact, np.round(wetness * 255.0).astype(np.uint8).reshape(-1)
+        wetness = np.zeros((len(g.places), g.view.shape[0]), dtype=np.float32)
+        for v, p in enumerate(g.places):
+            top, left, vh, vw = p.rect
+            d = g.ground[top:top + vh, left + vw // 2]
+            far = np.minimum(1.0, np.where(np.isfinite(d), d, 0.0) / 60.0)
+            wetness[v, top:top + vh] = np.where(np.isfinite(d), self.condition.wetness * (0.35 + 0.65 * far), 0.0)
+        return contact, wetness
 
     def apply(self, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
               cars: tuple | None = None) -> np.ndarray:
@@ -127,35 +137,35 @@ class Effects:
         w = g.view.shape[1]
         out = frame.copy()
         flat, src, deep = out.reshape(-1), frame.reshape(-1), depth.reshape(-1)
-        deep[self._border] = np.inf
+        if len(self._border):
+            deep[self._border] = np.inf
         ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
-        near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS)
+        near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
         n = drawn(deep, self._view, w, self._index, self._index_rows)
         index, rows = self._index[:n], self._index_rows[:n]
-        objects(flat, src, deep, index, rows, self._view, g.cams, self._cone, self._fall, self._fog_table, self._dark,
-                self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
+        objects(flat, src, deep, index, rows, self._view, self._reach, g.cams, self._cone, self._fall, self._fog_table,
+                self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
         if c.wetness > 0:
             reflections(flat, src, deep, index, rows, self._view, self._contact, self._wetness, self._road,
                         MIRRORED * g.cams[0, 13], w)
         if self.lamps is not None:
-            pools(flat, src, deep, self._rows, self._spots, near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH),
-                  self._lamp_reach, self._lamp_rgb)
-            lamp_heads(out, depth, g.view, g.cams, x, y, yaw, self.lamps.heads, self.lamps.height,
-                       np.asarray(c.lamp_rgb) * 255.0)
+            pools(flat, src, deep, self._rows, self._spots,
+                  near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH, g.cams), self._lamp_reach, self._lamp_rgb)
+            lamp_heads(out, depth, g.view, g.cams, x, y, yaw, self.lamps.heads, self.lamps.height, self._lamp_glow)
         self._lights(out, depth, yaw, x, y, cars)
         self._frames += 1
         return out
 
     def _lights(self, out: np.ndarray, depth: np.ndarray, yaw: float, x: float, y: float, cars: tuple | None) -> None:
         """What is drawn over the rest: the cars' lights, the sun's glare, the rain."""
-        g, c = self.geometry, self.condition
+        g = self.geometry
         if self.car_lights is not None and cars is not None and len(cars[0]):
             lights = self.car_lights
             car_x, car_y, car_yaw, models = cars
             car_lights(out, depth, g.view, g.cams, x, y, yaw, car_x, car_y, car_yaw, models, lights.tails,
-                       lights.heads, TAIL_RGB, HEAD_RGB, lights.strength, c.density, 1.0 if c.wetness else 0.0)
+                       lights.heads, TAIL_RGB, HEAD_RGB, lights.strength, self._density, self._streak)
         if self._sprite is not None:
-            sun, ch, sh = c.sun, math.cos(yaw), math.sin(yaw)
+            sun, ch, sh = self._sun, math.cos(yaw), math.sin(yaw)
             glare(out, g.view, g.cams, np.array([ch * sun[0] + sh * sun[1], -sh * sun[0] + ch * sun[1], sun[2]]),
                   self._sprite)
         if len(self._streaks[0]):

@@ -26,15 +26,18 @@ def to_car(px, py, x, y, yaw):
 
 
 @njit(cache=True)
-def near_lamps(centres, x, y, yaw, within):
-    """The lamps' pool centres (n, 2) [m, world] within `within` [m] of a car at (x, y) with yaw [rad], in its
-    frame."""
-    out = np.empty((centres.shape[0], 2), dtype=np.float32)
+def near_lamps(centres, x, y, yaw, within, cams):
+    """The lamps' pool centres (n, 2) [m, world] within `within` [m] of a car at (x, y) with yaw [rad]: their x, y
+    in its frame, then their distances along each view's axis (of cams)."""
+    out = np.empty((centres.shape[0], 2 + cams.shape[0]), dtype=np.float32)
     n = 0
     for k in range(centres.shape[0]):
         lx, ly = to_car(centres[k, 0], centres[k, 1], x, y, yaw)
         if lx * lx + ly * ly < within * within:
             out[n, 0], out[n, 1] = lx, ly
+            for v in range(cams.shape[0]):
+                out[n, 2 + v] = (lx - cams[v, 0]) * cams[v, 9] + (ly - cams[v, 1]) * cams[v, 10] - cams[v, 2] * \
+                    cams[v, 11]
             n += 1
     return out[:n]
 
