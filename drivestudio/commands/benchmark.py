@@ -73,6 +73,10 @@ def register(sub) -> None:
     p.add_argument("--scenarios", metavar="FILE_OR_FOLDER",
                    help="scripted scenarios to drive instead of a suite: a scenario file, or a folder of them "
                         "(assets/scenarios/ ships one); pass or fail per scenario beside the driving score")
+    p.add_argument("--protocol", metavar="NAME_OR_FILE",
+                   help="the generalisation protocol instead of a suite: 'generalisation' (the shipped one, "
+                        "assets/protocols/) or a protocol file; every cell of training and new conditions, tracks "
+                        "and traffic, with the extended oracle's row beside the oracle's (protocol.md, .csv)")
     p.add_argument("--routes", help="comma-separated route names: drive only these routes of the suite")
     p.add_argument("--workers", type=count(1, 256), default=None,
                    help=f"routes driven at once, one process each (default: cores, {os.cpu_count() or 1})")
@@ -100,8 +104,10 @@ def run(args) -> int:
     from drivestudio.worlds.highway.benchmark.report import BOARD_FILES, CLIPS, write_board  # lazy: as above
     from drivestudio.worlds.highway.benchmark.scenarios import SCENARIOS_CSV, load_scenarios  # lazy: as above
 
-    if args.suite is not None and args.scenarios is not None:
-        raise UsageError("--suite and --scenarios each name what is driven: give one")
+    if sum(x is not None for x in (args.suite, args.scenarios, args.protocol)) > 1:
+        raise UsageError("--suite, --scenarios and --protocol each name what is driven: give one")
+    if args.protocol is not None:
+        return run_protocol_verb(args)
     if args.out is not None:   # the folder and every file the run will write into it, before any work
         check_output_dir(args.out)
         check_output_dir(Path(args.out) / CLIPS, "clips folder")
@@ -133,4 +139,38 @@ def run(args) -> int:
     clips = sum(e["overall"]["clips"] for e in board["models"])
     print(f"\n{board['run']['wall_time_s']:.0f} s with {board['run']['workers']} workers; {clips} clips; "
           f"leaderboard saved in {out}/leaderboard.md (.csv, .json)")
+    return 0
+
+
+def run_protocol_verb(args) -> int:
+    """benchmark --protocol: every cell of the protocol, one table (protocol_run.py)."""
+    from drivestudio.worlds.highway.benchmark import RunOptions, check_models  # lazy: as run's
+    from drivestudio.worlds.highway.benchmark.protocol import load_protocol  # lazy: as above
+    from drivestudio.worlds.highway.benchmark.protocol_run import PROTOCOL_FILES, run_protocol, write_protocol
+
+    for flag, value in (("--routes", args.routes), ("--shm", args.shm or None), ("--condition", None
+                        if args.condition == SEEDED else args.condition)):
+        if value is not None:
+            raise UsageError(f"{flag} does not apply to --protocol (its cells set the routes and conditions)")
+    if args.out is not None:
+        check_output_dir(args.out)
+        for name in PROTOCOL_FILES:
+            check_output(Path(args.out) / name, None, "protocol table")
+    check_device(args.device)
+    protocol = load_protocol(args.protocol)
+    models = check_models(args.model)
+    if "oracle-extended" not in [m.text for m in models]:
+        models.insert(1, check_models(["oracle-extended"])[1])
+    out = run_dir(args.out, "protocol")
+    opts = RunOptions(device=args.device, renderer=args.renderer, clips=args.clips)
+    routes = sum(len(c.suite.routes) for c in protocol.cells)
+    workers = min(args.workers or os.cpu_count() or 1, routes * len(models))
+    print(f"benchmark: protocol '{protocol.name}' ({len(protocol.cells)} cells, {routes} routes, "
+          f"{routes * protocol.seconds / 60:.0f} simulated minutes) x {len(models)} models "
+          f"({', '.join(m.label for m in models)}), {workers} workers", file=sys.stderr)
+    report = run_protocol(protocol, models, opts, out, workers, show_progress=sys.stderr.isatty(),
+                          backend=args.backend)
+    print(write_protocol(out, report).rstrip())
+    print(f"\n{report['run']['wall_time_s']:.0f} s with {workers} workers; the table saved in {out}/protocol.md "
+          f"(.csv, .json)")
     return 0
