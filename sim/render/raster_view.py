@@ -109,13 +109,17 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, f
 def keep_depth(depth, zbuf, projection, top, left, mirrored):
     """The objects' depth of a view (its zbuf: minus the clip-space z, -inf where none) into depth (h, w) float32 of
     the frame at (top, left), flipped left to right if `mirrored`, as distances along the view's axis [m] (inf where
-    no object): clip z is p22 z + p23 of the eye-space z, which is minus that distance."""
+    no object): clip z is p22 z + p23 of the eye-space z, which is minus that distance. -inf comes out +inf (p22 is
+    negative), so the rows need no test, and the compiler vectorises them."""
     h, w = zbuf.shape
     p22, p23 = projection[2, 2], projection[2, 3]
+    scale = np.float32(1.0) / p22
     for r in range(h):
+        row, out = zbuf[r], depth[top + r, left:left + w]
+        if mirrored:
+            out = out[::-1]
         for c in range(w):
-            z = zbuf[r, c]
-            depth[top + r, left + (w - 1 - c if mirrored else c)] = (z + p23) / p22 if z > -np.inf else np.inf
+            out[c] = (row[c] + p23) * scale
 
 
 @njit(cache=True)
