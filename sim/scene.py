@@ -35,6 +35,7 @@ class Look:
     light_direction: tuple
     ambient: float
     diffuse: float
+    tint: tuple | None = None   # the light's colour, for colours not held here (cars'); None: white, as always
 
     def lit(self, rgb) -> np.ndarray:
         """Colour the renderer gives a flat, upward-facing surface of colour rgb (0..1), as uint8 RGB."""

@@ -46,7 +46,7 @@ with _quiet():
     from pybullet_utils.bullet_client import BulletClient
 
 from sim.camera import RENDERERS, CameraConfig  # noqa: E402  (below pybullet's quietened import, which must come first)
-from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models  # noqa: E402
+from sim.highway.car_models import PARTS, car_colours, car_models  # noqa: E402
 from sim.highway.errors import RendererError  # noqa: E402
 from sim.highway.mesh import MeshData  # noqa: E402
 from sim.render.available import share_egl  # noqa: E402
@@ -150,10 +150,11 @@ class BulletScene:
             linkParentIndices=[0] * k, linkJointTypes=[pb.JOINT_FIXED] * k, linkJointAxis=[[0, 0, 1]] * k)
 
     def _set_car_alpha(self, car: dict, alpha: float) -> None:
-        paint = PAINTS[car["paint"] % len(PAINTS)]
+        paints, colours = car_colours(self.look.tint)
+        paint = paints[car["paint"] % len(paints)]
         self._bc.changeVisualShape(car["body"], -1, rgbaColor=list(paint) + [alpha])
         for i, part in enumerate(PARTS[1:]):
-            self._bc.changeVisualShape(car["body"], i, rgbaColor=list(PART_COLOURS[part][:3]) + [alpha])
+            self._bc.changeVisualShape(car["body"], i, rgbaColor=list(colours[part][:3]) + [alpha])
         car["visible"] = alpha > 0
 
     # --- per frame ------------------------------------------------------------------------------------------------

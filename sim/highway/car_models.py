@@ -30,6 +30,16 @@ PAINTS = [  # RGB
 ]
 
 
+def car_colours(tint: tuple | None = None) -> tuple[list, dict]:
+    """The paints and the parts' colours in a light of colour `tint` (a condition's low sun: warm); None: as they
+    are."""
+    if tint is None:
+        return PAINTS, PART_COLOURS
+    paints = [tuple(float(c * t) for c, t in zip(p, tint)) for p in PAINTS]
+    parts = {k: tuple(float(c * t) for c, t in zip(v[:3], tint)) + (v[3],) for k, v in PART_COLOURS.items()}
+    return paints, parts
+
+
 @dataclass(frozen=True)
 class CarModel:
     name: str

@@ -70,9 +70,11 @@ def condition_look(seed: int, c: Condition) -> Look:
         return make_look(seed, c.name)
     look = make_look(seed, "overcast")
     colours = dict(look.colours)
-    if c.name == "low_sun":   # a low sun, warm light (the tint, drawn over the frame, warms what is not sky)
+    if c.name == "low_sun":   # a low sun: warm light on everything, the cars' colours too (Look.tint)
+        colours = {m: _tinted(rgba[:3], c) + tuple(rgba[3:]) for m, rgba in colours.items()}
         return replace(look, sky_top=_tinted((0.30, 0.40, 0.68), c), sky_horizon=_tinted((1.0, 0.80, 0.62), c),
-                       light_direction=tuple(c.sun), ambient=0.55, diffuse=0.65, colours=colours)
+                       grass=_tinted(look.grass, c), light_direction=tuple(c.sun), ambient=0.55, diffuse=0.65,
+                       colours=colours, tint=tuple(c.tint))
     if c.name == "night":     # the renderers draw the scene's colours; the dark and the lights are drawn over it
         return replace(look, sky_top=(0.012, 0.016, 0.035), sky_horizon=(0.04, 0.05, 0.09),
                        light_direction=tuple(c.sun), ambient=0.85, diffuse=0.15)
@@ -86,8 +88,8 @@ def condition_look(seed: int, c: Condition) -> Look:
                    grass=tuple(np.asarray(look.grass) * 0.9), colours=colours)
 
 
-def _tinted(rgb: tuple, c: Condition) -> tuple:
-    """A sky colour in the condition's light: the effects leave the sky as the Look draws it."""
+def _tinted(rgb, c: Condition) -> tuple:
+    """A colour in the condition's light."""
     return tuple(float(a * b) for a, b in zip(rgb, c.tint))
 
 
@@ -118,8 +120,9 @@ class HighwayEffects:
                                lamps=Lamps(pools, heads, POLE_HEIGHT),
                                car_lights=CarLights(tails, fronts, CAR_LIGHTS.get(condition.name, 0.0)),
                                lamp_reach=LAMP_REACH)
+        self.needs_depth = self.effects.needs_depth
 
-    def apply(self, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
+    def apply(self, frame: np.ndarray, depth: np.ndarray | None, x: float, y: float, yaw: float,
               cars: CarStates) -> np.ndarray:
         """The frame with the condition drawn over it (a new array), seen from a host car at (x, y) [m] with yaw
         [rad]; depth: the objects' distances (sim/render/effects.py)."""

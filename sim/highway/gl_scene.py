@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.camera import CameraConfig
-from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
+from sim.highway.car_models import PARTS, car_colours, car_models
 from sim.highway.traffic import CarStates
 from sim.render.gl_geometry import WIDTH, ground_rows, mesh_rows, outline_rows, ribbon_triangles
 from sim.render.gl_programs import OBJECT, PAINTED
@@ -17,8 +17,6 @@ from sim.render.gl_scene import GLScene, Group
 from sim.render.gl_views import View, camera_view
 from sim.render.lighting import base_colour
 from sim.scene import Chunk, Look
-
-PAINT_BASES = base_colour(PAINTS)   # (n, 3) 0-255, as TinyRenderer holds each paint
 
 
 def chunk_group(chunk: Chunk, look: Look, materials: tuple[str, ...]) -> Group:
@@ -35,8 +33,8 @@ def chunk_group(chunk: Chunk, look: Look, materials: tuple[str, ...]) -> Group:
     return Group(np.concatenate(tris), np.concatenate(lines))
 
 
-def model_rows() -> list[np.ndarray]:
-    """Each car model's parts: the paint takes the instance's colour, the others their own."""
+def model_rows(colours: dict) -> list[np.ndarray]:
+    """Each car model's parts: the paint takes the instance's colour, the others their own (`colours`)."""
     out = []
     for m in car_models():
         parts = []
@@ -46,7 +44,7 @@ def model_rows() -> list[np.ndarray]:
                 parts.append(mesh_rows(mesh.vertices, mesh.faces, mesh.normals, (0, 0, 0), PAINTED))
             else:
                 parts.append(mesh_rows(mesh.vertices, mesh.faces, mesh.normals,
-                                       base_colour(PART_COLOURS[part][:3]), OBJECT))
+                                       base_colour(colours[part][:3]), OBJECT))
         out.append(np.concatenate(parts))
     return out
 
@@ -56,7 +54,9 @@ class HighwayGL:
         """base: the frame before any view is drawn (the backdrops and the insets' borders)."""
         self.look = look
         self._n_models = len(car_models())
-        self._scene = GLScene([chunk_group(c, look, materials) for c in chunks], model_rows(), base,
+        paints, colours = car_colours(look.tint)
+        self._paints = base_colour(paints)   # (n, 3) 0-255, as TinyRenderer holds each paint
+        self._scene = GLScene([chunk_group(c, look, materials) for c in chunks], model_rows(colours), base,
                               look.light_direction, look.ambient, look.diffuse)
 
     def view(self, camera: CameraConfig, x: float, y: float, yaw: float, rect: tuple[int, int, int, int],
@@ -69,7 +69,7 @@ class HighwayGL:
         inst = np.empty((len(on), 7), dtype=np.float32)
         inst[:, 0], inst[:, 1] = cars.x[on], cars.y[on]
         inst[:, 2], inst[:, 3] = np.cos(cars.yaw[on]), np.sin(cars.yaw[on])
-        inst[:, 4:7] = PAINT_BASES[np.asarray(cars.paints, dtype=np.int64)[on] % len(PAINTS)]
+        inst[:, 4:7] = self._paints[np.asarray(cars.paints, dtype=np.int64)[on] % len(self._paints)]
         per_model = [inst[models == m] for m in range(self._n_models)]
         return camera_view(camera, x, y, yaw, rect, groups, per_model, mirrored, keep)
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from sim.camera import DEFAULT_RENDERER, CameraConfig
 from sim.ground_painter import GroundPainter
-from sim.highway.car_models import PAINTS, PART_COLOURS, PARTS, car_models
+from sim.highway.car_models import PARTS, car_colours, car_models
 from sim.highway.conditions import HighwayEffects, condition_look
 from sim.highway.errors import RendererError
 from sim.highway.scenery import GROUND_MATERIALS, Look, build_scenery, make_look
@@ -57,9 +57,10 @@ class Renderer:
             self._gl = HighwayGL(chunks, self.look, GROUND_MATERIALS, self._base_frame())
         elif renderer == "numba":
             from sim.render.raster import Part, Rasteriser, Slot  # lazy: numba loads (and compiles) for it only
+            paints, colours = car_colours(self.look.tint)
             models = [[Part(m.parts[p].vertices, m.parts[p].faces, m.parts[p].normals,
-                            None if p == "paint" else PART_COLOURS[p][:3]) for p in PARTS] for m in car_models()]
-            self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models, PAINTS)
+                            None if p == "paint" else colours[p][:3]) for p in PARTS] for m in car_models()]
+            self._raster = Rasteriser(chunks, self.look, GROUND_MATERIALS, models, paints)
             # every view of a frame in one compiled call, composed as render() composes PyBullet's
             slots = [Slot(camera, 0.0, self._backdrops[camera], (0, 0, camera.height, camera.width))]
             if self.mirror is not None:
@@ -127,7 +128,7 @@ class Renderer:
         condition drawn over it."""
         if self.effects is None:
             return self._draw(x, y, yaw, cars, None)
-        depth = np.empty((self.camera.height, self.camera.width), np.float32)
+        depth = np.empty((self.camera.height, self.camera.width), np.float32) if self.effects.needs_depth else None
         return self.effects.apply(self._draw(x, y, yaw, cars, depth), depth, x, y, yaw, cars)
 
     def _draw(self, x: float, y: float, yaw: float, cars: CarStates, depth: np.ndarray | None) -> np.ndarray:

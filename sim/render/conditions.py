@@ -30,7 +30,7 @@ class Condition:
     sun_azimuth: float
     visibility: float = math.inf        # [m] where the fog leaves 5 % of a far object's contrast (inf: no fog)
     fog_rgb: tuple = (0.8, 0.8, 0.8)
-    tint: tuple = (1.0, 1.0, 1.0)       # the light's colour over the whole scene (low sun: warm)
+    tint: tuple = (1.0, 1.0, 1.0)       # the light's colour (low sun: warm), which the world's Look draws
     glare: float = 0.0                  # strength of the sun's glare when it is in view (0: none)
     night: float = -1.0                 # the light level away from any lamp (< 0: not night)
     headlight_reach: float = 0.0        # [m] where the host's low beams fall to half
@@ -52,10 +52,14 @@ class Condition:
 
     @property
     def drawn(self) -> bool:
-        """Whether anything is drawn over the renderer's frame (clear and overcast are their Look alone); the
-        renderer's depth is read back only then."""
-        return self.density > 0 or self.night >= 0 or self.wetness > 0 or self.glare > 0 or self.rain > 0 or \
-            self.tint != (1.0, 1.0, 1.0)
+        """Whether anything is drawn over the renderer's frame (clear and overcast are their Look alone)."""
+        return self.shades or self.glare > 0 or self.rain > 0
+
+    @property
+    def shades(self) -> bool:
+        """Whether what the renderer drew changes with its distance (fog, darkness, a wet road): only then is its
+        depth read back."""
+        return self.density > 0 or self.night >= 0 or self.wetness > 0
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 builds the tables read here and says what each effect is).
 
 Where the renderer drew no object, a pixel shows the sky or the flat ground, the same in every frame: the sky is the
-Look's and left as it is; on the ground the effect (the tint, the darkness and the host's headlights, the fog) is
+Look's and left as it is; on the ground the effect (the darkness and the host's headlights, the fog) is
 `colour x gain(lit) x t + fog x (1 - t)` with the pixel's fog transmittance t and headlight `lit` stored once, a
 byte each. Where the renderer drew an object (a finite depth) they come from its distance. The tables are bytes and
 the rays are computed from each view's camera, so that what a frame reads stays in the processor's caches.
@@ -80,8 +80,8 @@ def _ground_run(out, src, fog, lit, gain, dark, fog_rgb):
 @njit(cache=True, fastmath=FAST)
 def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
     """The ground's pixels (flat ranges `spans` (n, 2)): colour x (dark + gain x lit) x t + fog_rgb x (1 - t), t the
-    fog byte / 255, lit the headlights' byte / LIT; dark (3,): the tint times the night's light (the tint alone by
-    day), gain (3,): the tint times the headlights' colour (0 by day)."""
+    fog byte / 255, lit the headlights' byte / LIT; dark (3,): the night's light (1 by day), gain (3,): the
+    headlights' colour (0 by day)."""
     for k in range(spans.shape[0]):
         lo, hi = spans[k, 0], spans[k, 1]
         _ground_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], lit[lo:hi], gain, dark, fog_rgb)

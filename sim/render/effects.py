@@ -1,13 +1,14 @@
 """A named condition drawn over the frames of a Geometry (sim/render/conditions.py), whatever renderer drew them,
 from the frame and its depth:
 
-- the ground (where no object was drawn and the ray goes down): the tint, the night's darkness and the host's
-  headlights, the fog, all known from the pixel alone and computed once (sim/render/effect_kernels.py `ground`);
+- the ground (where no object was drawn and the ray goes down): the night's darkness and the host's headlights, the
+  fog, all known from the pixel alone and computed once (sim/render/effect_kernels.py `ground`);
 - the objects (a finite depth): the same from their distance (`objects`); at night the street lamps' pools light the
   ground and the objects near them (`pools`); a wet road mirrors the objects standing on it (`reflections`);
 - lights over the rest (sim/render/light_kernels.py): the cars' tail and head lights and the lamps, the sun's glare
   and its disc, the rain's streaks;
-- the sky is left as the renderer drew it: the world's Look for the condition gives it its colours.
+- the sky is left as the renderer drew it, and the low sun's warm light is drawn by the renderer too: the world's
+  Look for the condition gives them their colours (Look.tint the cars').
 """
 from __future__ import annotations
 
@@ -47,9 +48,8 @@ class Effects:
         self._lamp_reach = lamp_reach
         self._road = np.asarray(road_rgb, dtype=np.int64)
         self._beam = np.array([headlight[0], headlight[1], max(c.headlight_reach, 1e-3), -0.004, 0.04, 0.6])
-        tint = np.asarray(c.tint, dtype=np.float64)
-        self._dark = (tint * (c.night if c.night >= 0 else 1.0)).astype(np.float32)
-        self._gain = (tint * HEADLIGHT_RGB if c.night >= 0 else np.zeros(3)).astype(np.float32)
+        self._dark = np.full(3, c.night if c.night >= 0 else 1.0, dtype=np.float32)
+        self._gain = (HEADLIGHT_RGB if c.night >= 0 else np.zeros(3)).astype(np.float32)
         self._lamp_rgb = np.asarray(c.lamp_rgb, dtype=np.float64) * c.street_lights
         self._lamp_glow = np.asarray(c.lamp_rgb, dtype=np.float64) * 255.0
         self._density, self._sun = c.density, c.sun
@@ -128,17 +128,36 @@ class Effects:
             wetness[v, top:top + vh] = np.where(np.isfinite(d), self.condition.wetness * (0.35 + 0.65 * far), 0.0)
         return contact, wetness
 
-    def apply(self, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
+    @property
+    def needs_depth(self) -> bool:
+        """Whether apply reads the renderer's depth: for what the distance changes, and for the lights (hidden
+        behind what stands in front of them)."""
+        return self.condition.shades or self.car_lights is not None or self.lamps is not None
+
+    def apply(self, frame: np.ndarray, depth: np.ndarray | None, x: float, y: float, yaw: float,
               cars: tuple | None = None) -> np.ndarray:
         """The frame with the condition drawn over it (a new array) seen from a car at (x, y) [m] with yaw [rad]:
         depth (h, w) float32, the objects' distances along each view's axis [m] (inf where none; the insets'
-        borders are set to inf here); cars: (x, y, yaw, model) arrays of the other cars."""
+        borders are set to inf here; None where not needs_depth); cars: (x, y, yaw, model) arrays of the other
+        cars."""
+        out = frame.copy()
+        if depth is not None:
+            self._shade(out, frame, depth, x, y, yaw, cars)
+        self._sun_and_rain(out, yaw)
+        self._frames += 1
+        return out
+
+    def _shade(self, out: np.ndarray, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
+               cars: tuple | None) -> None:
+        """What the depth decides: the ground's and the objects' fog and dark, the lamps, the wet road, the lights."""
         g, c = self.geometry, self.condition
         w = g.view.shape[1]
-        out = frame.copy()
         flat, src, deep = out.reshape(-1), frame.reshape(-1), depth.reshape(-1)
         if len(self._border):
             deep[self._border] = np.inf
+        if not c.shades:   # the lights alone
+            self._lights(out, depth, x, y, yaw, cars)
+            return
         ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
         near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
         n = drawn(deep, self._view, w, self._index, self._index_rows)
@@ -152,18 +171,20 @@ class Effects:
             pools(flat, src, deep, self._rows, self._spots,
                   near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH, g.cams), self._lamp_reach, self._lamp_rgb)
             lamp_heads(out, depth, g.view, g.cams, x, y, yaw, self.lamps.heads, self.lamps.height, self._lamp_glow)
-        self._lights(out, depth, yaw, x, y, cars)
-        self._frames += 1
-        return out
+        self._lights(out, depth, x, y, yaw, cars)
 
-    def _lights(self, out: np.ndarray, depth: np.ndarray, yaw: float, x: float, y: float, cars: tuple | None) -> None:
-        """What is drawn over the rest: the cars' lights, the sun's glare, the rain."""
+    def _lights(self, out: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float, cars: tuple | None) -> None:
+        """The cars' lights, hidden behind what stands in front of them."""
         g = self.geometry
         if self.car_lights is not None and cars is not None and len(cars[0]):
             lights = self.car_lights
             car_x, car_y, car_yaw, models = cars
             car_lights(out, depth, g.view, g.cams, x, y, yaw, car_x, car_y, car_yaw, models, lights.tails,
                        lights.heads, TAIL_RGB, HEAD_RGB, lights.strength, self._density, self._streak)
+
+    def _sun_and_rain(self, out: np.ndarray, yaw: float) -> None:
+        """What is drawn over everything: the sun's glare (the car heading `yaw`), the rain's streaks."""
+        g = self.geometry
         if self._sprite is not None:
             sun, ch, sh = self._sun, math.cos(yaw), math.sin(yaw)
             glare(out, g.view, g.cams, np.array([ch * sun[0] + sh * sun[1], -sh * sun[0] + ch * sun[1], sun[2]]),

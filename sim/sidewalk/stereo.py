@@ -157,11 +157,11 @@ class StereoRenderer:
             self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
             return out[0], out[1]
         depths = tuple(np.full(cam.height * cam.width, np.inf, np.float32).reshape(cam.height, cam.width)
-                       for _ in range(2))
+                       for _ in range(2)) if self.effects["left"].needs_depth else None
         self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic,
                                                        depths)
-        return self.effects["left"].apply(out[0], depths[0], x, y, yaw), \
-            self.effects["right"].apply(out[1], depths[1], x, y, yaw)
+        return self.effects["left"].apply(out[0], None if depths is None else depths[0], x, y, yaw), \
+            self.effects["right"].apply(out[1], None if depths is None else depths[1], x, y, yaw)
 
 
 def with_size(config: StereoConfig, width: int | None, height: int | None, fov: float | None) -> StereoConfig:
