@@ -149,24 +149,22 @@ class Effects:
 
     def _shade(self, out: np.ndarray, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
                cars: tuple | None) -> None:
-        """What the depth decides: the ground's and the objects' fog and dark, the lamps, the wet road, the lights."""
+        """What the depth decides: the fog and the dark of the ground (its affine map) and of the objects, the
+        street lamps, the wet road's reflections, the lights."""
         g, c = self.geometry, self.condition
-        w = g.view.shape[1]
-        flat, src, deep = out.reshape(-1), frame.reshape(-1), depth.reshape(-1)
+        flat, src, deep, w = out.reshape(-1), frame.reshape(-1), depth.reshape(-1), g.view.shape[1]
         if len(self._border):
             deep[self._border] = np.inf
-        if not c.shades:   # the lights alone
-            self._lights(out, depth, x, y, yaw, cars)
-            return
-        ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
-        near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
-        n = drawn(deep, self._view, w, self._index, self._index_rows)
-        index, rows = self._index[:n], self._index_rows[:n]
-        objects(flat, src, deep, index, rows, self._view, self._reach, g.cams, self._cone, self._fall, self._fog_table,
-                self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
-        if c.wetness > 0:
-            reflections(flat, src, deep, index, rows, self._view, self._contact, self._wetness, self._road,
-                        MIRRORED * g.cams[0, 13], w)
+        if c.shades:
+            ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
+            near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
+            n = drawn(deep, self._view, w, self._index, self._index_rows)
+            index, rows = self._index[:n], self._index_rows[:n]
+            objects(flat, src, deep, index, rows, self._view, self._reach, g.cams, self._cone, self._fall,
+                    self._fog_table, self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
+            if c.wetness > 0:
+                reflections(flat, src, deep, index, rows, self._view, self._contact, self._wetness, self._road,
+                            MIRRORED * g.cams[0, 13], w)
         if self.lamps is not None:
             pools(flat, src, deep, self._rows, self._spots,
                   near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH, g.cams), self._lamp_reach, self._lamp_rgb)
