@@ -144,9 +144,8 @@ def run(args) -> int:
 
 def run_protocol_verb(args) -> int:
     """benchmark --protocol: every cell of the protocol, one table (protocol_run.py)."""
-    from drivestudio.worlds.highway.benchmark import RunOptions, check_models  # lazy: as run's
+    from drivestudio.worlds.highway.benchmark import RunOptions, check_models, protocol_run  # lazy: as run's
     from drivestudio.worlds.highway.benchmark.protocol import load_protocol  # lazy: as above
-    from drivestudio.worlds.highway.benchmark.protocol_run import PROTOCOL_FILES, run_protocol, write_protocol
 
     for flag, value in (("--routes", args.routes), ("--shm", args.shm or None), ("--condition", None
                         if args.condition == SEEDED else args.condition)):
@@ -154,7 +153,7 @@ def run_protocol_verb(args) -> int:
             raise UsageError(f"{flag} does not apply to --protocol (its cells set the routes and conditions)")
     if args.out is not None:
         check_output_dir(args.out)
-        for name in PROTOCOL_FILES:
+        for name in protocol_run.PROTOCOL_FILES:
             check_output(Path(args.out) / name, None, "protocol table")
     check_device(args.device)
     protocol = load_protocol(args.protocol)
@@ -168,9 +167,9 @@ def run_protocol_verb(args) -> int:
     print(f"benchmark: protocol '{protocol.name}' ({len(protocol.cells)} cells, {routes} routes, "
           f"{routes * protocol.seconds / 60:.0f} simulated minutes) x {len(models)} models "
           f"({', '.join(m.label for m in models)}), {workers} workers", file=sys.stderr)
-    report = run_protocol(protocol, models, opts, out, workers, show_progress=sys.stderr.isatty(),
+    report = protocol_run.run_protocol(protocol, models, opts, out, workers, show_progress=sys.stderr.isatty(),
                           backend=args.backend)
-    print(write_protocol(out, report).rstrip())
+    print(protocol_run.write_protocol(out, report).rstrip())
     print(f"\n{report['run']['wall_time_s']:.0f} s with {workers} workers; the table saved in {out}/protocol.md "
           f"(.csv, .json)")
     return 0

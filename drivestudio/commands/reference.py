@@ -36,8 +36,8 @@ def _columns(width: int) -> Iterator[None]:
 def _helps(world: str) -> tuple[str, dict[str, tuple[str, str]]]:
     """The top-level help and, per verb in the parser's order, (one-line summary, full --help) as
     `drivestudio --world WORLD VERB --help` prints them."""
-    from drivestudio.cli import build_parser
-    from drivestudio.commands.common import HELP_WORLD
+    from drivestudio.cli import build_parser  # lazy: every verb and world, only when the page is written
+    from drivestudio.commands.common import HELP_WORLD  # lazy: as above
     listed = HELP_WORLD[0]
     HELP_WORLD[0] = world
     try:
@@ -55,7 +55,7 @@ def _block(text: str) -> str:
 
 def render() -> str:
     """The page's text."""
-    from drivestudio import worlds
+    from drivestudio import worlds  # lazy: as above
     names = worlds.names()
     with _columns(WIDTH):
         top, first = _helps(names[0])

@@ -143,6 +143,6 @@ def test_the_verbs_refuse_a_bad_scenario_in_one_line_with_exit_status_2(tmp_path
 
 def test_benchmark_refuses_a_suite_and_scenarios_together_and_an_empty_folder(tmp_path, run_cli):
     run = run_cli("benchmark", "--suite", "x.json", "--scenarios", str(tmp_path))
-    assert run.returncode == 2 and "--suite and --scenarios" in run.stderr
+    assert run.returncode == 2 and "--suite, --scenarios and --protocol" in run.stderr
     run = run_cli("benchmark", "--scenarios", str(tmp_path))
     assert run.returncode == 2 and "holds no *.json scenario file" in run.stderr
