@@ -106,3 +106,25 @@ def test_benchmark_routes_get_the_condition():
         assert world.config.condition == "fog,rain" and world.condition == pick("fog,rain", route.seed)
     assert RunOptions().condition == "seeded"
     assert np.isfinite(world.seed)
+
+
+def test_the_studio_records_the_condition_it_draws(tmp_path):
+    from dataclasses import replace
+
+    from drivestudio import worlds
+    from drivestudio.studio.controls import Controls
+    from drivestudio.studio.protocol import Message
+    from drivestudio.studio.publisher import Publisher
+    from drivestudio.studio.session import Session
+    from drivestudio.studio.watch import Watch
+    plugin = worlds.get("highway")
+    config = replace(plugin.config_type(), cars=0, condition="fog", camera=replace(plugin.config_type().camera,
+                                                                                  width=70, height=53))
+    s = Session(plugin, config, tmp_path, {}, Watch(Publisher(), None), Controls(realtime=False), shard_steps=40,
+                model="oracle")
+    s.open()
+    s.handle(Message("record", {"on": True, "name": "fog"}))
+    s.run(seconds=1.0)
+    s.handle(Message("record", {"on": False}))
+    data = Dataset(tmp_path / "recordings" / "fog")
+    assert set(data.labels(None, ["condition"])["condition"].tolist()) == {"fog"}
