@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 
 import gymnasium as gym
-import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
@@ -100,12 +99,12 @@ def test_gymnasium_takes_the_condition():
 
 def test_benchmark_routes_get_the_condition():
     from drivestudio.worlds.highway.benchmark.route import RunOptions, world_for
-    from drivestudio.worlds.highway.benchmark.suite import load_suite
-    route = load_suite(None).routes[0]
+    from drivestudio.worlds.highway.benchmark.suite import Route
+    route = Route("r", "oval", 2, 0, 11, None, 10.0)   # no cars: no SUMO to start
     with world_for(route, condition="fog,rain") as world:
         assert world.config.condition == "fog,rain" and world.condition == pick("fog,rain", route.seed)
+        assert world.observe().frame.mean() > 0
     assert RunOptions().condition == "seeded"
-    assert np.isfinite(world.seed)
 
 
 def test_the_studio_records_the_condition_it_draws(tmp_path):
