@@ -14,7 +14,7 @@ from drivestudio.worlds.sidewalk import autonomy
 from drivestudio.worlds.sidewalk.autonomy import Autonomy
 
 # the settings most runs give; every other one is --set NAME=VALUE
-FLAGS = ("model", "mode", "seconds", "rounds", "path", "rule", "seed", "device", "out")
+FLAGS = ("model", "mode", "seconds", "rounds", "path", "rule", "device", "out")
 
 
 def register(sub) -> None:

@@ -24,8 +24,7 @@ def register(sub) -> None:
                    help=f"AI cars per route, from LO to HI (default {CARS[0]} {CARS[1]})")
     p.add_argument("--seconds", type=finite(1.0, 7200.0), default=SECONDS,
                    help=f"simulated seconds per route (default {SECONDS:g})")
-    p.add_argument("--name", help="the suite's name (default: the output file's name)")
-    p.add_argument("--out", required=True, help="the suite file to write (.json)")
+    p.add_argument("--out", required=True, help="the suite file to write (.json); its name is the suite's")
     p.set_defaults(func=run)
 
 
@@ -34,7 +33,7 @@ def run(args) -> int:
         raise UsageError("--lanes and --cars take LO HI with LO <= HI")
     out = check_output(args.out, (".json",), "suite")
     try:
-        text = suite_text(args.name or out.stem, generator(args.seed, args.routes, tuple(args.lanes),
+        text = suite_text(out.stem, generator(args.seed, args.routes, tuple(args.lanes),
                                                            tuple(args.cars), args.seconds))
     except ValueError as e:   # a track the generator cannot draw for these lanes
         raise UsageError(str(e)) from None

@@ -274,8 +274,8 @@ class Study:
         """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
         if (where / "autonomy.json").exists():
             return None
-        return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--seed", seed, "--seconds",
-                          seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
+        return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--set", f"seed={seed}",
+                          "--seconds", seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
                           *([] if video else ["--set", "video=false"])], after)
 
     def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int) -> list[tuple]:
