@@ -62,6 +62,14 @@ def rows_render(j: dict) -> list[tuple]:
     return out
 
 
+def rows_conditions(j: dict) -> list[tuple]:
+    out = [(f"render + ground truth in condition {x['condition']}, renderer {r}, oval, 280x210",
+            f"**{_f(x['frames_per_s'])} frames/s** ({x.get('cost_vs_clear', float('nan')):.2f}x clear's cost)",
+            "within 1.2x clear's (issue 49)" if r == "numba" else "")
+           for r, rows in j["renderers"].items() for x in rows]
+    return out + [(f"renderer {name}", f"not run: {why}", "") for name, why in j.get("skipped", {}).items()]
+
+
 def rows_traffic(j: dict) -> list[tuple]:
     return [(f"world + SUMO + truth at 10 Hz, {r['cars']} cars, no rendering",
              f"**{_f(r['steps_per_s'])} steps/s** ({_f(r['realtime_factor'])}x real time; "
@@ -248,6 +256,8 @@ class Bench:
 BENCHES = [
     Bench("render", "bench_render.py", ["--frames", "1000", "--rounds", "3"],
           ["--frames", "30", "--rounds", "1", "--renderers", "tiny,numba", "--insets", "none"], rows_render),
+    Bench("conditions", "bench_conditions.py", ["--frames", "600", "--rounds", "3"],
+          ["--frames", "20", "--rounds", "1", "--renderers", "numba", "--conditions", "clear,fog"], rows_conditions),
     Bench("gym-worlds", "bench_gym_worlds.py", ["--rounds", "5", "--steps", "300", "--renderers", "numba,gl"],
           ["--rounds", "1", "--steps", "20"], rows_gym_worlds),
     Bench("traffic", "bench_traffic.py", ["--cars", "12", "50", "100", "--seconds", "300"],
