@@ -209,6 +209,7 @@ def test_write_never_replaces_a_special_file(tmp_path):
     assert (tmp_path / "real").read_bytes() == b"new" and (tmp_path / "to-real").is_symlink()
 
 
+@pytest.mark.long
 def test_training_saves_on_sigterm_and_by_the_clock(tmp_path):
     """Checkpoints are written at validations, every checkpoint_every seconds and on SIGTERM: a kill between
     validations loses little, and the same command continues."""

@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from tests.helpers import driven_frames
 
 BENCH = [sys.executable, "-m", "drivestudio", "benchmark", "--model", "oracle", "--shm", "--workers", "1", "--clips",
@@ -48,6 +50,7 @@ def _start(suite: Path, out: Path, tmp: Path) -> tuple[subprocess.Popen, list[st
     raise AssertionError("the benchmark did not start driving")
 
 
+@pytest.mark.long
 def test_killed_and_terminated_benchmarks_leave_nothing_behind(tmp_path):
     suite = tmp_path / "suite.json"
     suite.write_text(json.dumps({"name": "long", "description": "one long route", "routes": [

@@ -52,6 +52,7 @@ def test_drive_takes_a_saved_policy_over_the_bridge(tmp_path, trained):
     assert json.loads((tmp_path / "run" / "metrics.json").read_text())["simulated_time_s"] == pytest.approx(2.0)
 
 
+@pytest.mark.long
 def test_over_the_bridge_a_callable_policy_drives_as_the_oracle(tmp_path):
     out = tmp_path / "board"
     r = ds("benchmark", "--suite", write_suite(tmp_path / "s.json", [{**ROUTE_B, "seconds": 5}]), "--shm",

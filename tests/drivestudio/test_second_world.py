@@ -85,6 +85,7 @@ def test_a_tiny_model_learns_the_corridor(checkpoint):
     assert history[-1]["train_loss"] < 0.5 * history[0]["train_loss"]
 
 
+@pytest.mark.long
 def test_it_drives_over_the_bridge_in_two_processes(checkpoint, tmp_path):
     r = cli("drive", "--world", "corridor", "--model", checkpoint, "--seconds", 5, "--start-offset", 1.0,
             "--out", tmp_path)

@@ -101,7 +101,7 @@ def test_a_mix_draws_one_condition_per_seed():
         assert world.condition == pick("fog,night", 3) and world.declaration.columns[-1].name == "condition"
 
 
-@pytest.mark.parametrize("renderer", ["numba", "tiny", "gl"])
+@pytest.mark.parametrize("renderer", ["numba", "tiny", pytest.param("gl", marks=pytest.mark.long)])
 def test_every_condition_renders_in_every_renderer_and_they_agree(renderer):
     """Every renderer draws every condition over its own frame, from its own depth: tiny's frames are numba's pixel
     for pixel (they always were), gl's within its tolerance (docs/rendering.md), the mirror included."""

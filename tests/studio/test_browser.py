@@ -133,6 +133,7 @@ def test_a_recording_in_the_page_becomes_a_dataset_that_stats_reads(page, sidewa
     assert f"{data.frames()}" in r.stdout
 
 
+@pytest.mark.long
 def test_a_watched_run_shows_read_only(page, tmp_path):
     s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "4", "--seconds", "8", "--realtime",
                 "--view", "0", "--out", str(tmp_path)], tmp_path, marker="watch the run at ")

@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import aiohttp
+import pytest
 
 from tests.studio.helpers import REPO, Studio, connect, run
 
@@ -49,6 +50,7 @@ def test_serve_view_publishes_the_world_side_read_only(tmp_path):
     assert (tmp_path / "metrics.json").exists()
 
 
+@pytest.mark.long
 def test_view_control_pauses_steps_and_resumes_a_drive(tmp_path):
     s = Studio(["drive", "--in-process", "--model", "oracle", "--cars", "0", "--seconds", "8", "--realtime",
                 "--view", "0,control", "--out", str(tmp_path)], tmp_path,
@@ -78,7 +80,6 @@ def test_view_control_pauses_steps_and_resumes_a_drive(tmp_path):
 
 
 def test_the_view_option_reads_address_control_and_rate_in_one_value():
-    import pytest as _pytest
 
     from drivestudio.commands.studio import DEFAULT_PORT, VIEW_FPS, view_address
     from drivestudio.errors import UsageError
@@ -89,5 +90,5 @@ def test_the_view_option_reads_address_control_and_rate_in_one_value():
     for bad, why in (("70000", "port must be an integer from 0 to 65535"), ("x", "port must be an integer"),
                      ("0,ctl", "after the address come 'control' and 'fps=F'"), ("0,fps=0", "fps must be in"),
                      ("0,fps=nan", "fps must be")):
-        with _pytest.raises(UsageError, match=why):
+        with pytest.raises(UsageError, match=why):
             view_address(bad)
