@@ -9,17 +9,15 @@ from __future__ import annotations
 
 import csv
 import io
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
-from core.signals import exit_on_sigterm
 from drivestudio.outputs import write_json, write_text
 from drivestudio.worlds.highway.benchmark.models import ModelSpec
 from drivestudio.worlds.highway.benchmark.protocol import Cell, Protocol
 from drivestudio.worlds.highway.benchmark.route import RunOptions
-from drivestudio.worlds.highway.benchmark.run import jobs_for, run_jobs
+from drivestudio.worlds.highway.benchmark.run import drive_all, jobs_for
 from drivestudio.worlds.highway.benchmark.score import leaderboard
 
 PROTOCOL_FILES = ("protocol.md", "protocol.csv", "protocol.json")
@@ -41,20 +39,10 @@ def cell_row(model: dict, cell: Cell) -> dict:
 def run_protocol(protocol: Protocol, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
                  show_progress: bool = True, backend: str = "local") -> dict:
     """Drive every cell with every model; returns {"protocol", "run", "cells": [{cell, board}], "rows"}."""
-    from tqdm import tqdm  # lazy: only while routes are driven
-
     jobs = [j for cell in protocol.cells
             for j in jobs_for(cell.suite, models, replace(opts, condition=cell.condition), out.resolve())]
-    results: list[dict] = []
-    bar = tqdm(total=round(sum(j["route"]["seconds"] for j in jobs)), unit="sim s", disable=not show_progress,
-               file=sys.stderr, dynamic_ncols=True, smoothing=0.05,
-               desc=f"{len(protocol.cells)} cells x {len(models)} models")
     t0 = time.perf_counter()
-    try:
-        with exit_on_sigterm():
-            run_jobs(jobs, workers, lambda s: bar.update(s), results.append, backend)
-    finally:
-        bar.close()
+    results = drive_all(jobs, workers, f"{len(protocol.cells)} cells x {len(models)} models", show_progress, backend)
     cells, rows = [], []
     for cell in protocol.cells:
         names = {r.name for r in cell.suite.routes}

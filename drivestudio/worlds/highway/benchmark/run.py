@@ -65,23 +65,28 @@ def run_jobs(jobs: list[dict], workers: int, on_progress, on_done, backend: str 
         on_progress=on_progress, on_done=on_done)
 
 
-def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
-                  show_progress: bool = True, backend: str = "local") -> dict:
-    """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
+def drive_all(jobs: list[dict], workers: int, desc: str, show_progress: bool = True, backend: str = "local") -> list:
+    """Every job's result, in the order they finish, a bar of simulated seconds on stderr while they run."""
     from tqdm import tqdm  # lazy: 20 ms, only while routes are driven
 
-    from drivestudio.worlds.highway.benchmark.score import leaderboard  # lazy: only once routes are driven
-    jobs = jobs_for(suite, models, opts, out.resolve())   # on a cluster, the same path on every node
     results: list[dict] = []
-    total = sum(j["route"]["seconds"] for j in jobs)
-    bar = tqdm(total=round(total), unit="sim s", disable=not show_progress, file=sys.stderr, dynamic_ncols=True,
-               smoothing=0.05, desc=f"{len(suite.routes)} routes x {len(models)} models")
-    t0 = time.perf_counter()
+    bar = tqdm(total=round(sum(j["route"]["seconds"] for j in jobs)), unit="sim s", disable=not show_progress,
+               file=sys.stderr, dynamic_ncols=True, smoothing=0.05, desc=desc)
     try:
         with exit_on_sigterm():
             run_jobs(jobs, workers, lambda s: bar.update(s), results.append, backend)
     finally:
         bar.close()
+    return results
+
+
+def run_benchmark(suite: Suite, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
+                  show_progress: bool = True, backend: str = "local") -> dict:
+    """Drive the suite with every model; returns the leaderboard (score.leaderboard) with the run's facts."""
+    from drivestudio.worlds.highway.benchmark.score import leaderboard  # lazy: only once routes are driven
+    jobs = jobs_for(suite, models, opts, out.resolve())   # on a cluster, the same path on every node
+    t0 = time.perf_counter()
+    results = drive_all(jobs, workers, f"{len(suite.routes)} routes x {len(models)} models", show_progress, backend)
     board = leaderboard(suite, models, results)
     board["run"] = {"transport": opts.transport, "workers": max(1, min(workers, len(jobs))),
                     "wall_time_s": round(time.perf_counter() - t0, 1), "device": opts.device,
