@@ -103,5 +103,5 @@ def test_a_run_writes_one_table_with_the_oracles_rows_first(run_cli, tmp_path):
     report = json.loads((tmp_path / "out" / "protocol.json").read_text())
     fog = [c for c in report["cells"] if c["cell"].startswith("new-cond")][0]["board"]["models"][0]["routes"][0]
     assert fog["condition"] in ("fog", "night")
-    assert "| oracle | training-cond.training-tracks.empty | 1 | 100.0% | 100% |" in \
+    assert "| oracle | train-cond.train-tracks.empty | 1 | 100.0% | 100% |" in \
         (tmp_path / "out" / "protocol.md").read_text()

@@ -326,7 +326,8 @@ class ClipRecorder:
         or None when the clip's steps cannot make one."""
         from sim.highway.scripted import scripted_from_dict  # lazy: with the world, already loaded
         assert self.dir is not None
-        name = f"{self.route.name}-{p.index:02d}-{p.event}-t{t:06.1f}s"
+        suffix = f"-{p.index:02d}-{p.event}-t{t:06.1f}s"
+        name = self.route.name[:64 - len(suffix)] + suffix   # a scenario's name is at most 64 characters
         about = (f"the {REPLAY_BEFORE:g} s before the collision at {t:.1f} s of route {self.route.name} driven by "
                  f"{self.model.label}, replayed from its crash clip")
         obj = replay_scenario(p.history, self.world.track, self.route, t, name, about)

@@ -67,8 +67,9 @@ class Cell:
 
 
 def cell_name(conditions: str, tracks: str, traffic: str) -> str:
-    """A cell's name, also the prefix of its routes' names: `new-cond.training-tracks.dense`."""
-    return f"{conditions}-cond.{tracks}-tracks.{traffic}"
+    """A cell's name, also the prefix of its routes' names: `new-cond.train-tracks.dense`."""
+    short = {"training": "train", "new": "new"}
+    return f"{short[conditions]}-cond.{short[tracks]}-tracks.{traffic}"
 
 
 @dataclass(frozen=True)
