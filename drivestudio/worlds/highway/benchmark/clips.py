@@ -304,7 +304,9 @@ class ClipRecorder:
         if p.event == "collision":
             info["contact"] = describe_contact(p.before, self.world.track)
             info["rule"], info["cause"] = fault(p.before, self.world.dt)
-            info["scenario"] = self._write_replay(p, t)
+            info["scenario"], why = self._write_replay(p, t)
+            if why:
+                info["scenario_skipped"] = why
         else:
             d = float(event_entry.obs.truth.ego[4])
             info["contact"] = f"left the road over the {'left' if d > 0 else 'right'} edge"
@@ -321,10 +323,13 @@ class ClipRecorder:
         info["file"] = name
         self.clips.append(info)
 
-    def _write_replay(self, p: _Pending, t: float) -> str | None:
-        """CLIP.scenario.json beside the clip: its last seconds as a scripted scenario (replay.py); its file name,
-        or None when the clip's steps cannot make one."""
-        from sim.highway.scripted import scripted_from_dict  # lazy: with the world, already loaded
+    def _write_replay(self, p: _Pending, t: float) -> tuple[str | None, str]:
+        """CLIP.scenario.json beside the clip: its last seconds as a scripted scenario (replay.py); its file name
+        (None when the clip's steps cannot make one) and why not. A start the scenario format refuses (a car caught
+        half across the host's lane when the clip begins, as in a merge from alongside) leaves the clip without a
+        replay, not the benchmark without its results."""
+        from sim.highway.scenario import ScenarioError  # lazy: with the world, already loaded
+        from sim.highway.scripted import scripted_from_dict  # lazy: as above
         assert self.dir is not None
         suffix = f"-{p.index:02d}-{p.event}-t{t:06.1f}s"
         name = self.route.name[:64 - len(suffix)] + suffix   # a scenario's name is at most 64 characters
@@ -332,10 +337,13 @@ class ClipRecorder:
                  f"{self.model.label}, replayed from its crash clip")
         obj = replay_scenario(p.history, self.world.track, self.route, t, name, about)
         if obj is None:
-            return None
-        scripted_from_dict(obj, self.dir)   # what is written reads back (a ScenarioError here is a bug of ours)
+            return None, "fewer than two steps before the collision"
+        try:
+            scripted_from_dict(obj, self.dir)   # only what reads back is written
+        except ScenarioError as e:
+            return None, str(e)
         write_json(self.dir / f"{name}.scenario.json", obj)
-        return f"{name}.scenario.json"
+        return f"{name}.scenario.json", ""
 
     def frame(self, entry: Entry, t_event: float, info: dict, mark: bool = True) -> np.ndarray:
         """One frame of a clip: the overlay over the panel; `mark`: a red border from the event on."""
