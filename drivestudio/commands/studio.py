@@ -61,16 +61,19 @@ def _checkpoints(args, plugin) -> dict[str, str]:
         else:
             raise UsageError(f"--checkpoint must be a checkpoint file or a folder of them; no such file or folder: "
                              f"{given}")
+    model = None   # --model's checkpoint, with the estimate filters it names (CKPT@pass_memory=15)
     if args.model is not None and args.model != "human" and args.model not in plugin.expert_names:
-        files.append(check_checkpoint_path(args.model, ("human",) + tuple(plugin.expert_names)))
+        spec = plugin.parse_driver(args.model)
+        model = check_checkpoint_path(spec.source, ("human",) + tuple(plugin.expert_names))
+        files.append(model)
     out: dict[str, str] = {}
     for f in files:
-        if out.get(f.name, str(f)) != str(f):
+        if out.get(f.name, str(f)) != str(f) and f != model:
             raise UsageError(f"two checkpoints are called {f.name} ({out[f.name]}, {f}): the page names them by "
                              "file name; rename one")
-        out[f.name] = str(f)
-    if args.model in out.values():
-        args.model = Path(args.model).name
+        out[f.name] = args.model if f == model else str(f)
+    if model is not None:
+        args.model = model.name
     return out
 
 
