@@ -317,3 +317,21 @@ def test_the_state_carries_the_live_speed_and_one_simulated_time(sidewalk):
     assert 0.5 < state["speed"] < 9.0          # the expert drives 0.9-4.5 m/s
     assert state["off_road"] is False and state["behind"] is None       # on its path; as fast as it can
     assert "simulated_time_s" not in state["metrics"] and "mean_speed_mps" in state["metrics"]
+
+
+def test_the_model_is_read_as_the_one_driver_spec_with_its_filters(tmp_path):
+    """`studio --model CKPT@pass_memory=15`: the page offers the checkpoint by its file name and drives it with the
+    filters; a filter the world does not have is refused in one line."""
+    import argparse
+
+    from drivestudio import worlds
+    from drivestudio.commands.studio import _checkpoints
+    from drivestudio.errors import UsageError
+
+    ckpt = tmp_path / "net.pt"
+    ckpt.write_bytes(b"a checkpoint")
+    args = argparse.Namespace(checkpoint=[], model=f"{ckpt}@pass_memory=15")
+    assert _checkpoints(args, worlds.get("highway")) == {"net.pt": f"{ckpt}@pass_memory=15"}
+    assert args.model == "net.pt"
+    with pytest.raises(UsageError, match="wobble"):
+        _checkpoints(argparse.Namespace(checkpoint=[], model=f"{ckpt}@wobble=1"), worlds.get("highway"))
