@@ -133,6 +133,12 @@ def _suite(tmp_path: Path) -> Path:
     return suite
 
 
+def _owned(names: set[str], pids: set[int]) -> set[str]:
+    """The segments named after one of `pids` (`drivestudio-PID[-suffix]`): a test running beside this one on
+    another worker makes segments of its own."""
+    return {n for n in names if int(n.split("-")[1]) in pids}
+
+
 def _driving(kids) -> bool:
     """A world serves a segment and its driver process (`drive --shm`) is among the descendants."""
     return any("drive --shm" in ln for ln in _cmdlines(kids)) and bool(segments())
@@ -147,7 +153,8 @@ def test_benchmark_shm_leaves_no_process_behind_and_a_rerun_starts_clean(tmp_pat
     before = segments()
     first = Started(argv + ["--out", str(tmp_path / "first")], lambda k: _driving(k) and segments() - before,
                     tmp_path)
-    left = segments() - before
+    left = _owned(segments() - before, {first.proc.pid} | first.kids)
+    assert left
     first.signal_and_check(signum)
     if signum != signal.SIGKILL:
         assert not segments() & left   # removed by the run itself
