@@ -12,7 +12,7 @@ from pathlib import Path
 from core.files import check_output_dir, make_dir
 from core.settings import as_json, entries, setting
 from drivestudio.commands.recipe_extended import EXTENDED, EXTENDED_QUICK, Extended, extended_recipe
-from drivestudio.commands.recipe_steps import RecipeRun, Steps, benchmark, ensemble_step, fingerprints
+from drivestudio.commands.recipe_steps import RecipePlan, Steps, benchmark, ensemble_step, fingerprints, training_plan
 from drivestudio.commands.run_settings import add_config, add_flags, add_set, defaults_text, read_config, resolve
 from drivestudio.errors import UsageError
 from drivestudio.outputs import write_json, write_text
@@ -20,7 +20,7 @@ from drivestudio.worlds.highway.filters import MAX_MEMORY
 
 
 @dataclass(frozen=True)
-class Size(RecipeRun):
+class Size(RecipePlan):
     frames: int = setting(20000, "expert frames", low=200, high=10**7)
     iterations: int = setting(6000, "iterations of each network's training", low=1, high=10**7)
     members: int = setting(3, "networks trained side by side (seeds 0, 1, ...), one thread each, and driven as one "
@@ -94,17 +94,18 @@ def run(args) -> int:
     if size.suite not in ("default", "none"):
         from drivestudio.worlds.highway.benchmark import load_suite  # the world's benchmark: only when asked
         load_suite(size.suite)   # a bad suite fails now, not after an hour of training
+    plan = training_plan(size)   # likewise a bad protocol, condition or track list
     out = make_dir(check_output_dir(size.out))
     # what `drivestudio recipe --config` runs again
     write_json(out / "config.json", {"recipe": "extended" if isinstance(size, Extended) else "ensemble",
                                      "settings": as_json(size)})
     steps = Steps(out)
     if isinstance(size, Extended):
-        board = extended_recipe(steps, size)
+        board = extended_recipe(steps, size, plan)
     else:
         data = out / "data"
         steps.verb(f"the expert's dataset: {size.frames} frames", "generate", "--out", data, "--frames",
-                   size.frames, "--workers", size.workers)
+                   size.frames, *plan, "--workers", size.workers)
         board = ensemble_recipe(steps, size, data) if size.members > 1 else single_recipe(steps, size, data)
     fingerprints(steps)
     write_text(out / "commands.txt", "\n".join(steps.log) + "\n")

@@ -26,14 +26,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from core.settings import setting
-from drivestudio.commands.recipe_steps import RecipeRun, Steps, benchmark, ensemble_step
+from drivestudio.commands.recipe_steps import RecipePlan, Steps, benchmark, ensemble_step
 from drivestudio.worlds.highway.filters import MAX_MEMORY
 
 REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
 
 
 @dataclass(frozen=True)
-class Extended(RecipeRun):
+class Extended(RecipePlan):
     frames: int = setting(20000, "expert frames of each of the two datasets", low=200, high=10**7)
     iterations: int = setting(6000, "iterations of each network's training", low=1, high=10**7)
     members: int = setting(2, "forward networks of the paper's 13 (seeds 0, 1, ...)", low=1, high=8)
@@ -73,8 +73,9 @@ def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int
             "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
 
 
-def extended_recipe(steps: Steps, size: Extended) -> Path | None:
-    """The steps above; returns the leaderboard (None with --suite none)."""
+def extended_recipe(steps: Steps, size: Extended, plan: list[str]) -> Path | None:
+    """The steps above, the datasets generated with `plan` (their conditions and tracks); returns the leaderboard
+    (None with --suite none)."""
     from perception.frame_cache import prepare_cache  # torch: only once the recipe runs
     from perception.shards import Dataset  # pyarrow: only once the recipe runs
 
@@ -83,8 +84,8 @@ def extended_recipe(steps: Steps, size: Extended) -> Path | None:
     for data, lanes in ((forward_data, "1,2,3"), (rear_data, "1,2,3,4")):
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
-                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--workers",
-                   size.workers)
+                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, *plan,
+                   "--workers", size.workers)
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):
         dataset = Dataset(data)

@@ -8,7 +8,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from core.conditions import CONDITIONS, SEEDED
 from core.settings import setting
+from drivestudio.errors import UsageError
 from drivestudio.outputs import write_json
 from drivestudio.pool import ONE_THREAD, Job, Pool, run_verb
 
@@ -22,6 +24,36 @@ class RecipeRun:
     out: str = setting("out/recipe", "output folder")
     suite: str = setting("default", "the benchmark suite: a suite file, the held-out default suite or none")
     workers: int = setting(2, "worker processes", low=1, high=256)
+
+
+@dataclass(frozen=True)
+class RecipePlan(RecipeRun):
+    """...then what the driver learns from (docs/benchmark.md, the generalisation protocol), as --set settings."""
+
+    condition: str = setting(SEEDED, "the named conditions of the expert's frames: one, or a mix, each episode "
+                                     "drawing one (docs/conditions.md)", choices=CONDITIONS, several=True)
+    tracks: str = setting("", "the training tracks, comma-separated presets, files or procedural:SEED (empty: "
+                              "generate's default, every preset and three procedural tracks)")
+    protocol: str = setting("none", "a generalisation protocol (a name or file): the driver learns from its training "
+                                    "conditions and tracks alone and drives its every cell instead of the suite")
+
+
+def training_plan(run: RecipePlan) -> list[str]:
+    """generate's options for the conditions and tracks the recipe's driver learns from (the aggregation rounds read
+    them from the expert's dataset); a protocol's training split replaces both."""
+    condition, tracks = run.condition, run.tracks
+    if run.protocol != "none":
+        if condition != SEEDED or tracks:
+            raise UsageError(f"protocol={run.protocol} sets the training conditions and tracks; give it or "
+                             "condition and tracks, not both")
+        protocol = load(run.protocol)
+        condition, tracks = ",".join(protocol.conditions["training"]), ",".join(protocol.tracks["training"])
+    return (["--condition", condition] if condition != SEEDED else []) + (["--tracks", tracks] if tracks else [])
+
+
+def load(protocol: str):
+    from drivestudio.worlds.highway.benchmark.protocol import load_protocol  # lazy: the world's benchmark
+    return load_protocol(protocol)
 
 
 class Steps:
@@ -95,8 +127,11 @@ def ensemble_step(steps: Steps, title: str, members: list[Path], ensemble: Path)
     steps.done(t0)
 
 
-def benchmark(steps: Steps, models: list, run: RecipeRun) -> Path | None:
-    """The models beside the oracle on the suite; skipped when its leaderboard is newer than every model."""
+def benchmark(steps: Steps, models: list, run: RecipePlan) -> Path | None:
+    """The models beside the oracle on the suite (or every cell of the protocol); skipped when its leaderboard is
+    newer than every model."""
+    if run.protocol != "none":
+        return protocol_benchmark(steps, models, run)
     if run.suite == "none":
         return None
     bench = steps.out / "benchmark"
@@ -109,6 +144,26 @@ def benchmark(steps: Steps, models: list, run: RecipeRun) -> Path | None:
     steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
                "--workers", run.workers, "--out", bench)
     return board
+
+
+def protocol_benchmark(steps: Steps, models: list, run: RecipePlan) -> Path:
+    """The models beside both oracles in every cell of the protocol; skipped when its table (of this protocol file)
+    is newer than every model."""
+    bench = steps.out / "protocol"
+    table = bench / "protocol.md"
+    files = [Path(str(m).split("@")[0]) for m in models if str(m) not in EXACT]
+    try:
+        drove = json.loads((bench / "protocol.json").read_text())["protocol"]["sha256"]
+    except (OSError, ValueError, KeyError, TypeError):
+        drove = None
+    if drove == load(run.protocol).sha256 and table.is_file() and \
+            all(m.stat().st_mtime < table.stat().st_mtime for m in files):
+        print(f"\n== the protocol: done before ({table})", flush=True)
+        return table
+    steps.verb("every cell of the protocol, every model beside both oracles", "benchmark",
+               *[a for m in models if str(m) not in EXACT for a in ("--model", m)], "--protocol", run.protocol,
+               "--workers", run.workers, "--out", bench)
+    return table
 
 
 def fingerprints(steps: Steps) -> Path:

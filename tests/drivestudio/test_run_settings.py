@@ -110,6 +110,30 @@ def test_an_extended_recipes_setting_reaches_its_first_verb(first_step, tmp_path
     assert [str(a) for a in argv[argv.index("--set"):argv.index("--set") + 2]] == ["--set", "mirror=true"]
 
 
+def test_a_recipes_protocol_sets_its_datasets_conditions_and_tracks(first_step, tmp_path):
+    """--set protocol=generalisation: the expert's frames are the protocol's training conditions on its training
+    tracks, and nothing of its new split."""
+    from drivestudio.worlds.highway.benchmark.protocol import load_protocol
+    protocol = load_protocol("generalisation")
+    seen = first_step("recipe")
+    _started("recipe", "--extended", "--quick", "--out", tmp_path / "r", "--set", "protocol=generalisation")
+    (argv,) = seen["recipe"]
+    argv = [str(a) for a in argv]
+    assert argv[argv.index("--condition") + 1].split(",") == list(protocol.conditions["training"])
+    assert argv[argv.index("--tracks") + 1].split(",") == list(protocol.tracks["training"])
+    assert not set(argv) & {*protocol.conditions["new"], *protocol.tracks["new"]}
+
+
+def test_a_recipes_condition_mix_reaches_its_dataset_and_the_seeded_look_adds_nothing(first_step, tmp_path):
+    seen = first_step("recipe")
+    _started("recipe", "--quick", "--out", tmp_path / "r", "--set", "condition=fog,night", "--set", "tracks=oval")
+    mixed = [str(a) for a in seen["recipe"][0]]
+    _started("recipe", "--quick", "--out", tmp_path / "s")
+    seeded = [str(a) for a in seen["recipe"][0]]
+    assert mixed[mixed.index("--condition") + 1] == "fog,night" and mixed[mixed.index("--tracks") + 1] == "oval"
+    assert "--condition" not in seeded and "--tracks" not in seeded
+
+
 def test_an_aggregations_setting_reaches_its_first_round(first_step, highway_model, tmp_path):
     seen = first_step("aggregate")
     from tests.perception.frames import dataset

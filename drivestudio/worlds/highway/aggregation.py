@@ -120,25 +120,31 @@ def benchmark_tracks() -> set[tuple[str, int]]:
             for r in load_suite(path).routes}
 
 
-def expert_lanes(data: str) -> list[int]:
-    """The lane counts of the expert dataset's plan (generate's default 1, 2, 3 for a dataset that does not say):
-    the rounds drive roads like the ones the model learned."""
+def expert_plan(data: str) -> dict:
+    """What of the expert dataset's plan the rounds drive too, so that they drive roads and looks like the ones the
+    model learned: its lane counts (generate's default 1, 2, 3 for a dataset that does not say), its tracks when it
+    named them (else new procedural tracks each round) and its named conditions."""
     options = read_manifest(Path(data)).get("config", {}).get("options", {})
-    return [int(n) for n in options.get("lanes", [1, 2, 3])]
+    return {"lanes": [int(n) for n in options.get("lanes", [1, 2, 3])], "tracks": list(options.get("tracks") or []),
+            **({"condition": options["condition"]} if options.get("condition") else {})}
 
 
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
-    """generate's highway options for a round: the default training plan with the expert dataset's lane counts
-    (seed cfg.seed * 100 + round, so that every round drives new traffic on new procedural tracks), denser traffic,
+    """generate's highway options for a round: the expert dataset's plan (seed cfg.seed * 100 + round, so that every
+    round drives new traffic, and new procedural tracks where the expert's were generate's default), denser traffic,
     and the learner, whose frames carry the rear-view mirror (and the side views) when it learned them."""
     plugin = HighwayPlugin()
     seed = cfg.seed * 100 + round_
-    lanes = expert_lanes(cfg.data)
-    options = {"tracks": [], "procedural": 3, "lanes": lanes, "cars": list(cfg.car_range),
+    plan = expert_plan(cfg.data)
+    lanes = plan["lanes"]
+    options = {**plan, "procedural": 3, "cars": list(cfg.car_range),
                "width": HIGHWAY.cameras[0].width, "height": HIGHWAY.cameras[0].height, "fov": 60.0,
                **inset_options(checkpoint_inset(str(learner)))}
     held_out = benchmark_tracks()
     tracks = [t for t in plugin.track_list(options, seed) if not any((t, n) in held_out for n in lanes)]
+    if not tracks:
+        raise UsageError(f"every track of {cfg.data}'s plan is a benchmark route's at one of its lane counts; "
+                         "aggregation rounds never drive those")
     return {**options, "tracks": tracks, "learner": str(learner.resolve()), "beta": cfg.beta_of(round_),
             "device": cfg.device}
 

@@ -1,0 +1,47 @@
+"""Aggregation rounds drive what the model learned from (drivestudio/worlds/highway/aggregation.py `expert_plan`):
+the expert dataset's lane counts, its named tracks and its named conditions, so that a driver trained on a protocol's
+training split never meets the protocol's new split in its rounds, and the rounds' frames merge with the expert's."""
+import pytest
+
+from drivestudio.worlds.highway.aggregation import AggregationConfig, drive_options, expert_plan
+
+
+@pytest.fixture(scope="module")
+def expert(tmp_path_factory):
+    from drivestudio.cli import main
+    out = tmp_path_factory.mktemp("expert") / "data"
+    assert main(["generate", "--out", str(out), "--frames", "20", "--episode-frames", "10", "--workers", "1",
+                 "--cars", "2", "--lanes", "2", "--condition", "night,rain", "--tracks",
+                 "oval,procedural:651002"]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from core.worlds.highway import HIGHWAY
+    from perception.checkpoint import save_checkpoint
+    from perception.models import build
+    path = tmp_path_factory.mktemp("models") / "gist.pt"
+    net = build("gist", HIGHWAY)
+    save_checkpoint(path, {"spec": net.spec, "state_dict": net.state_dict(), "train": {}})
+    return path
+
+
+def test_the_rounds_take_the_expert_datasets_tracks_conditions_and_lanes(expert, model, tmp_path):
+    plan = expert_plan(str(expert))
+    assert plan == {"lanes": [2], "tracks": ["oval", "procedural:651002"], "condition": "night,rain"}
+    cfg = AggregationConfig(data=str(expert), model="unused.pt", out=str(tmp_path))
+    options = drive_options(cfg, 1, model)
+    assert options["tracks"] == ["oval", "procedural:651002"] and options["condition"] == "night,rain"
+    assert options["lanes"] == [2]
+
+
+def test_a_dataset_of_generates_default_plan_gives_new_procedural_tracks_each_round_and_no_condition(model,
+                                                                                                      tmp_path):
+    from tests.perception.frames import dataset
+    plan = expert_plan(str(dataset()))
+    assert plan["tracks"] == [] and "condition" not in plan
+    cfg = AggregationConfig(data=str(dataset()), model="unused.pt", out=str(tmp_path))
+    one, two = (drive_options(cfg, r, model)["tracks"] for r in (1, 2))
+    assert {t for t in one if t.startswith("procedural:")} != {t for t in two if t.startswith("procedural:")}
+    assert "condition" not in drive_options(cfg, 1, model)
