@@ -3,13 +3,13 @@ same verbs a user would run, everything in one folder, ending with REPORT.md (ab
 --quick: about 3)."""
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from core.files import make_dir
 from drivestudio.cli import main
+from drivestudio.commands.demo_report import write_report
 from drivestudio.commands.numbers import count
 from drivestudio.outputs import write_text
 
@@ -45,8 +45,8 @@ def register(sub) -> None:
                                    "Table 3; overlays of the worst frames; the MobileNet driving. Sidewalk: stereo "
                                    "frames; a video of each expert mode; a small data-moment set; a short MultiNet and "
                                    "an MTL net; the autonomy of each in direct mode. Ends with REPORT.md (the two "
-                                   "headline tables and links to every plot, overlay and video); the commands it ran "
-                                   "are in commands.txt.")
+                                   "headline tables, every plot and overlay shown where it is discussed, a still of "
+                                   "each video beside its link); the commands it ran are in commands.txt.")
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--quick", action="store_true", help="the smallest run that still exercises everything (about "
                                                         "3 minutes; what the tests run)")
@@ -154,82 +154,3 @@ def _sidewalk(step: _Steps, size: Size, sw: Path) -> None:
 
 
 TOTAL = 11 + 11   # the demo's steps: highway, sidewalk
-
-
-def _table_mae(hw: Path) -> str:
-    text = (hw / "evaluate" / "mae.md").read_text()
-    lines = text.split("\n")
-    start = next(i for i, line in enumerate(lines) if line.startswith("| model"))
-    end = next(i for i in range(start, len(lines)) if not lines[i].startswith("|"))
-    return "\n".join(lines[start:end])
-
-
-def _table_autonomy(sw: Path) -> str:
-    rows = ["| network | mode | autonomy % | corrections [s] | elapsed [s] | take-overs | collisions | distance [m] | "
-            "video |", "|---|---|---:|---:|---:|---:|---:|---:|---|"]
-    for net, title in (("multinet", "MultiNet"), ("mtl-direct", "MTL (direct)")):
-        r = json.loads((sw / f"autonomy-{net}" / "autonomy.json").read_text())["rounds"][0]
-        video = f"[video](sidewalk/autonomy-{net}/autonomy-0.mp4)"
-        rows.append(f"| {title} | direct | {r['autonomy_percent']:.2f} | {r['correction_s']:.1f} | "
-                    f"{r['elapsed_s']:.1f} | {r['corrections']} | {r['collisions']} | {r['distance_m']:.0f} | "
-                    f"{video} |")
-    rows.append("| *paper: MultiNet / MTL* | *direct* | *92.68 / 84.27* | | | | | | |")
-    return "\n".join(rows)
-
-
-def write_report(out: Path, seconds: float, quick: bool) -> Path:
-    """REPORT.md: the two headline tables, then links to every plot, overlay and video."""
-    hw, sw = out / "highway", out / "sidewalk"
-
-    def links(folder: Path, pattern: str) -> str:
-        items = sorted(folder.glob(pattern))
-        return ", ".join(f"[{p.name}]({p.relative_to(out)})" for p in items) or "(none)"
-
-    def metrics(path: Path, keys) -> str:
-        m = json.loads((path / "metrics.json").read_text())
-        return ", ".join(f"{k} {m[k]}" for k in keys if k in m)
-
-    text = f"""# drivestudio demo report
-
-{"A quick run (`drivestudio demo --quick`): every step at its smallest; the numbers show that it works, not how well. "
- if quick else ""}Made in {seconds / 60:.1f} minutes on this machine. The commands are in [commands.txt](commands.txt).
-
-## Highway: mean absolute error per indicator (test split: 1, 2 and 3 lanes)
-
-{_table_mae(hw)}
-
-MAE in metres (angle in radians) on the demo's test episodes, beside Liu and Wang's Table 3 (10,000 TORCS frames: a
-reference, not a like-for-like comparison). The demo's MobileNet trains for minutes, the paper's AlexNet for hours. Full
-report: [mae.md](highway/evaluate/mae.md), [mae.png](highway/evaluate/mae.png), by regime and lane count in
-[evaluate/](highway/evaluate/).
-
-## Sidewalk: percentage autonomy in direct mode
-
-{_table_autonomy(sw)}
-
-Autonomy = (1 - correction time / elapsed time) * 100 (Chowdhuri, Pankaj and Zipser, MultiNet), on the held-out
-loop `procedural:907` with obstacles, the expert correcting by the documented rule (docs/sidewalk.md). Short demo
-trainings: see docs/results.md for the study at a larger size.
-
-## Everything else
-
-Highway
-- frames with SUMO traffic: {links(hw, "frame-*.png")}
-- the oracle over shared memory: [video](highway/oracle-drive.mp4); {metrics(hw / "oracle-drive",
-        ("distance_m", "mean_speed_mps", "collisions", "off_road_events", "overtakes", "loop_rate_hz"))}
-- the dataset: [stats](highway/stats/stats.md), [histograms](highway/stats/histograms.png)
-- training curves: {links(hw / "models", "*.png")}
-- overlays of the MobileNet's worst test frames: {links(hw / "overlays", "*.png")}
-- the MobileNet driving: [video](highway/mobilenet-drive.mp4); {metrics(hw / "mobilenet-drive",
-        ("distance_m", "mean_speed_mps", "collisions", "off_road_events", "loop_rate_hz"))}
-
-Sidewalk
-- the stereo pair: {links(sw, "stereo-*.png")}
-- the three expert modes: {links(sw, "expert-*.mp4")}
-- the data-moment set: [stats](sidewalk/stats/stats.md), [histograms](sidewalk/stats/histograms.png)
-- validation curves: {links(sw / "models", "*.png")}
-- the exported MultiNet: [multinet.onnx](sidewalk/models/multinet.onnx)
-"""
-    path = out / "REPORT.md"
-    write_text(path, text)
-    return path
