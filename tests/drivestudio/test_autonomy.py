@@ -116,6 +116,25 @@ def test_a_run_reports_its_take_overs_by_clause(checkpoint, tmp_path, run_cli):
     assert "| strict |" in (tmp_path / "autonomy.md").read_text()
 
 
+def test_a_runs_condition_draws_its_loop_and_its_recording_merges_with_data_of_that_kind(checkpoint, tmp_path,
+                                                                                        run_cli):
+    """`--set condition=A,B`: the run's seed draws one, the world is drawn in it, every recorded frame names it, and
+    the recording declares what `generate --set condition=...` declares (so `train --data DATA,CORRECTIONS` merges
+    them)."""
+    from core.conditions import pick
+    mix, seed = "night,fog", 3
+    r = run_cli("autonomy", "--model", checkpoint, "--seconds", "1", "--set", f"condition={mix}", "--set",
+                f"seed={seed}", "--set", "video=false", "--out", tmp_path / "a", cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    drawn = pick(mix, seed)
+    assert json.loads((tmp_path / "a" / "autonomy.json").read_text())["rounds"][0]["condition"] == drawn
+    recorded = Dataset(tmp_path / "a" / "corrections-0")
+    assert set(recorded.labels(columns=("condition",))["condition"]) == {drawn}
+    _generate("--world", "sidewalk", "--out", tmp_path / "d", "--frames", "20", "--episode-frames", "20", "--set",
+              f"condition={mix}", "--paths", "park")
+    assert recorded.declaration.fingerprint() == Dataset(tmp_path / "d").declaration.fingerprint()
+
+
 @pytest.fixture
 def autonomy(run_cli, checkpoint):
     """`drivestudio autonomy --model CHECKPOINT ...` in this process: the refusals below come before any work."""

@@ -8,6 +8,9 @@ Every step of a run is recorded into a dataset (the same format as `generate`'s)
 expert's corrections can be merged into the training data: the paper's DAgger variant, which needs no labelling
 after the fact. MultiNet's trainer learns only from moments whose targets the expert drove (autonomous steps are
 the network's own commands, not labels). `rounds` repeats drive, merge and retrain.
+
+A run's `condition` (docs/conditions.md; a mix: the run's seed draws one) draws the loop in a named weather or time of
+day; its recording then has the `condition` column of data generated in named conditions, so the two merge.
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from core.conditions import CONDITIONS, SEEDED
 from core.files import check_output
 from core.settings import MAX_SEED, setting
 from core.worlds.sidewalk import MODES, RULES, SIDEWALK
@@ -58,6 +62,7 @@ class RoundResult:
     rule: str = "safety"
     collisions_while_correcting: int = 0
     clauses: dict = field(default_factory=dict)   # {clause: {"take_overs": n, "seconds": s}}
+    condition: str = SEEDED   # the one the run's seed drew from its setting
 
     def row(self) -> dict:
         return dict(self.__dict__)
@@ -77,6 +82,8 @@ class Drive:
     rule: str = setting("safety", "the correction rule: safety (take over for leaving the path, an imminent "
                                   "collision, a stalled car) or strict (also for deviating from the expert)",
                         choices=RULES)
+    condition: str = setting(SEEDED, "the named condition the loop is drawn in (docs/conditions.md; seeded: the "
+                                     "seed's own time of day)", choices=CONDITIONS, several=True)
     device: str = setting("cpu", "torch device: cpu, cuda, cuda:N or auto")
     video: bool = setting(True, "write a video per round, marking the corrections")
 
@@ -97,7 +104,7 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
 
     plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
     config = SidewalkConfig(path=run.path, seed=run.seed, mode=run.mode, obstacles=obstacles_value(str(run.obstacles)),
-                            operation="correctional", rule=run.rule)
+                            operation="correctional", rule=run.rule, condition=run.condition)
     spec = plugin.parse_driver(run.model)
     data_dir = out / f"corrections-{k}"
     t0 = time.perf_counter()
@@ -108,8 +115,9 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
         supervisor = plugin.supervisor(world, config, spec)
         metrics = plugin.metrics(world)
         video_path = out / f"autonomy-{k}.mp4" if run.video else None
-        recorder = plugin.recorder(world, video_path, f"{Path(run.model).stem} ({run.mode}, {run.rule} rule)")
-        writer = Recording(data_dir, decl, run)
+        named = f", {world.condition}" if run.condition != SEEDED else ""
+        recorder = plugin.recorder(world, video_path, f"{Path(run.model).stem} ({run.mode}, {run.rule} rule{named})")
+        writer = Recording(data_dir, decl, run, world.condition)
 
         def on_step(rec) -> None:
             recorder(rec)
@@ -130,25 +138,29 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
                          round(elapsed, 3), int(report["corrections"]), int(report["collisions"]),
                          float(report["off_path_time_s"]), float(report["distance_m"]), str(data_dir),
                          str(video_path) if video_path else None, run.mode, run.path, run.seed, run.rule,
-                         int(report["collisions_while_correcting"]), report.get("take_overs_by_clause") or {})
+                         int(report["collisions_while_correcting"]), report.get("take_overs_by_clause") or {},
+                         world.condition)
     log(f"round {k}: autonomy {result.autonomy_percent:.2f} % ({correction:.1f} s of corrections in {elapsed:.1f} s, "
         f"{result.corrections} take-overs, {result.collisions} collisions, {result.collisions_while_correcting} "
-        f"while correcting; {run.mode} mode on {run.path}, {run.rule} rule) in {time.perf_counter() - t0:.0f} s; "
-        f"steps recorded in {data_dir}")
+        f"while correcting; {run.mode} mode on {run.path}, {run.rule} rule, {world.condition}) in "
+        f"{time.perf_counter() - t0:.0f} s; steps recorded in {data_dir}")
     return result
 
 
 class Recording:
-    """A run's steps as a one-episode dataset in the format of `generate` (perception/shards.py)."""
+    """A run's steps as a one-episode dataset in the format of `generate` (perception/shards.py). A world drawn in a
+    named condition declares the `condition` column, as `generate --set condition=...` does, so the recording merges
+    with such data; the seeded look's declares none and merges with the data of before."""
 
-    def __init__(self, root: Path, decl, run: Drive):
+    def __init__(self, root: Path, decl, run: Drive, condition: str = SEEDED):
         from perception.shards import ShardWriter, shard_name  # lazy: pyarrow
-        self.root, self.decl, self.run = root, decl, run
+        self.root, self.decl, self.run, self.condition = root, decl, run, condition
         self.writer = ShardWriter(root / shard_name(0), decl)
 
     def add(self, rec) -> None:
         obs = rec.obs
-        self.writer.add(obs.frames, obs.record, {"path": self.run.path}, episode=0, step=len(self.writer), t=obs.t,
+        columns = {"path": self.run.path, "condition": self.condition}   # the writer keeps those declared
+        self.writer.add(obs.frames, obs.record, columns, episode=0, step=len(self.writer), t=obs.t,
                         seed=self.run.seed, action=rec.action)
 
     def close(self) -> None:
@@ -161,7 +173,8 @@ class Recording:
                           written["size"], written["sha256"]).entry()
         write_manifest(self.root, {"world": self.decl.to_json(), "config": {"world": "sidewalk", "autonomy": {
             "model": str(run.model), "mode": run.mode, "path": run.path, "obstacles": run.obstacles,
-            "seconds": run.seconds, "seed": run.seed, "rule": run.rule}},
+            "seconds": run.seconds, "seed": run.seed, "rule": run.rule,
+            **({"condition": run.condition} if run.condition != SEEDED else {})}},
             "seed": run.seed, "renderer": "painter", "split_rule": SPLIT_RULE, "software": _software(),
             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": [entry], "frames": written["frames"],
             "complete": True})
