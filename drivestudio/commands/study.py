@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from core.conditions import SEEDED, names
 from core.files import check_output_dir
 from core.signals import exit_on_sigterm
 from drivestudio.checkpoints import check_device
@@ -66,11 +67,33 @@ def check_loops(cfg: StudyConfig) -> None:
                              "held-out loops only")
 
 
+def check_conditions(cfg: StudyConfig) -> None:
+    """New conditions are new to the networks: none is one the data or the rounds are drawn in. The seeded look's
+    times of day are conditions too (noon, morning and afternoon are clear, evening is low_sun, overcast is
+    overcast), so with the seeded look only night, fog and rain are held out."""
+    from sim.sidewalk.conditions import CONDITION_OF_TIME  # lazy: the painters' effects (numba), not for --help
+    held = cfg.new_condition_names
+    repeated = sorted({n for n in held if held.count(n) > 1})
+    if repeated:
+        raise UsageError(f"new_conditions names {', '.join(repeated)} more than once")
+    trained = set(names(cfg.condition))
+    seen = [n for n in held if n in trained]
+    if seen:
+        raise UsageError(f"new_conditions: {', '.join(seen)} {'is' if len(seen) == 1 else 'are'} also in "
+                         f"condition={cfg.condition}; the new conditions are held out of the data and the rounds")
+    seeded = [n for n in held if SEEDED in trained and n in CONDITION_OF_TIME.values()]
+    if seeded:
+        raise UsageError(f"new_conditions: the seeded look of condition={cfg.condition} draws {', '.join(seeded)} "
+                         "among its times of day; hold out night, fog or rain, or name the training conditions "
+                         "(--set condition=clear,overcast,night,rain)")
+
+
 def run(args) -> int:
     cfg = study_config(args)
     check_device(cfg.device)
     check_output_dir(cfg.out)
     check_loops(cfg)
+    check_conditions(cfg)
     with exit_on_sigterm():   # a SIGTERM ends the running verbs too, each keeping what it finished
         report = Study(cfg, backend=args.backend).run()
     print(f"the study's report is {report}")

@@ -94,6 +94,14 @@ def test_a_studys_setting_reaches_its_first_verb(first_step, tmp_path):
     assert argv[argv.index("--episode-frames") + 1] == "30" and argv[argv.index("--seed") + 1] == "7"
 
 
+def test_a_studys_conditions_reach_its_data(first_step, tmp_path):
+    seen = first_step("study")
+    _started("study", "--quick", "--out", tmp_path / "s", "--set", "condition=clear,night", "--set",
+             "new_conditions=fog")
+    argv = [str(a) for a in seen["study"][0]]
+    assert argv[0] == "generate" and argv[argv.index("--set") + 1] == "condition=clear,night"
+
+
 def test_a_recipes_setting_reaches_its_first_verb(first_step, tmp_path):
     seen = first_step("recipe")
     _started("recipe", "--quick", "--out", tmp_path / "r", "--set", "frames=500", "--workers", 3)

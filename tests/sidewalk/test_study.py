@@ -165,6 +165,79 @@ def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
     assert Study(StudyConfig(out=str(tmp_path))).draws() == []
 
 
+def _set(argv, name: str) -> str | None:
+    """The value of `--set NAME=VALUE` in an argv (None: not given)."""
+    argv = [str(a) for a in argv]
+    values = [a.split("=", 1)[1] for i, a in enumerate(argv[1:]) if argv[i] == "--set" and a.startswith(f"{name}=")]
+    return values[-1] if values else None
+
+
+def test_the_studys_conditions_reach_its_data_rounds_and_runs_and_the_new_ones_a_stage_of_their_own(tmp_path):
+    """condition goes to generate, every round's drive and every final run; each new condition to the final runs
+    of the study's rule again, in new-conditions/NAME; the seeded look adds nothing to any verb."""
+    study = Study(StudyConfig(out=str(tmp_path), rounds=1, runs=1, condition="clear,night",
+                              new_conditions="fog,low_sun"))
+    calls: list = []
+    study.verb = lambda *argv: calls.append(argv)   # the verb's argv, not run
+    study.generate()
+    assert calls[0][0] == "generate" and _set(calls[0], "condition") == "clear,night"
+    final, rounds = study.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
+    drives = [j for j in rounds if j.argv[0] == "autonomy"]
+    runs = [j for *_, j in study.autonomy_plan("autonomy", final, study.cfg.rules, 1, 1)]
+    assert len(drives) == 5 and {_set(j.argv, "condition") for j in drives + runs} == {"clear,night"}
+    new = study.new_conditions_plan(final)
+    assert list(new) == ["fog", "low_sun"]
+    for name, plan in new.items():
+        assert {rule for rule, *_ in plan} == {"safety"} and len(plan) == len(runs) // 2   # the study's rule only
+        for *_, where, job in plan:
+            assert _set(job.argv, "condition") == name
+            assert where.relative_to(tmp_path).parts[:2] == ("new-conditions", name)
+    (tmp_path / "s").mkdir()
+    seeded = Study(StudyConfig(out=str(tmp_path / "s"), rounds=1))
+    seeded.verb = lambda *argv: calls.append(argv)
+    seeded.generate()
+    _, plain = seeded.correction_rounds(("multinet",))
+    assert {_set(argv, "condition") for argv in [calls[-1]] + [j.argv for j in plain]} == {None}
+    assert seeded.new_conditions_plan(final) == {}
+
+
+def _fake_run(where: Path, autonomy: float, condition: str) -> None:
+    where.mkdir(parents=True)
+    (where / "autonomy.json").write_text(json.dumps({"rounds": [{
+        "autonomy_percent": autonomy, "corrections": 1, "collisions": 0, "distance_m": 10.0, "elapsed_s": 2.0,
+        "clauses": {}, "condition": condition}]}))
+
+
+def test_the_report_sets_multinet_against_mtl_under_new_conditions_beside_the_training_ones(tmp_path):
+    """From autonomy.json results (made up here): the new conditions' runs together and each on its own, the change
+    from the training conditions, and the verdict per mode."""
+    from drivestudio.worlds.sidewalk.study_report import conditions_summary, conditions_table
+    study = Study(StudyConfig(out=str(tmp_path), rounds=1, runs=2, condition="clear,night",
+                              new_conditions="fog,low_sun"))
+    final = {n: f"{n}-round1.pt" for n in ("multinet", "mtl-direct", "mtl-furtive")}
+    made = {("MultiNet", "direct"): 90.0, ("MTL", "direct"): 80.0, ("MultiNet", "furtive"): 70.0,
+            ("MTL", "furtive"): 75.0}
+    training_plan = study.autonomy_plan("autonomy", final, ("safety",), 2, 1)
+    for _, mode, title, where, _ in training_plan:
+        _fake_run(where, made[title, mode] + 10.0, "clear" if where.name.endswith("100") else "night")
+    for name, plan in study.new_conditions_plan(final).items():
+        for _, mode, title, where, _ in plan:
+            _fake_run(where, made[title, mode] - (5.0 if name == "fog" else 0.0), name)
+    training = study.autonomy_results(training_plan)["safety"]
+    held = {n: study.autonomy_results(p)["safety"] for n, p in study.new_conditions_plan(final).items()}
+    summary = conditions_summary(training, held)
+    direct, furtive = summary["modes"]["direct"], summary["modes"]["furtive"]
+    assert direct["multinet_ahead"] and not furtive["multinet_ahead"]
+    multinet = direct["MultiNet"]
+    assert multinet["new"]["autonomy_mean"] == 87.5 and multinet["new"]["runs"] == 8     # 2 loops x 2 runs x 2
+    assert multinet["training"]["autonomy_mean"] == 100.0 and multinet["change"] == -12.5
+    assert multinet["by_condition"]["fog"]["autonomy_mean"] == 85.0 and multinet["drawn"] == "clear 2, night 2"
+    table = conditions_table(summary, "clear,night")
+    assert "| direct | MultiNet | 100.00 ± 0.00 | clear 2, night 2 | **87.50 ± " in table
+    assert table.splitlines()[0].endswith("| fog | low_sun |") and "| -12.50 | 85.00 ± 0.00 | 90.00 ± 0.00 |" in table
+    assert "direct yes (87.50 against 77.50); furtive no (67.50 against 72.50)" in table
+
+
 def test_the_data_plan_holds_the_moments_asked_for():
     c = StudyConfig()
     episodes = c.frames // c.episode_frames
@@ -182,6 +255,10 @@ def test_the_data_plan_holds_the_moments_asked_for():
     (["--set", "loops=,"], "loops names no loop"),
     (["--set", "perturbed=1.5"], "--set perturbed"),
     (["--jobs", "0"], "--jobs must be an integer from 1 to 64"),
+    (["--set", "condition=clear,night", "--set", "new_conditions=night,fog"], "night is also in condition=clear"),
+    (["--set", "new_conditions=low_sun"], "the seeded look of condition=seeded draws low_sun"),   # its evening
+    (["--set", "condition=clear", "--set", "new_conditions=fog,fog"], "names fog more than once"),
+    (["--set", "new_conditions=seeded"], "new_conditions: invalid choice: 'seeded'"),
 ])
 def test_bad_input_is_one_line_and_status_2(run_cli, argv, says, tmp_path):
     r = run_cli("study", "--out", tmp_path / "s", *argv, cwd=REPO)
@@ -204,6 +281,7 @@ def test_a_study_continues_only_with_the_settings_that_made_it(run_cli, tmp_path
     ("round_moments", ["--set", "round_moments=5000"], "round_moments=0 (asked 5000)"),   # every round drew all
     ("perturbed", ["--set", "perturbed=0.5"], "perturbed=0.0 (asked 0.5)"),               # expert data only
     ("steer_share", ["--set", "steer_share=0.5"], "steer_share=0.0 (asked 0.5)"),         # modes balanced only
+    ("condition", ["--set", "condition=clear,fog"], "condition='seeded' (asked 'clear,fog')"),   # the seeded look
 ])
 def test_a_study_made_before_a_setting_existed_continues_as_it_was_made(run_cli, tmp_path, setting, option, made_as):
     """A config.json without a setting was made with the value the setting has for it (MADE_BEFORE): asking for

@@ -14,6 +14,9 @@ simulation): `drivestudio study --out DIR`.
    held-out loops (never driven by the data or the rounds), `runs` runs of `autonomy_seconds` per loop, under both
    correction rules (the study's `rule` first); mean and 95 % confidence interval over the runs; take-overs by the
    clause that caused them; collisions while the expert held the wheel.
+   The data, the rounds and these runs are drawn in the study's `condition` (docs/conditions.md; a mix: each
+   episode or run draws one); with `new_conditions`, the runs of the study's rule are repeated under each held-out
+   condition on its own, and the report sets MultiNet against MTL there beside the training conditions.
 6. **STUDY.md** and **study.json**: the tables beside the paper's numbers, the sizes of the networks, the data and
    the times.
 
@@ -32,6 +35,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from controller.sidewalk.correction import RULES
+from core.conditions import CONDITIONS, SEEDED, names
 from core.settings import MAX_SEED, as_json, setting
 from drivestudio.errors import RunError, UsageError
 from drivestudio.pool import Job, JobFailed, Pool, run_verb
@@ -45,9 +49,11 @@ MOMENT_MARGIN = 11     # steps of an episode that start no moment: the one befor
 # continued only with the same (and the same length of autonomy runs, which are kept); the others (more
 # rounds, other loops, more runs) only add or measure anew
 SHAPING = ("moments", "episode_frames", "procedural", "perturbed", "epochs", "trials", "batch_size", "steer_share",
-           "round_seconds", "round_epochs", "round_moments", "rule", "seed", "autonomy_seconds")
+           "round_seconds", "round_epochs", "round_moments", "rule", "seed", "autonomy_seconds", "condition")
 # a setting's value in studies made before it existed
-MADE_BEFORE = {"round_moments": 0, "perturbed": 0.0, "steer_share": 0.0}
+MADE_BEFORE = {"round_moments": 0, "perturbed": 0.0, "steer_share": 0.0, "condition": SEEDED}
+NAMED = tuple(c for c in CONDITIONS if c != SEEDED)   # the conditions a study can hold out
+NEW_STAGE = "new-conditions"   # the folder of the final runs under the held-out conditions
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,13 @@ class StudyConfig:
                                  low=0, high=1000)
     rule: str = setting("safety", "the correction rule of the rounds and the headline; the final runs measure both",
                         choices=RULES)
+    # the look (docs/conditions.md): what the networks learn from and are corrected in, and what they never saw
+    condition: str = setting(SEEDED, "the named conditions of the data, the correction rounds and the final autonomy "
+                                     "runs: one, or a mix each episode and run draws one of",
+                             choices=CONDITIONS, several=True)
+    new_conditions: str | None = setting(None, "held-out conditions the final runs of the study's rule are repeated "
+                                               "in, each on its own (none: no such runs)", choices=NAMED,
+                                         several=True)
     device: str = setting("cpu", "torch device: cpu, cuda, cuda:N or auto (cuda: the paper's epochs and trials)")
     seed: int = setting(0, "seed of the data, the trials and the runs", low=0, high=MAX_SEED)
     jobs: int = setting(2, "trainings and autonomy runs side by side, each with cores / jobs threads", low=1, high=64)
@@ -89,6 +102,10 @@ class StudyConfig:
     @property
     def loop_names(self) -> tuple[str, ...]:
         return tuple(p.strip() for p in self.loops.split(",") if p.strip())
+
+    @property
+    def new_condition_names(self) -> tuple[str, ...]:
+        return names(self.new_conditions) if self.new_conditions else ()
 
     @property
     def frames(self) -> int:
@@ -195,6 +212,7 @@ class Study:
         self.timed("generate", self.verb, "generate", "--world", "sidewalk", "--out", self.data, "--frames", c.frames,
                    "--episode-frames", c.episode_frames, "--procedural", c.procedural, "--seed", c.seed,
                    *(["--perturbed", c.perturbed] if c.perturbed else []),
+                   *(["--set", f"condition={c.condition}"] if c.condition != SEEDED else []),
                    *(["--backend", "ray"] if self.backend == "ray" else []))
 
     def verb(self, *argv) -> None:
@@ -250,7 +268,8 @@ class Study:
                 before: tuple[str, ...] = (self.retrain_name(k - 1, name),) if k > 1 else ()
                 planned = [self.drive_job(f"round{k}-{name}-{mode}", current[name], mode,
                                           ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)], c.seed + k, c.round_seconds,
-                                          c.rule, self.round_dir(k, name, mode), after=before)
+                                          c.rule, self.round_dir(k, name, mode), after=before,
+                                          condition=c.condition)
                            for i, mode in enumerate(self.net_modes(name))]
                 drives = [j for j in planned if j is not None]   # a drive whose result exists is done
                 jobs += drives
@@ -270,18 +289,22 @@ class Study:
 
     # --- 5. autonomy ---------------------------------------------------------------------------------------------
     def drive_job(self, name: str, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str,
-                  where: Path, video: bool = False, after: tuple = ()) -> Job | None:
+                  where: Path, video: bool = False, after: tuple = (), condition: str = SEEDED) -> Job | None:
         """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
         if (where / "autonomy.json").exists():
             return None
         return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--set", f"seed={seed}",
                           "--seconds", seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
-                          *([] if video else ["--set", "video=false"])], after)
+                          *([] if video else ["--set", "video=false"]),
+                          *(["--set", f"condition={condition}"] if condition != SEEDED else [])], after)
 
-    def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int) -> list[tuple]:
-        """(rule, mode, network title, result folder, job or None) of every autonomy run of a stage; a run after
-        the rounds waits for its own network's `last_round` only."""
+    def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int,
+                      held_out: str | None = None) -> list[tuple]:
+        """(rule, mode, network title, result folder, job or None) of every autonomy run of a stage, in the study's
+        conditions or, given `held_out`, in that one (in a folder of its own); a run after the rounds waits for its
+        own network's `last_round` only."""
         c = self.cfg
+        root, tag = (self.out / stage / held_out, f"{stage}-{held_out}") if held_out else (self.out / stage, stage)
         plan = []
         for rule in rules:
             for mode in EVALUATED:
@@ -289,14 +312,20 @@ class Study:
                     for loop in c.loop_names:
                         for r in range(runs):
                             # under the model's own name: after more rounds, the newer networks are measured anew
-                            where = self.out / stage / rule / mode / Path(nets[name]).stem / \
-                                f"{loop.replace(':', '-')}-{100 + r}"
+                            where = root / rule / mode / Path(nets[name]).stem / f"{loop.replace(':', '-')}-{100 + r}"
                             video = rule == c.rule and loop == c.loop_names[0] and r == 0
                             plan.append((rule, mode, title, where, self.drive_job(
-                                f"{stage}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
+                                f"{tag}-{rule}-{mode}-{name}-{where.name}", nets[name], mode, loop, 100 + r,
                                 c.autonomy_seconds, rule, where, video,
-                                after=(self.retrain_name(last_round, name),) if last_round else ())))
+                                after=(self.retrain_name(last_round, name),) if last_round else (),
+                                condition=held_out or c.condition)))
         return plan
+
+    def new_conditions_plan(self, nets: dict[str, str]) -> dict[str, list[tuple]]:
+        """{held-out condition: its plan}: the final runs of the study's rule again, in each new condition."""
+        c = self.cfg
+        return {name: self.autonomy_plan(NEW_STAGE, nets, (c.rule,), c.runs, c.rounds, name)
+                for name in c.new_condition_names}
 
     @staticmethod
     def autonomy_results(plan: list[tuple]) -> dict:
@@ -322,10 +351,13 @@ class Study:
         final, rounds = self.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
         baseline = self.autonomy_plan("baseline", first, (self.cfg.rule,), self.cfg.baseline_runs, 0)
         autonomy = self.autonomy_plan("autonomy", final, self.cfg.rules, self.cfg.runs, self.cfg.rounds)
+        new = self.new_conditions_plan(final)
         # one pool: the rounds first (the longest chain), the baseline runs filling its gaps, each final run as soon
         # as its network's last round is done
-        self.jobs("rounds and autonomy", rounds + [job for *_, job in baseline + autonomy if job is not None])
+        runs = baseline + autonomy + [p for plan in new.values() for p in plan]
+        self.jobs("rounds and autonomy", rounds + [job for *_, job in runs if job is not None])
+        held_out = {name: self.autonomy_results(plan)[self.cfg.rule] for name, plan in new.items()}
         return write_report(self, self.autonomy_results(baseline), self.autonomy_results(autonomy), final,
-                            time.perf_counter() - t0)
+                            time.perf_counter() - t0, held_out)
 
 

@@ -1,6 +1,7 @@
 """The MultiNet study's report (drivestudio/worlds/sidewalk/study.py): Figures 7 and 8, STUDY.md and study.json with
 the validation curves, the correction rounds, percentage autonomy by rule, mode and network beside the paper's
-numbers, the networks' sizes, the data and the times."""
+numbers and, with held-out conditions, under them beside the training conditions, the networks' sizes, the data and
+the times."""
 from __future__ import annotations
 
 import json
@@ -10,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from core.conditions import SEEDED
 from drivestudio.outputs import write_json, write_text
 from drivestudio.worlds.sidewalk.autonomy import clause_text
 
@@ -159,6 +161,54 @@ def autonomy_table(autonomy: dict) -> str:
     return "\n".join(rows)
 
 
+def _cell(a: dict) -> str:
+    return f"{a['autonomy_mean']:.2f}" + (f" ± {a['autonomy_ci95']:.2f}" if a["autonomy_ci95"] is not None else "")
+
+
+def drawn(results: list[dict]) -> str:
+    """The conditions some runs drew, with how many runs drew each."""
+    counts: dict[str, int] = {}
+    for r in results:
+        name = r.get("condition", SEEDED)   # a run recorded before conditions existed drew the seeded look
+        counts[name] = counts.get(name, 0) + 1
+    return ", ".join(f"{c} {n}" for c, n in sorted(counts.items()))
+
+
+def conditions_summary(training: dict, held_out: dict) -> dict:
+    """MultiNet and MTL per evaluated mode under the training conditions (`training`: {mode: {net: runs}}, the final
+    runs of the study's rule) and the held-out ones (`held_out`: {condition: {mode: {net: runs}}}): every new
+    condition's runs together and each on its own, the change from the training conditions, and whether MultiNet is
+    ahead of the MTL net of the mode under the new conditions."""
+    out: dict = {"conditions": list(held_out), "modes": {}}
+    for mode in EVALUATED:
+        row = {}
+        for net in ("MultiNet", "MTL"):
+            runs = [r for c in held_out.values() for r in c[mode][net]]
+            a, b = autonomy_row(training[mode][net]), autonomy_row(runs)
+            row[net] = {"training": a, "new": b, "change": round(b["autonomy_mean"] - a["autonomy_mean"], 2),
+                        "drawn": drawn(training[mode][net]),
+                        "by_condition": {c: autonomy_row(held_out[c][mode][net]) for c in held_out}}
+        row["multinet_ahead"] = row["MultiNet"]["new"]["autonomy_mean"] > row["MTL"]["new"]["autonomy_mean"]
+        out["modes"][mode] = row
+    return out
+
+
+def conditions_table(summary: dict, training: str) -> str:
+    """The summary as a table: a row per mode and network, the training conditions beside the new ones."""
+    held = summary["conditions"]
+    rows = [f"| mode | network | training conditions ({training}) | runs drew | new conditions ({', '.join(held)}) "
+            "| change | " + " | ".join(held) + " |", "|---|---|---:|---|---:|---:|" + "---:|" * len(held)]
+    for mode, row in summary["modes"].items():
+        for net in ("MultiNet", "MTL"):
+            r = row[net]
+            rows.append(f"| {mode} | {net} | {_cell(r['training'])} | {r['drawn']} | **{_cell(r['new'])}** | "
+                        f"{r['change']:+.2f} | " + " | ".join(_cell(r["by_condition"][c]) for c in held) + " |")
+    ahead = [f"{m} {'yes' if row['multinet_ahead'] else 'no'} ({row['MultiNet']['new']['autonomy_mean']:.2f} "
+             f"against {row['MTL']['new']['autonomy_mean']:.2f})" for m, row in summary["modes"].items()]
+    return "\n".join(rows) + "\n\nMultiNet ahead of the MTL net of the mode under the new conditions: " + \
+        "; ".join(ahead) + "."
+
+
 def rounds_table(study) -> tuple[str, dict]:
     rows = ["| network | round | mode | loop | autonomy % while recording | corrected steps | moments added |",
             "|---|---:|---|---|---:|---:|---:|"]
@@ -193,8 +243,10 @@ def times_table(timings: dict) -> str:
     return "\n".join(rows)
 
 
-def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: float) -> Path:
-    """STUDY.md, study.json and the figures of a finished study; the report is printed too."""
+def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: float,
+                 held_out: dict | None = None) -> Path:
+    """STUDY.md, study.json and the figures of a finished study; the report is printed too. `held_out`:
+    {condition: {mode: {net: runs}}} of the final runs under the new conditions (none: the study held none out)."""
     multi = summary(study.models / "multinet.pt")
     mtl = {m: summary(study.models / f"mtl-{m}.pt") for m in MODES}
     figures(study.out, multi, mtl)
@@ -204,9 +256,12 @@ def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: fl
     data = data_summary(study, nets["multinet"]["moments"], added)
     wall = sum(v["wall_s"] for v in study.timings.values())
     cpu = sum(v["cpu_s"] for v in study.timings.values())
-    text = report_text(study, data, multi, mtl, verdict, nets, rounds, autonomy, baseline, seconds)
-    write_text(study.out / "STUDY.md", text)
     c = study.cfg
+    new = conditions_summary(autonomy[c.rule], held_out) if held_out else None
+    text = report_text(study, data, multi, mtl, verdict, nets, rounds, autonomy, baseline, seconds)
+    if new:
+        text += new_conditions_text(study, new)
+    write_text(study.out / "STUDY.md", text)
     write_json(study.out / "study.json", {
         "config": vars(c) | {"loops": list(c.loop_names)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
         "verdicts": verdict, "final_networks": final, "sizes": nets,
@@ -215,9 +270,25 @@ def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: fl
         "autonomy": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
                      for rule, m in autonomy.items()},
         "baseline": {rule: {mode: {net: autonomy_row(r) for net, r in nets_.items()} for mode, nets_ in m.items()}
-                     for rule, m in baseline.items()}})
+                     for rule, m in baseline.items()},
+        "new_conditions": new})
     print(text)
     return study.out / "STUDY.md"
+
+
+def new_conditions_text(study, summary: dict) -> str:
+    c = study.cfg
+    return f"""
+## Under new conditions (rule `{c.rule}`)
+
+Percentage autonomy (mean ± 95 % CI over the runs) of the final networks on {', '.join(c.loop_names)} under the
+conditions held out of the data and the rounds, each run once in each (`{study.out.name}/new-conditions/`), beside
+the same runs under the training conditions, whose mix each run's seed draws from (as the data's episodes and the
+rounds' drives do); the change is the new conditions' mean less the training conditions'. The issue's target:
+MultiNet ahead of MTL in both modes under new conditions.
+
+{conditions_table(summary, c.condition)}
+"""
 
 
 def data_summary(study, moments: dict, added: dict) -> dict:
@@ -229,6 +300,10 @@ def data_summary(study, moments: dict, added: dict) -> dict:
             "paths": sorted({s["params"]["path"] for s in manifest["shards"]}),
             "corrections_added": added,
             "correctional_share": {n: round(a / (a + moments["train"]), 4) for n, a in added.items()}}
+
+
+def under(condition: str) -> str:
+    return "" if condition == SEEDED else f", in the conditions {condition}"
 
 
 def report_text(study, data: dict, multi: list[dict], mtl: dict, verdict: dict, nets: dict, rounds: str,
@@ -270,7 +345,7 @@ For comparison, {PAPER_FIGURE7}; {PAPER_FIGURE8}.
 
 {rounds}
 
-## Percentage autonomy (the paper's section 4.4) on {', '.join(c.loop_names)}
+## Percentage autonomy (the paper's section 4.4) on {', '.join(c.loop_names)}{under(c.condition)}
 
 {autonomy_table(autonomy)}
 """ + (f"""
