@@ -9,14 +9,16 @@ output (angle, markings, `fast`, closing speeds), where errors of either sign ca
 
 Members may estimate different outputs of one world; each output is combined over the members that estimate it.
 So a network that learned only the cars beside and behind (a trunk of its own for the hard rear outputs, which
-cost the forward gaps their accuracy when they share one: docs/aggregation.md) joins networks of the paper's 13,
+cost the forward gaps their accuracy when they share one: docs/explanation/learned-driving.md, "An ensemble of
+networks") joins networks of the paper's 13,
 and the ensemble estimates the union.
 
 The members keep their own input statistics: the ensemble's input is the frame scaled to [0, 1] (mean 0, std 1
 in its spec), and each member standardises it with the mean and std it was trained with. Its spec's options hold
 each member's family, options and statistics (for a member of fewer outputs, `estimates`: the indices of the
 ensemble's outputs it estimates, in its own order), and which outputs are gaps; the weights hold every member's.
-Made from checkpoints by `python -m drivestudio.ensemble` (docs/aggregation.md), never trained as a whole.
+Made from checkpoints by `drivestudio ensemble` (docs/explanation/learned-driving.md, "An ensemble of networks"),
+never trained as a whole.
 """
 from __future__ import annotations
 

@@ -19,11 +19,12 @@ Conditional Affordance Learning feeds its temporal heads): 3 channels per instan
 this trunk here; it trains from scratch, the modern way rather than the papers': Adam, batches of 32, the L1 loss
 (the Euclidean one let the gaps' large misses drown the angle) and a moving average of the weights as the model
 (perception/weight_average.py). On validation frames made like the demo's, these two took the angle's error from
-0.048 to 0.036 rad at 1,500 iterations and the markings' down by about a third (docs/aggregation.md).
+0.048 to 0.036 rad at 1,500 iterations and the markings' down by about a third (docs/explanation/learned-driving.md,
+"The MobileNet family"; the measurements: docs/log/2026-11-24.md).
 
 Under a CPU's bfloat16 autocast (perception/train_sgd.py) the three strided depthwise convolutions compute in float32
 (Float32Conv): oneDNN's bfloat16 gradient of their input is several times slower than float32's, enough to cancel
-what bfloat16 gains in every other layer (docs/benchmarks.md).
+what bfloat16 gains in every other layer (docs/benchmarks.md, "bfloat16 training of the regressors").
 """
 from __future__ import annotations
 

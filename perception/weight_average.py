@@ -3,7 +3,8 @@
 Why: with Adam at a constant learning rate a small network's weights keep jittering, and so does what it reads
 from a frame: the demo's MobileNet read the angle 0.039, 0.046 and 0.047 rad wrong (validation MAE) at 1,500,
 1,800 and 2,100 iterations. The average of the recent weights sits in the middle of that jitter; it read 0.036,
-0.036 and 0.035 at the same iterations (docs/aggregation.md). After each step
+0.036 and 0.035 at the same iterations (docs/explanation/learned-driving.md, "The MobileNet family"; the
+measurements: docs/log/2026-11-24.md). After each step
 
     averaged = decay * averaged + (1 - decay) * weights
 

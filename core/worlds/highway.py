@@ -198,8 +198,8 @@ HIGHWAY = WorldDeclaration(
     observable=INDICATORS + ("speed",),
     # the frames on which a misread gap costs a collision: a car near ahead in a neighbouring lane, in either
     # system (rule 1's occupancy: the Chen controller decides a lane change on it), or in the host's own lane (the
-    # follow law brakes on it); rare in an expert's data. The host lane's car was added after the design suite
-    # showed it (docs/aggregation.md). A near car behind was tried too, for a network of the rear labels, and
-    # drove worse on both design suites (docs/aggregation.md)
+    # follow law brakes on it); rare in an expert's data (docs/explanation/learned-driving.md, "Decisive frames").
+    # The cars behind are not decisive: a network of the rear labels emphasised on its near cars behind drives worse
+    # on both design suites (docs/log/2026-11-28-night.md; the host lane's car: docs/log/2026-11-27.md)
     decisive=tuple((g, NEIGHBOUR_OCCUPIED) for g in ("dist_LL", "dist_MM", "dist_RR", "dist_L", "dist_R")),
 )
