@@ -258,9 +258,8 @@ def write_report(study, baseline: dict, autonomy: dict, final: dict, seconds: fl
     cpu = sum(v["cpu_s"] for v in study.timings.values())
     c = study.cfg
     new = conditions_summary(autonomy[c.rule], held_out) if held_out else None
-    text = report_text(study, data, multi, mtl, verdict, nets, rounds, autonomy, baseline, seconds)
-    if new:
-        text += new_conditions_text(study, new)
+    text = report_text(study, data, multi, mtl, verdict, nets, rounds, autonomy, baseline, seconds,
+                       new_conditions_text(study, new) if new else "")
     write_text(study.out / "STUDY.md", text)
     write_json(study.out / "study.json", {
         "config": vars(c) | {"loops": list(c.loop_names)}, "data": data, "validation": {"multinet": multi, "mtl": mtl},
@@ -307,8 +306,9 @@ def under(condition: str) -> str:
 
 
 def report_text(study, data: dict, multi: list[dict], mtl: dict, verdict: dict, nets: dict, rounds: str,
-                autonomy: dict, baseline: dict, seconds: float) -> str:
-    """STUDY.md: the data, the validation curves, the correction rounds, autonomy, the sizes and the times."""
+                autonomy: dict, baseline: dict, seconds: float, held_out: str = "") -> str:
+    """STUDY.md: the data, the validation curves, the correction rounds, autonomy (`held_out`: its section under the
+    new conditions), the sizes and the times."""
     c = study.cfg
     moments, added = data["moments"], data["corrections_added"]
     wall = sum(v["wall_s"] for v in study.timings.values())
@@ -352,7 +352,7 @@ For comparison, {PAPER_FIGURE7}; {PAPER_FIGURE8}.
 Before the correction rounds (rule `{c.rule}`, {c.baseline_runs} run(s) per loop):
 
 {autonomy_table(baseline)}
-""" if baseline else "") + f"""
+""" if baseline else "") + held_out + f"""
 ## Size
 
 One MultiNet: {nets['multinet']['parameters']:,} parameters ({nets['multinet']['mb']:.2f} MB of float32); three MTL
