@@ -15,11 +15,13 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 
 
 def pytest_configure(config):
-    """The default renderer's kernels compile once (about 20 s on a fresh clone, then numba's cache), here in the
-    process that starts pytest's workers, before any of them renders."""
+    """The default renderer's kernels and the stereo renderer's compile once (about 20 s each on a fresh clone, then
+    numba's cache), here in the process that starts pytest's workers, before any of them renders."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         from sim.highway.kernels import compile_numba_kernels
+        from sim.sidewalk.kernels import compile_stereo_kernels
         compile_numba_kernels()
+        compile_stereo_kernels()
 
 
 @pytest.fixture

@@ -11,7 +11,10 @@ same row. At the default 336x188 per camera (2x2-averaged, the network's 94x168)
 
 Each image is composed in three layers, as the highway's (sim/highway/renderer.py): the backdrop (sky gradient, a
 distant skyline that turns with the car, the grass), the ground painted as exact projected polygons
-(sim/ground_painter.py) and the objects painted far to near (sim/sidewalk/painter.py).
+(sim/ground_painter.py) and the objects painted far to near (sim/sidewalk/painter.py). Both images are drawn
+together: the geometry is culled and moved into the rig's centre camera once, then compiled kernels
+(sim/render/raster_stereo.py) fill each layer into both images as OpenCV's polygon fills would, byte for byte;
+`compiled=False` draws with OpenCV itself, the reference they are held to (tests/sidewalk/test_stereo_kernels.py).
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ import numpy as np
 
 from sim.camera import CameraConfig
 from sim.render.conditions import Condition
+from sim.render.raster_stereo import draw_backdrop
 from sim.sidewalk.conditions import condition_look, eye_effects
 from sim.sidewalk.config import (  # noqa: F401  (the rig's constants and configuration, re-exported)
     BASELINE,
@@ -44,21 +48,26 @@ DEFAULT_RIG = StereoConfig()
 PANORAMA = 1440           # columns of the skyline panorama (0.25 deg each)
 
 
-def in_view(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float, hfov: float,
-            cull: float) -> np.ndarray:
-    """Which bounding circles reach into a view wedge of width hfov [rad] and depth cull [m] from (x, y, yaw)."""
+def in_views(centres: np.ndarray, radii: np.ndarray, x: float, y: float, yaw: float, hfov: float,
+             culls: tuple[float, ...]) -> tuple[np.ndarray, ...]:
+    """Per depth of `culls` [m], which bounding circles reach into a view wedge of width hfov [rad] and that depth
+    from (x, y, yaw)."""
     v = centres - (x, y)
     dist = np.hypot(v[:, 0], v[:, 1])
     bearing = np.abs((np.arctan2(v[:, 1], v[:, 0]) - yaw + np.pi) % (2 * np.pi) - np.pi)
     margin = np.arcsin(np.clip(radii / np.maximum(dist, 1e-6), 0.0, 1.0))
-    return ((dist <= radii + 0.5) | (bearing <= hfov / 2 + margin)) & (dist - radii < cull)
+    wedge = (dist <= radii + 0.5) | (bearing <= hfov / 2 + margin)
+    reach = dist - radii
+    return tuple(wedge & (reach < cull) for cull in culls)
 
 
 class StereoRenderer:
     def __init__(self, layout: Layout, seed: int, config: StereoConfig = DEFAULT_RIG,
-                 condition: Condition | None = None):
-        """condition: a named condition's parameters (sim/sidewalk/conditions.py), None: the seeded look."""
+                 condition: Condition | None = None, compiled: bool = True):
+        """condition: a named condition's parameters (sim/sidewalk/conditions.py), None: the seeded look;
+        compiled: the layers filled by the compiled kernels, else by OpenCV (the same pixels, slower)."""
         self.config = config
+        self.compiled = compiled
         self.look: SidewalkLook = make_look(seed, layout.path.style) if condition is None else \
             condition_look(seed, layout.path.style, condition)
         chunks = build_scenery(layout, self.look)
@@ -74,6 +83,9 @@ class StereoRenderer:
         lead = lead_pieces()
         self._lead = (concat(lead), np.concatenate([face_colours(p, self.look) for p in lead]),
                       np.array([p.centre for p in lead]))
+        index = self._lead[0][2]
+        self._lead_base = np.array([self.look.colours["lead"][:3] if i < 1 else self.look.colours["lead_dark"][:3]
+                                    for i in index])
         self._sky, self._pano, self._band = self._make_backdrop(self.cameras["left"], layout.seed)
         self._cols = {side: self._column_angles(cam) for side, cam in self.cameras.items()}
         self.faces_painted = 0
@@ -133,33 +145,36 @@ class StereoRenderer:
         off = np.array([lead.x, lead.y, 0.0])
         n = normals @ rot.T
         k = self.look.ambient + self.look.diffuse * np.maximum(0.0, n @ np.asarray(self.look.light_direction))
-        base = np.array([self.look.colours["lead"][:3] if i < 1 else self.look.colours["lead_dark"][:3]
-                         for i in index])
-        lit = np.clip(base * k[:, None] * 255.0, 0, 255).astype(np.uint8)
+        lit = np.clip(self._lead_base * k[:, None] * 255.0, 0, 255).astype(np.uint8)
         return faces @ rot.T + off, n, lit, centres @ rot.T + off, index
+
+    def _backdrop(self, side: str, yaw: float) -> np.ndarray:
+        """One eye's backdrop: the sky and grass, the skyline's band turned to the car's heading."""
+        columns = np.round((yaw + self._cols[side]) / (2 * math.pi) * PANORAMA).astype(np.int64) % PANORAMA
+        if not self.compiled:
+            frame = self._sky.copy()
+            frame[self._band[0]:self._band[1]] = self._pano[:, columns]
+            return frame
+        frame = np.empty_like(self._sky)
+        draw_backdrop(frame, self._sky, self._pano, self._band[0], columns)
+        return frame
 
     def render(self, x: float, y: float, yaw: float, lead=None) -> tuple[np.ndarray, np.ndarray]:
         """(left, right) (h, w, 3) uint8 RGB seen from a car at (x, y) [m] with yaw [rad]; `lead` the lead car
         (x, y, yaw attributes) or None."""
         cam = self.cameras["left"]
-        visible = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, CULL)
+        visible, near = in_views(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, (CULL, DETAIL))
         dynamic = self._lead_dynamic(lead)
-        out = []
-        top, bottom = self._band
-        for side in ("left", "right"):
-            frame = self._sky.copy()
-            idx = np.round((yaw + self._cols[side]) / (2 * math.pi) * PANORAMA).astype(np.int64) % PANORAMA
-            frame[top:bottom] = self._pano[:, idx]
-            out.append(frame)
-        near = in_view(self._centres, self._radii, x, y, yaw, cam.hfov + 0.2, DETAIL)
-        self._ground.paint_pair(out[0], out[1], visible, near, x, y, yaw)
+        out = [self._backdrop(side, yaw) for side in ("left", "right")]
+        self._ground.paint_pair(out[0], out[1], visible, near, x, y, yaw, self.compiled)
         if self.effects is None:
-            self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic)
+            self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic,
+                                                           compiled=self.compiled)
             return out[0], out[1]
         depths = tuple(np.full(cam.height * cam.width, np.inf, np.float32).reshape(cam.height, cam.width)
                        for _ in range(2)) if self.effects["left"].needs_depth else None
         self.faces_painted += self._objects.paint_pair(out[0], out[1], self._pieces, visible, x, y, yaw, dynamic,
-                                                       depths)
+                                                       depths, self.compiled)
         return self.effects["left"].apply(out[0], None if depths is None else depths[0], x, y, yaw), \
             self.effects["right"].apply(out[1], None if depths is None else depths[1], x, y, yaw)
 
