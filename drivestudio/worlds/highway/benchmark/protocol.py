@@ -15,9 +15,9 @@ The protocol file (assets/protocols/generalisation.json is the shipped one):
  "seconds": simulated seconds of every route}
 
 A route of split S drives one of S's tracks; a cell (conditions C, tracks S, traffic T) drives every route of S with
-T's cars, in C's conditions (each route's seed draws one of them). A file is checked whole before anything is driven:
-unknown keys, an unknown condition, a split that is empty or shares a name with the other, a route on a track outside
-its split: one line naming the file and the field, exit status 2.
+T's cars once in each of C's conditions (as CARLA's benchmarks drive every route in every weather of a split). A
+file is checked whole before anything is driven: unknown keys, an unknown condition, a split that is empty or shares
+a name with the other, a route on a track outside its split: one line naming the file and the field, exit status 2.
 """
 from __future__ import annotations
 
@@ -54,12 +54,18 @@ class ProtocolError(SuiteError):
 
 @dataclass(frozen=True)
 class Cell:
-    """One cell of the protocol: its routes (a suite) driven in `condition` (a mix of named conditions)."""
+    """One cell of the protocol: its split's routes, each driven once in every condition of its conditions' split
+    (a suite of routes x conditions, each route named `CELL.ROUTE.CONDITION`)."""
     conditions: str    # "training" or "new"
     tracks: str        # "training" or "new"
     traffic: str       # "empty", "regular" or "dense"
     condition: str     # the conditions' names, comma-separated
     suite: Suite
+
+    def by_condition(self) -> list[tuple[str, Suite]]:
+        """The cell's suite cut into one suite per condition, in the split's order."""
+        return [(c, self.suite.select([r.name for r in self.suite.routes if r.name.endswith("." + c)]))
+                for c in self.condition.split(",")]
 
     @property
     def name(self) -> str:
@@ -211,8 +217,8 @@ def _cells(obj: dict, source: str, conditions, tracks, traffic, seconds) -> tupl
         for t in TRAFFIC:
             for c in SPLITS:
                 name = cell_name(c, s, t)
-                named = [{**r, "name": f"{name}.{r.get('name')}", "seconds": seconds, "cars": _cars(r, traffic[t])}
-                         for r in rows]
+                named = [{**r, "name": f"{name}.{r.get('name')}.{condition}", "seconds": seconds,
+                          "cars": _cars(r, traffic[t])} for r in rows for condition in conditions[c]]
                 suite = parse_suite({"name": name, "routes": named}, source, Path("."))
                 cells.append(Cell(c, s, t, ",".join(conditions[c]), suite))
     order = {(c, s, t): i for i, (c, s, t) in enumerate((c, s, t) for c in SPLITS for s in SPLITS for t in TRAFFIC)}

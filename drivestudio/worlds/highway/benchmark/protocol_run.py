@@ -39,8 +39,8 @@ def cell_row(model: dict, cell: Cell) -> dict:
 def run_protocol(protocol: Protocol, models: list[ModelSpec], opts: RunOptions, out: Path, workers: int,
                  show_progress: bool = True, backend: str = "local") -> dict:
     """Drive every cell with every model; returns {"protocol", "run", "cells": [{cell, board}], "rows"}."""
-    jobs = [j for cell in protocol.cells
-            for j in jobs_for(cell.suite, models, replace(opts, condition=cell.condition), out.resolve())]
+    jobs = [j for cell in protocol.cells for condition, suite in cell.by_condition()
+            for j in jobs_for(suite, models, replace(opts, condition=condition), out.resolve())]
     t0 = time.perf_counter()
     results = drive_all(jobs, workers, f"{len(protocol.cells)} cells x {len(models)} models", show_progress, backend)
     cells, rows = [], []
