@@ -339,9 +339,9 @@ def _inside(face, near, half, tx, ty):
 
 @njit(cache=True)
 def _paint_eye(frame, depth, sign, cam, kept, order, facing, across, colours, zmean, view):
-    """sim/sidewalk/painter.py's _paint_eye: of the faces `order` in view, those that face the eye at sign * half
-    along x of the centre camera, each clipped at the near plane where it reaches behind it, filled; returns how
-    many face it. view: (near, half, tx, ty, fx, fy, cx, cy)."""
+    """sim/sidewalk/painter.py's _paint_eye: of the faces `order` (those in view), those that face the eye at sign *
+    half along x of the centre camera, each clipped at the near plane where it reaches behind it, filled; returns
+    how many face it. view: (near, half, tx, ty, fx, fy, cx, cy)."""
     near, half, tx, ty, fx, fy, cx, cy = view
     corners = np.empty((4, 3))
     clipped = np.empty((8, 3))
@@ -350,7 +350,7 @@ def _paint_eye(frame, depth, sign, cam, kept, order, facing, across, colours, zm
     n = 0
     for k in order:
         f = kept[k]
-        if not facing[f] - sign * across[f] > 0 or not _inside(cam[k], near, half, tx, ty):
+        if not facing[f] - sign * across[f] > 0:
             continue
         n += 1
         whole = True
@@ -385,6 +385,11 @@ def paint_objects_pair(left, right, depth_left, depth_right, cam, kept, distance
     for k in range(kept.shape[0]):
         key[k] = -distance[kept[k]]
     order = np.argsort(key, kind="mergesort")
+    near, half, tx, ty = view[0], view[1], view[2], view[3]
+    seen = np.empty(order.shape[0], dtype=np.bool_)
+    for k in range(order.shape[0]):
+        seen[k] = _inside(cam[order[k]], near, half, tx, ty)
+    order = order[seen]
     n = _paint_eye(left, depth_left, 1.0, cam, kept, order, facing, across, colours, zmean, view)
     _paint_eye(right, depth_right, -1.0, cam, kept, order, facing, across, colours, zmean, view)
     return n
