@@ -1,9 +1,14 @@
 """The sidewalk world's speed and its experts' safety (issue 12's targets: stereo generation >= 150 steps/s with 2
 workers, closed loop over the bridge >= 60 Hz, each expert mode 10 simulated minutes with 0 collisions and 0 s
-off the path).
+off the path; issue 48's: the stereo pair drawn >= 3x as fast as on 2026-11-23).
 
     python bench/bench_stereo.py [--frames 6000] [--seconds 60] [--minutes 10] [--out /tmp/drivestudio-stereo]
-                                 [--json F]
+                                 [--rounds 5] [--render-only] [--json F]
+
+0. The pair: both images drawn by the compiled kernels and by OpenCV's fills (sim/sidewalk/stereo.py compiled=False,
+   the painter before the kernels) from the same poses (every preset and a procedural path, each mode, the expert
+   driving), the two in turn round by round; the medians of the rounds' milliseconds a pair, wall-clock and the
+   process's CPU time, and of the rounds' ratios (--render-only: this alone).
 
 1. Generation: `drivestudio generate --world sidewalk` (the default paths and modes, 336x188 PNG per camera, two
    images a step), timed end to end (process start-up and every episode's scene set-up included), with 2 and 1
@@ -18,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -27,9 +33,68 @@ from pathlib import Path
 from controller.sidewalk import SidewalkExpert, SidewalkMetrics
 from drivestudio import worlds
 from perception.shards import encode_image
+from sim.sidewalk.paths import preset_names
+from sim.sidewalk.stereo import StereoRenderer
 from sim.sidewalk.world import SidewalkConfig, SidewalkWorld
 
 MODES = ("direct", "follow", "furtive")
+
+
+def cpu_model() -> str:
+    """The processor's model name, as the kernel lists it."""
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return "unknown"
+    return next((line.split(":", 1)[1].strip() for line in info.splitlines() if line.startswith("model name")),
+                "unknown")
+
+
+def pair_scenes(steps: int = 300, every: int = 10) -> list[tuple]:
+    """Per path (the presets and procedural:11) and mode: the world's renderers (compiled, OpenCV's) and the poses
+    (x, y, yaw, lead) of its expert's drive, one every `every` steps."""
+    out = []
+    for i, path in enumerate(preset_names() + ["procedural:11"]):
+        for j, mode in enumerate(MODES):
+            world = SidewalkWorld(SidewalkConfig(path=path, seed=3 * i + j + 1, mode=mode, render=False))
+            expert, obs, poses = SidewalkExpert(), world.observe(False), []
+            for k in range(steps):
+                obs = world.step(expert.action(obs.record), False)
+                if obs.end:
+                    world.recover()
+                if k % every == every - 1:
+                    t = obs.truth
+                    poses.append((float(t["x"]), float(t["y"]), float(t["yaw"]),
+                                  world.lead.state if world.lead else None))
+            renderers = {compiled: StereoRenderer(world.layout, world.seed, world.config.stereo, compiled=compiled)
+                         for compiled in (True, False)}
+            out.append((renderers, poses))
+    return out
+
+
+def render_pair(rounds: int) -> dict:
+    """Milliseconds a stereo pair (wall-clock and CPU), compiled and OpenCV's, medians of alternating rounds."""
+    scenes = pair_scenes()
+    for renderers, poses in scenes:   # numba's cache loaded, the first pair's allocations made
+        for r in renderers.values():
+            r.render(*poses[0][:3], poses[0][3])
+    pairs = sum(len(poses) for _, poses in scenes)
+    times: dict = {name: {"wall": [], "cpu": []} for name in ("numba", "opencv")}
+    for k in range(rounds):
+        for compiled in ((True, False) if k % 2 == 0 else (False, True)):
+            t, c = time.perf_counter(), time.process_time()
+            for renderers, poses in scenes:
+                for x, y, yaw, lead in poses:
+                    renderers[compiled].render(x, y, yaw, lead)
+            name = "numba" if compiled else "opencv"
+            times[name]["wall"].append((time.perf_counter() - t) / pairs * 1e3)
+            times[name]["cpu"].append((time.process_time() - c) / pairs * 1e3)
+    out = {"cpu": cpu_model(), "pairs_a_round": pairs, "rounds": rounds,
+           **{f"{name}_{kind}_ms": statistics.median(v) for name, d in times.items() for kind, v in d.items()}}
+    for kind in ("wall", "cpu"):
+        out[f"ratio_{kind}"] = statistics.median(o / n for o, n in zip(times["opencv"][kind], times["numba"][kind]))
+        out[f"ratio_{kind}_rounds"] = [round(o / n, 2) for o, n in zip(times["opencv"][kind], times["numba"][kind])]
+    return out
 
 
 def generate(out: Path, frames: int, workers: int) -> float:
@@ -102,10 +167,21 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds of each closed-loop run")
     ap.add_argument("--minutes", type=float, default=10.0, help="simulated minutes of each safety run")
     ap.add_argument("--out", default="/tmp/drivestudio-stereo")
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of the pair's render figure")
+    ap.add_argument("--render-only", action="store_true", help="the pair's render figure alone")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     figures = {"frames": args.frames, "seconds": args.seconds, "minutes": args.minutes, "closed_loop": {},
                "safety": {}}
+    p = figures["render_pair"] = render_pair(args.rounds)
+    print(f"stereo pair drawn, 2 x 336x188, one process, {p['pairs_a_round']} pairs a round, median of {p['rounds']} "
+          f"rounds: compiled {p['numba_wall_ms']:.2f} ms a pair ({p['numba_cpu_ms']:.2f} CPU), OpenCV's fills "
+          f"{p['opencv_wall_ms']:.2f} ms ({p['opencv_cpu_ms']:.2f} CPU): {p['ratio_wall']:.2f}x ({p['ratio_cpu']:.2f}x "
+          f"CPU; rounds {p['ratio_wall_rounds']}); {p['cpu']}", flush=True)
+    if args.render_only:
+        if args.json:
+            args.json.write_text(json.dumps(figures, indent=2, default=str) + "\n")
+        return
     out = Path(args.out)
     two = generate(out / "w2", args.frames, 2)
     one = generate(out / "w1", args.frames // 2, 1)
