@@ -164,6 +164,26 @@ def _pixels(cam, n, fx, fy, w, h, out):
 
 
 @njit(cache=True)
+def clip_near(poly, k, near, out):
+    """sim/ground_painter.py's clip_near (Sutherland-Hodgman against forward >= near) of camera-space poly[:k] into
+    out; returns the corners kept."""
+    m = 0
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        a_in, b_in = poly[i, 2] >= near, poly[j, 2] >= near
+        if a_in:
+            out[m, 0], out[m, 1], out[m, 2] = poly[i, 0], poly[i, 1], poly[i, 2]
+            m += 1
+        if a_in != b_in:
+            t = (near - poly[i, 2]) / (poly[j, 2] - poly[i, 2])
+            out[m, 0] = poly[i, 0] + t * (poly[j, 0] - poly[i, 0])
+            out[m, 1] = poly[i, 1] + t * (poly[j, 1] - poly[i, 1])
+            out[m, 2] = near
+            m += 1
+    return m
+
+
+@njit(cache=True)
 def paint_ground(img, verts, spans, order, colours, eye, basis, near, fx, fy):
     """Paint polygons `order` (indices into spans, in painting order) into img (h, w, 3) uint8: polygon p has the
     vertices verts[spans[p, 0]:spans[p, 1]] (world, [m]) and the colour colours[spans[p, 2]]; the camera sits at
@@ -193,20 +213,8 @@ def paint_ground(img, verts, spans, order, colours, eye, basis, near, fx, fy):
         if lo >= near:
             _pixels(cam, k, fx, fy, w, h, pts)
             m = k
-        else:   # Sutherland-Hodgman against forward >= near, as sim/ground_painter.py clip_near
-            m = 0
-            for i in range(k):
-                j = i + 1 if i + 1 < k else 0
-                a_in, b_in = cam[i, 2] >= near, cam[j, 2] >= near
-                if a_in:
-                    clipped[m, 0], clipped[m, 1], clipped[m, 2] = cam[i, 0], cam[i, 1], cam[i, 2]
-                    m += 1
-                if a_in != b_in:
-                    t = (near - cam[i, 2]) / (cam[j, 2] - cam[i, 2])
-                    clipped[m, 0] = cam[i, 0] + t * (cam[j, 0] - cam[i, 0])
-                    clipped[m, 1] = cam[i, 1] + t * (cam[j, 1] - cam[i, 1])
-                    clipped[m, 2] = near
-                    m += 1
+        else:
+            m = clip_near(cam, k, near, clipped)
             if m < 3:
                 continue
             _pixels(clipped, m, fx, fy, w, h, pts)

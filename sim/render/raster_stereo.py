@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from sim.render.raster import drop_stale_kernels
-from sim.render.raster_ground import _clip_line, _div, fill_polygon
+from sim.render.raster_ground import _clip_line, _div, clip_near, fill_polygon
 
 SHIFT = 4                 # sub-pixel bits of the painters' points
 XY_SHIFT = 16             # OpenCV's fixed point for edges
@@ -242,26 +242,6 @@ def _ground_pixels(x, y, z, fx, fy, w, h):
 
 
 @njit(cache=True)
-def _clip_near(poly, k, near, out):
-    """sim/ground_painter.py's clip_near (Sutherland-Hodgman against forward >= near) of poly[:k] into out; returns
-    the corners kept."""
-    m = 0
-    for i in range(k):
-        j = i + 1 if i + 1 < k else 0
-        a_in, b_in = poly[i, 2] >= near, poly[j, 2] >= near
-        if a_in:
-            out[m, 0], out[m, 1], out[m, 2] = poly[i, 0], poly[i, 1], poly[i, 2]
-            m += 1
-        if a_in != b_in:
-            t = (near - poly[i, 2]) / (poly[j, 2] - poly[i, 2])
-            out[m, 0] = poly[i, 0] + t * (poly[j, 0] - poly[i, 0])
-            out[m, 1] = poly[i, 1] + t * (poly[j, 1] - poly[i, 1])
-            out[m, 2] = near
-            m += 1
-    return m
-
-
-@njit(cache=True)
 def _ground_inside(cam, table, near_polys, detail, near, half, tx, ty):
     """sim/sidewalk/ground.py's culling: per polygon, whether it reaches into one eye's frustum (and is painted at
     its chunk's distance), and its nearest depth."""
@@ -303,7 +283,7 @@ def paint_ground_pair(left, right, cam, table, near_polys, detail, colours, near
             a = table[k, 1]
             poly, m = cam[a:table[k, 2]], table[k, 2] - a
             if lo[k] < near:
-                m = _clip_near(poly, m, near, clipped)
+                m = clip_near(poly, m, near, clipped)
                 if m < 3:
                     continue
                 poly = clipped
@@ -359,7 +339,7 @@ def _paint_eye(frame, depth, sign, cam, kept, order, facing, across, colours, zm
             whole = whole and cam[k, j, 2] >= near
         poly, m = corners, 4
         if not whole:
-            m = _clip_near(corners, 4, near, clipped)
+            m = clip_near(corners, 4, near, clipped)
             if m < 3:
                 continue
             poly = clipped

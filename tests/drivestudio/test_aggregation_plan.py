@@ -16,32 +16,21 @@ def expert(tmp_path_factory):
     return out
 
 
-@pytest.fixture(scope="module")
-def model(tmp_path_factory):
-    from core.worlds.highway import HIGHWAY
-    from perception.checkpoint import save_checkpoint
-    from perception.models import build
-    path = tmp_path_factory.mktemp("models") / "gist.pt"
-    net = build("gist", HIGHWAY)
-    save_checkpoint(path, {"spec": net.spec, "state_dict": net.state_dict(), "train": {}})
-    return path
-
-
-def test_the_rounds_take_the_expert_datasets_tracks_conditions_and_lanes(expert, model, tmp_path):
+def test_the_rounds_take_the_expert_datasets_tracks_conditions_and_lanes(expert, highway_model, tmp_path):
     plan = expert_plan(str(expert))
     assert plan == {"lanes": [2], "tracks": ["oval", "procedural:651002"], "condition": "night,rain"}
     cfg = AggregationConfig(data=str(expert), model="unused.pt", out=str(tmp_path))
-    options = drive_options(cfg, 1, model)
+    options = drive_options(cfg, 1, highway_model)
     assert options["tracks"] == ["oval", "procedural:651002"] and options["condition"] == "night,rain"
     assert options["lanes"] == [2]
 
 
-def test_a_dataset_of_generates_default_plan_gives_new_procedural_tracks_each_round_and_no_condition(model,
-                                                                                                      tmp_path):
+def test_a_dataset_of_generates_default_plan_gives_new_procedural_tracks_each_round_and_no_condition(
+        highway_model, tmp_path):
     from tests.perception.frames import dataset
     plan = expert_plan(str(dataset()))
     assert plan["tracks"] == [] and "condition" not in plan
     cfg = AggregationConfig(data=str(dataset()), model="unused.pt", out=str(tmp_path))
-    one, two = (drive_options(cfg, r, model)["tracks"] for r in (1, 2))
+    one, two = (drive_options(cfg, r, highway_model)["tracks"] for r in (1, 2))
     assert {t for t in one if t.startswith("procedural:")} != {t for t in two if t.startswith("procedural:")}
-    assert "condition" not in drive_options(cfg, 1, model)
+    assert "condition" not in drive_options(cfg, 1, highway_model)

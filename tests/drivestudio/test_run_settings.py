@@ -62,17 +62,6 @@ def _started(*argv) -> None:
 
 
 @pytest.fixture(scope="module")
-def highway_model(tmp_path_factory):
-    from core.worlds.highway import HIGHWAY
-    from perception.checkpoint import save_checkpoint
-    from perception.models import build
-    path = tmp_path_factory.mktemp("models") / "mobilenet.pt"
-    model = build("mobilenet", HIGHWAY)
-    save_checkpoint(path, {"spec": model.spec, "state_dict": model.state_dict(), "train": {}})
-    return path
-
-
-@pytest.fixture(scope="module")
 def sidewalk_model(tmp_path_factory):
     from core.worlds.sidewalk import SIDEWALK
     from perception.checkpoint import save_checkpoint
