@@ -3,8 +3,9 @@ from the frame and its depth:
 
 - the ground (where no object was drawn and the ray goes down): the night's darkness and the host's headlights, the
   fog, all known from the pixel alone and computed once (sim/render/effect_kernels.py `ground`);
-- the objects (a finite depth): the same from their distance (`objects`); at night the street lamps' pools light the
-  ground and the objects near them (`pools`); a wet road mirrors the objects standing on it (`reflections`);
+- the objects (a finite depth): the same from their distance (`objects`, row by row, each row's object pixels
+  found and drawn in one go); at night the street lamps' pools light the ground and the objects near them
+  (`pools`); a wet road mirrors the objects standing on it (`objects` too, as each row is drawn);
 - lights over the rest (sim/render/light_kernels.py): the cars' tail and head lights and the lamps, the sun's glare
   and its disc, the rain's streaks;
 - the sky is left as the renderer drew it, and the low sun's warm light is drawn by the renderer too: the world's
@@ -18,7 +19,7 @@ import cv2
 import numpy as np
 
 from sim.render.conditions import CarLights, Condition, Geometry, Lamps
-from sim.render.effect_kernels import STEP, beams, drawn, ground, objects, pools, reflections
+from sim.render.effect_kernels import STEP, beams, ground, objects, pools
 from sim.render.light_kernels import car_lights, glare, lamp_heads, near_lamps, streaks
 
 NO_LAMPS = np.zeros((0, 3), dtype=np.float32)
@@ -61,8 +62,6 @@ class Effects:
         self._fog_table = (np.exp(-c.density * d) if c.density > 0 else np.ones(1)).astype(np.float32)
         self._view = g.view.reshape(-1)
         self._border = np.flatnonzero(self._view < 0)
-        self._index = np.empty(g.view.size, dtype=np.int64)        # the pixels of objects of a frame, and their rows
-        self._index_rows = np.empty(g.view.size, dtype=np.int64)
         self._statics()
         self._rows, self._spots = self._ground_rows()
         self._contact, self._wetness = self._wet_road()
@@ -70,7 +69,7 @@ class Effects:
         texture = rain_streaks(g.view.shape, c.rain, seed)
         self._period = max(1, texture.shape[0])
         rows, cols = np.nonzero(texture)   # by row
-        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols].astype(np.float64))
+        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols] / 255.0)
         self._streak_rows = np.searchsorted(rows, np.arange(self._period + 1))
         self._frames = 0
 
@@ -112,8 +111,10 @@ class Effects:
     def _wet_road(self) -> tuple[np.ndarray, np.ndarray]:
         """Per view, the row of the ground at each distance along its axis (STEP a metre; the lowest row's below
         its distance, -1 in a view without ground), and per view and row how much a wet road mirrors there: more at
-        grazing angles, far away."""
+        grazing angles, far away; a dry road: one entry of each."""
         g = self.geometry
+        if self.condition.wetness <= 0:
+            return np.full((len(g.places), 1), -1, dtype=np.int64), np.zeros((len(g.places), 1), dtype=np.float32)
         contact = np.full((len(g.places), int(400 * STEP) + 1), -1, dtype=np.int64)
         for v, p in enumerate(g.places):
             top, left, vh, vw = p.rect
@@ -158,13 +159,9 @@ class Effects:
         if c.shades:
             ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
             near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
-            n = drawn(deep, self._view, w, self._index, self._index_rows)
-            index, rows = self._index[:n], self._index_rows[:n]
-            objects(flat, src, deep, index, rows, self._view, self._reach, g.cams, self._cone, self._fall,
-                    self._fog_table, self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, w)
-            if c.wetness > 0:
-                reflections(flat, src, deep, index, rows, self._view, self._contact, self._wetness, self._road,
-                            MIRRORED * g.cams[0, 13], w)
+            objects(flat, src, deep, self._view, w, self._reach, g.cams, self._cone, self._fall, self._fog_table,
+                    self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, self._contact,
+                    self._wetness, self._road, MIRRORED * g.cams[0, 13])
         if self.lamps is not None:
             pools(flat, src, deep, self._rows, self._spots,
                   near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH, g.cams), self._lamp_reach, self._lamp_rgb)

@@ -63,7 +63,10 @@ def project(cams, v, px, py, pz):
 def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, streak):
     """A light at a car-frame point [m] added to view v of out (h, w, 3) as a glow of `radius` [m] (at least 0.6
     px), colour rgb (0-255) at full strength, hidden where the depth shows an object more than a metre in front of
-    it, dimmed by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below."""
+    it, dimmed by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below.
+    The glow is s exp(-q) for q = dx^2 + dy^2 < 9 (in radii); a pixel gains its integer part only, so the glow
+    stops where s exp(-q) x the brightest channel falls under a level, and exp(-q) is exp(-dx^2) exp(-dy^2): one
+    exp a row and one a column."""
     col, row, d = project(cams, v, px, py, pz)
     if d < 0.0 or d > cams[v, 21]:
         return
@@ -73,18 +76,27 @@ def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, stre
         return
     rad = max(0.6, radius * cams[v, 13] / d)
     s = strength * (math.exp(-fog * d) if fog > 0.0 else 1.0)
-    reach = int(math.ceil(rad * 3.0))
-    below = int(math.ceil(rad * 3.0 * streak))
+    peak = s * max(rgb[0], rgb[1], rgb[2])
+    if peak < 1.0:
+        return
+    q_max = min(9.0, math.log(peak))
+    reach = int(math.ceil(rad * math.sqrt(q_max)))
+    below = int(math.ceil(rad * math.sqrt(q_max) * streak))
+    c0, c1 = max(left, ic - reach), min(left + vw, ic + reach + 1)
+    across = np.empty(max(c1 - c0, 0))
+    for c in range(c0, c1):
+        dx = (c + 0.5 - col) / rad
+        across[c - c0] = math.exp(-dx * dx) if dx * dx < q_max else 0.0
     for r in range(max(top, ir - reach), min(top + vh, ir + reach + below + 1)):
-        for c in range(max(left, ic - reach), min(left + vw, ic + reach + 1)):
-            if view[r, c] != v:
-                continue
-            dx, dy = (c + 0.5 - col) / rad, (r + 0.5 - row) / rad
-            if dy > 0.0 and streak > 0.0:
-                dy = dy / (1.0 + streak)
-            q = dx * dx + dy * dy
-            if q < 9.0:
-                g = s * math.exp(-q)
+        dy = (r + 0.5 - row) / rad
+        if dy > 0.0 and streak > 0.0:
+            dy = dy / (1.0 + streak)
+        if dy * dy >= q_max:
+            continue
+        up = s * math.exp(-dy * dy)
+        for c in range(c0, c1):
+            if view[r, c] == v and across[c - c0] > 0.0:
+                g = up * across[c - c0]
                 for i in range(3):
                     out[r, c, i] = np.uint8(min(255.0, out[r, c, i] + g * rgb[i]))
 
@@ -142,7 +154,7 @@ def glare(out, view, cams, sun, sprite):
 
 @njit(cache=True, fastmath=FAST)
 def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
-    """Rain streaks: pixels (rows, cols, alpha 0-255, sorted by row) of a texture `period` rows tall, shown `offset`
+    """Rain streaks: pixels (rows, cols, alpha 0-1, sorted by row) of a texture `period` rows tall, shown `offset`
     rows further down each frame (wrapping), blended towards rgb over every view; spans (n, 2): the ranges of the
     pixels that show this frame."""
     for k in range(spans.shape[0]):
@@ -151,6 +163,6 @@ def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
             if r >= period:
                 r -= period
             if view[r, c] >= 0:
-                a = alpha[i] / 255.0
+                a = alpha[i]
                 for j in range(3):
                     out[r, c, j] = np.uint8(out[r, c, j] + a * (rgb[j] - out[r, c, j]))
