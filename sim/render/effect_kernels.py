@@ -78,12 +78,24 @@ def _ground_run(out, src, fog, lit, gain, dark, fog_rgb):
 
 @njit(cache=True, fastmath=FAST)
 def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
-    """The ground's pixels (flat ranges `spans` (n, 2)): colour x (dark + gain x lit) x t + fog_rgb x (1 - t), t the
-    fog byte / 255, lit the headlights' byte / LIT; dark (3,): the night's light (1 by day), gain (3,): the
-    headlights' colour (0 by day)."""
+    """Every pixel of src into out, the ground's (flat ranges `spans` (n, 2), in order) as colour x (dark + gain x
+    lit) x t + fog_rgb x (1 - t), t the fog byte / 255, lit the headlights' byte / LIT; dark (3,): the night's light
+    (1 by day), gain (3,): the headlights' colour (0 by day); the others as they are."""
+    done = 0
     for k in range(spans.shape[0]):
         lo, hi = spans[k, 0], spans[k, 1]
+        copy(out, src, np.uint64(3 * done), np.uint64(3 * lo))
         _ground_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], lit[lo:hi], gain, dark, fog_rgb)
+        done = hi
+    copy(out, src, np.uint64(3 * done), np.uint64(src.shape[0]))
+
+
+@njit(cache=True)
+def copy(out, src, lo, hi):
+    """src[lo:hi] into out[lo:hi] (lo, hi unsigned: a loop the compiler turns into a block copy; numba's slice
+    assignment copies a byte at a time)."""
+    for i in range(lo, hi):
+        out[i] = src[i]
 
 
 @njit(cache=True, fastmath=FAST)
@@ -138,8 +150,8 @@ def _shade(out, src, depth, view, r, width, first, end, reach, cams, cone, fall,
             h = cone[p] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
             pool = 0.0
             rx = ry = np.inf
+            v = view[p] if lamps.shape[0] else 0
             for j in range(lamps.shape[0]):   # the street lamps' pools
-                v = view[p]
                 if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
                     continue
                 if rx == np.inf:   # the ray, once for the lamps near enough
@@ -150,8 +162,10 @@ def _shade(out, src, depth, view, r, width, first, end, reach, cams, cone, fall,
             g0 += k0 * h + l0 * pool
             g1 += k1 * h + l1 * pool
             g2 += k2 * h + l2 * pool
-        t = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
-        u = 1.0 - t
+        t, u = 1.0, 0.0
+        if nl > 0:
+            t = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
+            u = 1.0 - t
         q = three * p
         out[q] = np.uint8(min(src[q] * g0 * t + f0 * u, 255.0))
         out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + f1 * u, 255.0))

@@ -10,6 +10,8 @@ from the frame and its depth:
   and its disc, the rain's streaks;
 - the sky is left as the renderer drew it, and the low sun's warm light is drawn by the renderer too: the world's
   Look for the condition gives them their colours (Look.tint the cars').
+
+Effects builds their tables once; a frame's effects are one compiled call (sim/render/light_kernels.py `draw`).
 """
 from __future__ import annotations
 
@@ -19,18 +21,16 @@ import cv2
 import numpy as np
 
 from sim.render.conditions import CarLights, Condition, Geometry, Lamps
-from sim.render.effect_kernels import STEP, beams, ground, objects, pools
-from sim.render.light_kernels import car_lights, glare, lamp_heads, near_lamps, streaks
+from sim.render.effect_kernels import STEP, beams
+from sim.render.light_kernels import draw
 
-NO_LAMPS = np.zeros((0, 3), dtype=np.float32)
-POOLS_REACH = 150.0   # [m] the street lamps' pools are drawn on the ground nearer than this
-LIT_OBJECTS = 45.0    # [m] ... and on the objects near those nearer than this (farther ones are a few pixels)
+NO_DEPTH = np.zeros((0, 0), dtype=np.float32)
+NO_CARS = (np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64))
 STREAK_RGB = np.array([205.0, 210.0, 218.0])   # rain streaks: lit drops against the sky
 TAIL_RGB, HEAD_RGB = np.array([255.0, 38.0, 26.0]), np.array([255.0, 246.0, 222.0])
 HEADLIGHT_RGB = np.array([0.75, 0.72, 0.66])   # the host's beams: warm white, the road near them lit to 3/4 of day
 GLARE_WIDTH = 0.008   # 1 - cos of the angle from the sun where its glare falls by e (about 7 degrees)
 SUN_DISC = 1.5e-4     # 1 - cos of the sun's apparent radius, a little over its 0.27 degrees: a pixel or two
-RAIN_FALL = 23        # [px] the streaks fall a frame
 MIRRORED = 2.0        # [m] a wet road mirrors what stands up to this high on it (cars; not the crowns of trees)
 
 
@@ -65,13 +65,13 @@ class Effects:
         self._statics()
         self._rows, self._spots = self._ground_rows()
         self._contact, self._wetness = self._wet_road()
-        self._sprite = glare_sprite(c.glare, g.cams[0, 12]) if c.glare > 0 else None
+        self._sprite = glare_sprite(c.glare, g.cams[0, 12]) if c.glare > 0 else np.zeros((0, 0), np.float32)
         texture = rain_streaks(g.view.shape, c.rain, seed)
-        self._period = max(1, texture.shape[0])
         rows, cols = np.nonzero(texture)   # by row
-        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols] / 255.0)
-        self._streak_rows = np.searchsorted(rows, np.arange(self._period + 1))
+        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols] / 255.0,
+                         np.searchsorted(rows, np.arange(max(1, texture.shape[0]) + 1)), STREAK_RGB)
         self._frames = 0
+        self._tables = self._groups()
 
     def _statics(self) -> None:
         """Per pixel, as bytes: the ground's fog transmittance (x 255), the headlights on the ground and the beams'
@@ -129,6 +129,22 @@ class Effects:
             wetness[v, top:top + vh] = np.where(np.isfinite(d), self.condition.wetness * (0.35 + 0.65 * far), 0.0)
         return contact, wetness
 
+    def _groups(self) -> tuple:
+        """What light_kernels.draw reads besides the frame, grouped as it takes them."""
+        c, g = self.condition, self.geometry
+        lamps = self.lamps or Lamps(np.zeros((0, 2)), np.zeros((0, 2)), 0.0)
+        lights = self.car_lights or CarLights(np.zeros((1, 2, 3)), np.zeros((1, 2, 3)), 0.0)
+        return (g.view, g.cams, bool(c.shades),
+                (self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb),
+                (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
+                 self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13])),
+                (np.asarray(lamps.pools, dtype=np.float64).reshape(-1, 2),
+                 np.asarray(lamps.heads, dtype=np.float64).reshape(-1, 2), float(lamps.height), self._lamp_glow,
+                 self._rows, self._spots),
+                (np.asarray(lights.tails, dtype=np.float64), np.asarray(lights.heads, dtype=np.float64), TAIL_RGB,
+                 HEAD_RGB, float(lights.strength), float(self._density), float(self._streak)),
+                (np.asarray(self._sun, dtype=np.float64), self._sprite), self._streaks)
+
     @property
     def needs_depth(self) -> bool:
         """Whether apply reads the renderer's depth: for what the distance changes, and for the lights (hidden
@@ -140,58 +156,14 @@ class Effects:
         """The frame with the condition drawn over it (a new array) seen from a car at (x, y) [m] with yaw [rad]:
         depth (h, w) float32, the objects' distances along each view's axis [m] (inf where none; the insets'
         borders are set to inf here; None where not needs_depth); cars: (x, y, yaw, model) arrays of the other
-        cars."""
-        out = frame.copy()
-        if depth is not None:
-            self._shade(out, frame, depth, x, y, yaw, cars)
-        self._sun_and_rain(out, yaw)
+        cars. One compiled call (light_kernels.draw) draws it all."""
+        out = np.empty_like(frame)
+        if depth is not None and len(self._border):
+            depth.reshape(-1)[self._border] = np.inf
+        draw(out, np.ascontiguousarray(frame), NO_DEPTH if depth is None else depth, float(x), float(y), float(yaw),
+             self._frames, NO_CARS if cars is None or self.car_lights is None else cars, *self._tables)
         self._frames += 1
         return out
-
-    def _shade(self, out: np.ndarray, frame: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float,
-               cars: tuple | None) -> None:
-        """What the depth decides: the fog and the dark of the ground (its affine map) and of the objects, the
-        street lamps, the wet road's reflections, the lights."""
-        g, c = self.geometry, self.condition
-        flat, src, deep, w = out.reshape(-1), frame.reshape(-1), depth.reshape(-1), g.view.shape[1]
-        if len(self._border):
-            deep[self._border] = np.inf
-        if c.shades:
-            ground(flat, src, self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb)
-            near = NO_LAMPS if self.lamps is None else near_lamps(self.lamps.pools, x, y, yaw, LIT_OBJECTS, g.cams)
-            objects(flat, src, deep, self._view, w, self._reach, g.cams, self._cone, self._fall, self._fog_table,
-                    self._dark, self._gain, self._fog_rgb, near, self._lamp_reach, self._lamp_rgb, self._contact,
-                    self._wetness, self._road, MIRRORED * g.cams[0, 13])
-        if self.lamps is not None:
-            pools(flat, src, deep, self._rows, self._spots,
-                  near_lamps(self.lamps.pools, x, y, yaw, POOLS_REACH, g.cams), self._lamp_reach, self._lamp_rgb)
-            lamp_heads(out, depth, g.view, g.cams, x, y, yaw, self.lamps.heads, self.lamps.height, self._lamp_glow)
-        self._lights(out, depth, x, y, yaw, cars)
-
-    def _lights(self, out: np.ndarray, depth: np.ndarray, x: float, y: float, yaw: float, cars: tuple | None) -> None:
-        """The cars' lights, hidden behind what stands in front of them."""
-        g = self.geometry
-        if self.car_lights is not None and cars is not None and len(cars[0]):
-            lights = self.car_lights
-            car_x, car_y, car_yaw, models = cars
-            car_lights(out, depth, g.view, g.cams, x, y, yaw, car_x, car_y, car_yaw, models, lights.tails,
-                       lights.heads, TAIL_RGB, HEAD_RGB, lights.strength, self._density, self._streak)
-
-    def _sun_and_rain(self, out: np.ndarray, yaw: float) -> None:
-        """What is drawn over everything: the sun's glare (the car heading `yaw`), the rain's streaks."""
-        g = self.geometry
-        if self._sprite is not None:
-            sun, ch, sh = self._sun, math.cos(yaw), math.sin(yaw)
-            glare(out, g.view, g.cams, np.array([ch * sun[0] + sh * sun[1], -sh * sun[0] + ch * sun[1], sun[2]]),
-                  self._sprite)
-        if len(self._streaks[0]):
-            offset = (self._frames * RAIN_FALL) % self._period
-            first = (self._period - offset) % self._period   # the texture's row shown at the top, then h more
-            last = first + g.view.shape[0]
-            at = self._streak_rows
-            spans = [(at[first], at[min(last, self._period)])] + \
-                ([(at[0], at[last - self._period])] if last > self._period else [])
-            streaks(out, g.view, *self._streaks, np.array(spans, dtype=np.int64), self._period, offset, STREAK_RGB)
 
 
 def glare_sprite(strength: float, focal: float) -> np.ndarray:

@@ -1,20 +1,46 @@
 """The lights a condition draws over a frame, compiled with numba (sim/render/effects.py says what each is): the
 glows of cars' lights and street lamps (hidden behind what the renderer drew in front of them, reflected by a wet
-road), the sun's glare and the rain's streaks.
+road), the sun's glare and the rain's streaks; and `draw`, the whole of a frame's effects in one call.
 
 `cams` holds a row per view of the frame (sim/render/effects.py CAMS): where its camera is, where it looks and
 where its image is in the frame.
 """
 from __future__ import annotations
 
+import hashlib
 import math
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from sim.render.effect_kernels import FAST
+from sim.render.effect_kernels import FAST, copy, ground, objects, pools
 
 FAR = 200.0         # [m] lights and lamps farther from the host are not drawn
+LIT_OBJECTS = 45.0  # [m] the street lamps light the objects near their pools nearer than this (farther: a few pixels)
+POOLS_REACH = 150.0   # [m] ... and their pools are drawn on the ground nearer than this
+RAIN_FALL = 23      # [px] the rain's streaks fall a frame
+KERNELS = ("effect_kernels.py", "light_kernels.py")   # draw's code and the code it calls
+
+
+def drop_stale_draw(folder: Path = Path(__file__).parent) -> None:
+    """numba keeps a function's compiled code while the function's own file is unchanged, even when a function of
+    another file that it calls has changed: this file's cached code (draw holds effect_kernels.py's) is dropped when
+    either file has changed since it was compiled (a source tree being edited; an installed one never changes)."""
+    stamp = hashlib.sha1(b"".join((folder / f).read_bytes() for f in KERNELS)).hexdigest()
+    cache, mark = folder / "__pycache__", folder / "__pycache__" / "effect-kernels.sha1"
+    if mark.is_file() and mark.read_text() == stamp:
+        return
+    try:
+        for f in cache.glob("light_kernels.*.nb[ic]"):
+            f.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        mark.write_text(stamp)
+    except OSError:   # a folder this process cannot write: numba caches elsewhere, or not at all
+        pass
+
+
+drop_stale_draw()
 
 
 @njit(cache=True)
@@ -166,3 +192,59 @@ def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
                 a = alpha[i]
                 for j in range(3):
                     out[r, c, j] = np.uint8(out[r, c, j] + a * (rgb[j] - out[r, c, j]))
+
+
+@njit(cache=True, fastmath=FAST)
+def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, objects_, lamps, lights, sun, rain):
+    """The whole of a frame's effects (sim/render/effects.py Effects.apply) in one call, from src (h, w, 3) into out:
+    depth (h, w) [m] ((0, 0): none read back); the host at (x, y) [m] with yaw [rad], `frame` its frame's number (the
+    rain falls); cars: (x, y, yaw, model) arrays of the other cars; view (h, w) and cams (sim/render/conditions.py
+    Geometry); shades: whether the fog, the dark and the wet road are drawn; the tables of each effect, grouped:
+    ground_ (spans, fog, lit, gain, dark, fog_rgb), objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's
+    pool, contact, wetness, road, tall), lamps (pool centres, heads, height, glow, the ground's rows, their spots;
+    no centres: none), lights (tails, heads, tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite;
+    (0, 0): none), rain (rows, cols, alpha, the rows' starts, rgb)."""
+    flat, deep, bytes_ = out.reshape(-1), depth.reshape(-1), src.reshape(-1)
+    if depth.shape[0] and shades:
+        spans, fog, lit, gain, dark, fog_rgb = ground_
+        ground(flat, bytes_, spans, fog, lit, gain, dark, fog_rgb)
+        reach, cone, fall, fog_table, lamp_rgb, lamp_reach, contact, wetness, road, tall = objects_
+        objects(flat, bytes_, deep, view.reshape(-1), view.shape[1], reach, cams, cone, fall, fog_table, dark, gain,
+                fog_rgb, near_lamps(lamps[0], x, y, yaw, LIT_OBJECTS, cams), lamp_reach, lamp_rgb, contact, wetness,
+                road, tall)
+    else:
+        copy(flat, bytes_, np.uint64(0), np.uint64(flat.shape[0]))
+    if depth.shape[0]:
+        _lamps(flat, bytes_, deep, out, depth, x, y, yaw, view, cams, objects_[4], objects_[5], lamps)
+        if cars[0].shape[0] and lights[4] > 0.0:
+            tails, heads, tail_rgb, head_rgb, strength, fog_density, streak = lights
+            car_lights(out, depth, view, cams, x, y, yaw, cars[0], cars[1], cars[2], cars[3], tails, heads, tail_rgb,
+                       head_rgb, strength, fog_density, streak)
+    if sun[1].shape[0]:
+        ch, sh, s = math.cos(yaw), math.sin(yaw), sun[0]
+        glare(out, view, cams, np.array([ch * s[0] + sh * s[1], -sh * s[0] + ch * s[1], s[2]]), sun[1])
+    if rain[0].shape[0]:
+        _rain(out, view, frame, rain)
+
+
+@njit(cache=True, fastmath=FAST)
+def _lamps(flat, src, deep, out, depth, x, y, yaw, view, cams, lamp_rgb, lamp_reach, lamps):
+    """The street lamps' pools on the ground and the lamps themselves."""
+    centres, heads, height, glow_rgb, rows, spots = lamps
+    if centres.shape[0]:
+        pools(flat, src, deep, rows, spots, near_lamps(centres, x, y, yaw, POOLS_REACH, cams), lamp_reach, lamp_rgb)
+        lamp_heads(out, depth, view, cams, x, y, yaw, heads, height, glow_rgb)
+
+
+@njit(cache=True)
+def _rain(out, view, frame, rain):
+    """The rain's streaks of frame number `frame`: the texture's rows from the one shown at the top, wrapping."""
+    rows, cols, alpha, at, rgb = rain
+    period = at.shape[0] - 1
+    offset = (frame * RAIN_FALL) % period
+    first = (period - offset) % period   # the texture's row shown at the top, then h more
+    last = first + out.shape[0]
+    spans = np.empty((2, 2), dtype=np.int64)
+    spans[0, 0], spans[0, 1] = at[first], at[min(last, period)]
+    spans[1, 0], spans[1, 1] = at[0], at[max(last - period, 0)]
+    streaks(out, view, rows, cols, alpha, spans, period, offset, rgb)
