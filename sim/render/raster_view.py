@@ -75,7 +75,20 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, f
     rank r listed in by_rank[r, c] (first, end) of `spans` (paint_ground), then their objects (body c: triangles
     firsts[c]..ends[c]) and the cars `cars` (bool; body n_chunks + model, paint car_paints (k, 3)), as the camera
     (forward, left, height [m], pitch [deg], near [m]; focal lengths fx, fy [px], `projection` float32) sees them
-    from a car at (x, y) [m] with yaw [rad]."""
+    from a car at (x, y) [m] with yaw [rad]; returns its z-buffer."""
+    zbuf = np.empty(img.shape[:2], dtype=np.float32)
+    draw_into(img, zbuf, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy, verts, normals, bases,
+              painted, firsts, ends, n_chunks, projection, car_x, car_y, car_yaw, car_models, car_paints, cars, light,
+              ambient, diffuse)
+    return zbuf
+
+
+@njit(cache=True)
+def draw_into(img, zbuf, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy,
+              verts, normals, bases, painted, firsts, ends, n_chunks, projection,
+              car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse):
+    """draw_view with its z-buffer zbuf (h, w) float32 given (any values: it is cleared here): minus the clip-space
+    z of what each pixel shows, -inf where nothing."""
     eye, basis = camera_basis(x, y, yaw, camera[0], camera[1], camera[2], camera[3])
     near = camera[4]
     view = view_matrix(eye, basis)
@@ -89,7 +102,9 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, f
                     n += 1
     if n:
         paint_ground(img, ground, spans, order[:n], colours, eye, basis, near, fx, fy)
-    zbuf = np.full(img.shape[:2], -np.inf, dtype=np.float32)
+    clear = zbuf.reshape(-1)
+    for i in range(clear.shape[0]):   # a loop the compiler vectorises (numba's slice assignment does not)
+        clear[i] = -np.inf
     eye32 = eye.astype(np.float32)
     identity = np.eye(4, dtype=np.float32)
     none = np.zeros(3, dtype=np.float32)
@@ -102,7 +117,6 @@ def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, f
             b = n_chunks + car_models[k]
             draw_body(img, zbuf, verts, normals, bases, painted, firsts[b], ends[b], car_model(car_x[k], car_y[k],
                       car_yaw[k]), car_paints[k], view, projection, eye32, light, ambient, diffuse, False)
-    return zbuf
 
 
 @njit(cache=True)
@@ -120,6 +134,15 @@ def keep_depth(depth, zbuf, projection, top, left, mirrored):
             out = out[::-1]
         for c in range(w):
             out[c] = (row[c] + p23) * scale
+
+
+@njit(cache=True)
+def to_distance(zbuf, projection):
+    """A z-buffer (flat) turned in place into distances along the view's axis [m] as keep_depth turns them."""
+    p22, p23 = projection[2, 2], projection[2, 3]
+    scale = np.float32(1.0) / p22
+    for i in range(zbuf.shape[0]):
+        zbuf[i] = (zbuf[i] + p23) * scale
 
 
 @njit(cache=True)
@@ -145,11 +168,17 @@ def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, ra
             cars[k] = in_wedge(car_x[k], car_y[k], car_radius, x, y, heading, cam[8], cam[9])
         gt, gl, gh, gw = layout[v, 4], layout[v, 5], layout[v, 6], layout[v, 7]
         img = frame if v == 0 else insets[offsets[v]:offsets[v] + gh * gw * 3].reshape(gh, gw, 3)
-        zbuf = draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6], verts,
-                         normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw,
-                         car_models, car_paints, cars, light, ambient, diffuse)
-        if depth.shape[0]:
-            keep_depth(depth, zbuf, projections[v], gt if v else 0, gl if v else 0, v > 0 and layout[v, 8] != 0)
+        if v == 0 and depth.shape[0]:   # the front view fills the frame: its z-buffer is the depth's array
+            draw_into(img, depth, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6],
+                      verts, normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw,
+                      car_models, car_paints, cars, light, ambient, diffuse)
+            to_distance(depth.reshape(-1), projections[v])
+        else:
+            zbuf = draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6],
+                             verts, normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y,
+                             car_yaw, car_models, car_paints, cars, light, ambient, diffuse)
+            if depth.shape[0]:
+                keep_depth(depth, zbuf, projections[v], gt, gl, layout[v, 8] != 0)
         if v:
             ot, ol, oh, ow = layout[v, 0], layout[v, 1], layout[v, 2], layout[v, 3]
             for i in range(3):
