@@ -157,7 +157,7 @@ class Effects:
         depth (h, w) float32, the objects' distances along each view's axis [m] (inf where none; the insets'
         borders are set to inf here; None where not needs_depth); cars: (x, y, yaw, model) arrays of the other
         cars. One compiled call (light_kernels.draw) draws it all."""
-        out = np.empty_like(frame)
+        out = frame.copy() if depth is None else np.empty_like(frame)
         if depth is not None and len(self._border):
             depth.reshape(-1)[self._border] = np.inf
         draw(out, np.ascontiguousarray(frame), NO_DEPTH if depth is None else depth, float(x), float(y), float(yaw),

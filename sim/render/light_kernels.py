@@ -183,27 +183,32 @@ def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
     """Rain streaks: pixels (rows, cols, alpha 0-1, sorted by row) of a texture `period` rows tall, shown `offset`
     rows further down each frame (wrapping), blended towards rgb over every view; spans (n, 2): the ranges of the
     pixels that show this frame."""
+    flat, where, width = out.reshape(-1), view.reshape(-1), np.uint64(view.shape[1])
+    c0, c1, c2 = rgb[0], rgb[1], rgb[2]
     for k in range(spans.shape[0]):
-        for i in range(spans[k, 0], spans[k, 1]):
-            r, c = rows[i] + offset, cols[i]
+        for i in range(np.uint64(spans[k, 0]), np.uint64(spans[k, 1])):
+            r = rows[i] + offset
             if r >= period:
                 r -= period
-            if view[r, c] >= 0:
-                a = alpha[i]
-                for j in range(3):
-                    out[r, c, j] = np.uint8(out[r, c, j] + a * (rgb[j] - out[r, c, j]))
+            p = np.uint64(r) * width + np.uint64(cols[i])
+            if where[p] >= 0:
+                a, q = alpha[i], np.uint64(3) * p
+                flat[q] = np.uint8(flat[q] + a * (c0 - flat[q]))
+                flat[q + 1] = np.uint8(flat[q + 1] + a * (c1 - flat[q + 1]))
+                flat[q + 2] = np.uint8(flat[q + 2] + a * (c2 - flat[q + 2]))
 
 
 @njit(cache=True, fastmath=FAST)
 def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, objects_, lamps, lights, sun, rain):
-    """The whole of a frame's effects (sim/render/effects.py Effects.apply) in one call, from src (h, w, 3) into out:
-    depth (h, w) [m] ((0, 0): none read back); the host at (x, y) [m] with yaw [rad], `frame` its frame's number (the
-    rain falls); cars: (x, y, yaw, model) arrays of the other cars; view (h, w) and cams (sim/render/conditions.py
-    Geometry); shades: whether the fog, the dark and the wet road are drawn; the tables of each effect, grouped:
-    ground_ (spans, fog, lit, gain, dark, fog_rgb), objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's
-    pool, contact, wetness, road, tall), lamps (pool centres, heads, height, glow, the ground's rows, their spots;
-    no centres: none), lights (tails, heads, tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite;
-    (0, 0): none), rain (rows, cols, alpha, the rows' starts, rgb)."""
+    """The whole of a frame's effects (sim/render/effects.py Effects.apply) in one call, from src (h, w, 3) into out
+    (a copy of src where no depth is given: numpy copies faster); depth (h, w) [m] ((0, 0): none read back); the
+    host at (x, y) [m] with yaw [rad], `frame` its frame's number (the rain falls); cars: (x, y, yaw, model) arrays
+    of the other cars; view (h, w) and cams (sim/render/conditions.py Geometry); shades: whether the fog, the dark
+    and the wet road are drawn; the tables of each effect, grouped: ground_ (spans, fog, lit, gain, dark, fog_rgb),
+    objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's pool, contact, wetness, road, tall), lamps (pool
+    centres, heads, height, glow, the ground's rows, their spots; no centres: none), lights (tails, heads, tail_rgb,
+    head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none), rain (rows, cols, alpha, the rows'
+    starts, rgb)."""
     flat, deep, bytes_ = out.reshape(-1), depth.reshape(-1), src.reshape(-1)
     if depth.shape[0] and shades:
         spans, fog, lit, gain, dark, fog_rgb = ground_
@@ -212,7 +217,7 @@ def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, o
         objects(flat, bytes_, deep, view.reshape(-1), view.shape[1], reach, cams, cone, fall, fog_table, dark, gain,
                 fog_rgb, near_lamps(lamps[0], x, y, yaw, LIT_OBJECTS, cams), lamp_reach, lamp_rgb, contact, wetness,
                 road, tall)
-    else:
+    elif depth.shape[0]:
         copy(flat, bytes_, np.uint64(0), np.uint64(flat.shape[0]))
     if depth.shape[0]:
         _lamps(flat, bytes_, deep, out, depth, x, y, yaw, view, cams, objects_[4], objects_[5], lamps)
