@@ -113,94 +113,95 @@ def _extent(depth, lo, hi):
 @njit(cache=True, fastmath=FAST)
 def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius, lamp_rgb,
             contact, wetness, road, tall):
-    """The pixels where an object was drawn (depth finite), row by row between each row's first and last (_shade),
-    then mirrored by a wet road (_reflect; contact of one entry: a dry road). The rows go top down: a reflection
-    falls on a row below, whose ground is drawn (ground) and which holds no object there. The insets' borders have
-    no depth. A call a row: a call a pixel would cost more than the pixel."""
-    for r in range(depth.shape[0] // width):
-        first, end = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
-        if first < end:
-            _shade(out, src, depth, view, r, width, first, end, reach, cams, cone, fall, fog, dark, gain, fog_rgb,
-                   lamps, radius, lamp_rgb)
-            if contact.shape[1] > 1:
-                _reflect(out, src, depth, view, width, first, end, contact, wetness, road, tall)
+    """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
+    (_shade), then mirrored by a wet road (_reflect; contact of one entry: a dry road), row by row, top down. A
+    reflection falls on a pixel of the ground, drawn (ground) and drawn on by no object. The insets' borders have no
+    depth. Each helper is called once, not once a row: a call copies the references to its arrays."""
+    extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
+    for r in range(extents.shape[0]):
+        extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
+    _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
+           lamp_rgb)
+    if contact.shape[1] > 1:
+        _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall)
 
 
 @njit(cache=True, fastmath=FAST)
-def _shade(out, src, depth, view, r, width, first, end, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps,
-           radius, lamp_rgb):
-    """The object pixels of [first, end) (unsigned) of row r, from the renderer's colour and the object's distance d
-    along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t + fog_rgb x (1 - t),
-    t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables STEP a metre; fall
-    of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car frame], then the
-    distance along each view's axis of the pool's centre; `radius` [m] their radius). The colours are read into
-    locals first: the compiler cannot tell that writing `out` leaves them unchanged."""
+def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
+           lamp_rgb):
+    """The object pixels of each row r between extents[r] (first, end: unsigned), from the renderer's colour and
+    the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
+    fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
+    STEP a metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car
+    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). The colours
+    are read into locals first: the compiler cannot tell that writing `out` leaves them unchanged."""
     nf, nl = np.uint64(fall.shape[0] - 1), np.uint64(fog.shape[0] - 1)
     d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
     k0, k1, k2 = np.float64(gain[0]), np.float64(gain[1]), np.float64(gain[2])
     l0, l1, l2 = lamp_rgb[0], lamp_rgb[1], lamp_rgb[2]
     f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
     three = np.uint64(3)
-    for p in range(first, end):
-        d = depth[p]
-        if d >= FINITE:
-            continue
-        g0, g1, g2 = d0, d1, d2
-        if nf > 0:
-            h = cone[p] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
-            pool = 0.0
-            rx = ry = np.inf
-            v = view[p] if lamps.shape[0] else 0
-            for j in range(lamps.shape[0]):   # the street lamps' pools
-                if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
-                    continue
-                if rx == np.inf:   # the ray, once for the lamps near enough
-                    rx, ry, _ = ray(cams, v, r, np.int64(p) - r * width)
-                dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
-                f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
-                pool += f * f
-            g0 += k0 * h + l0 * pool
-            g1 += k1 * h + l1 * pool
-            g2 += k2 * h + l2 * pool
-        t, u = 1.0, 0.0
-        if nl > 0:
-            t = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
-            u = 1.0 - t
-        q = three * p
-        out[q] = np.uint8(min(src[q] * g0 * t + f0 * u, 255.0))
-        out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + f1 * u, 255.0))
-        out[q + 2] = np.uint8(min(src[q + 2] * g2 * t + f2 * u, 255.0))
+    for r in range(extents.shape[0]):
+        for p in range(extents[r, 0], extents[r, 1]):
+            d = depth[p]
+            if d >= FINITE:
+                continue
+            g0, g1, g2 = d0, d1, d2
+            if nf > 0:
+                h = cone[p] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
+                pool = 0.0
+                rx = ry = np.inf
+                v = view[p] if lamps.shape[0] else 0
+                for j in range(lamps.shape[0]):   # the street lamps' pools
+                    if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
+                        continue
+                    if rx == np.inf:   # the ray, once for the lamps near enough
+                        rx, ry, _ = ray(cams, v, r, np.int64(p) - r * width)
+                    dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
+                    f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
+                    pool += f * f
+                g0 += k0 * h + l0 * pool
+                g1 += k1 * h + l1 * pool
+                g2 += k2 * h + l2 * pool
+            t, u = 1.0, 0.0
+            if nl > 0:
+                t = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
+                u = 1.0 - t
+            q = three * p
+            out[q] = np.uint8(min(src[q] * g0 * t + f0 * u, 255.0))
+            out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + f1 * u, 255.0))
+            out[q + 2] = np.uint8(min(src[q + 2] * g2 * t + f2 * u, 255.0))
 
 
 @njit(cache=True, fastmath=FAST)
-def _reflect(out, src, depth, view, width, first, end, contact, wetness, road, tall):
-    """A wet road mirrors the objects standing on it: an object pixel of [first, end) (unsigned; one row r), at
-    distance d, shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each
-    distance along its axis, -1 where none), blended in by wetness[v, that row] where the renderer drew the asphalt
-    there (colour `road`, within a level: tested first, it fails most) and no object; tall: rows x metres above its
-    ground row beyond which an object pixel is not mirrored (the height of a car x the focal length: not the crowns
-    of trees). out holds the objects' colours."""
+def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall):
+    """A wet road mirrors the objects standing on it: an object pixel of row r (between extents[r]), at distance d,
+    shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each distance along its
+    axis, -1 where none), blended in by wetness[v, that row] where the renderer drew the asphalt there (colour
+    `road`, within a level) and no object; tall: rows x metres above its ground row beyond which an object pixel is
+    not mirrored (the height of a car x the focal length: not the crowns of trees). out holds the objects'
+    colours."""
     nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
-    r = np.int64(first) // width
     r0, r1, r2 = road[0], road[1], road[2]
-    for p in range(first, end):
-        d = depth[p]
-        if d >= FINITE:
-            continue
-        v = view[p]
-        g = contact[v, min(np.uint64(d * STEP), nc)]
-        target = 2 * g - r
-        if g < 0 or (g - r) * d > tall or target <= r or target >= height:
-            continue
-        tp = np.uint64(np.int64(p) + (target - r) * width)
-        tq, q = np.uint64(3) * tp, np.uint64(3) * p
-        if abs(np.int64(src[tq]) - r0) > 1 or abs(np.int64(src[tq + 1]) - r1) > 1 or \
-                abs(np.int64(src[tq + 2]) - r2) > 1 or depth[tp] < FINITE or view[tp] != v:
-            continue
-        a = wetness[v, target]
-        for i in range(3):
-            x = np.float32(out[tq + i])
-            out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))
+    for r in range(extents.shape[0]):
+        for p in range(extents[r, 0], extents[r, 1]):
+            d = depth[p]
+            if d >= FINITE:
+                continue
+            v = view[p]
+            g = contact[v, min(np.uint64(d * STEP), nc)]
+            target = 2 * g - r
+            if g < 0 or (g - r) * d > tall or target <= r or target >= height:
+                continue
+            tp = np.uint64(np.int64(p) + (target - r) * width)
+            tq, q = np.uint64(3) * tp, np.uint64(3) * p
+            if abs(np.int64(src[tq]) - r0) > 1 or abs(np.int64(src[tq + 1]) - r1) > 1 or \
+                    abs(np.int64(src[tq + 2]) - r2) > 1 or depth[tp] < FINITE or view[tp] != v:
+                continue
+            a = wetness[v, target]
+            for i in range(3):
+                x = np.float32(out[tq + i])
+                out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))
 
 
 @njit(cache=True, fastmath=FAST)
