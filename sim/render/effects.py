@@ -3,9 +3,9 @@ from the frame and its depth:
 
 - the ground (where no object was drawn and the ray goes down): the night's darkness and the host's headlights, the
   fog, all known from the pixel alone and computed once (sim/render/effect_kernels.py `ground`);
-- the objects (a finite depth): the same from their distance (`objects`, row by row, each row's object pixels
-  found and drawn in one go); at night the street lamps' pools light the ground and the objects near them
-  (`pools`); a wet road mirrors the objects standing on it (`objects` too, as each row is drawn);
+- the objects (a finite depth): the same from their distance (`objects`, found between each row's first and last
+  finite depth); at night the street lamps' pools light the ground and the objects near them (`pools`); a wet road
+  mirrors the objects standing on it (`objects` too, once they are drawn);
 - lights over the rest (sim/render/light_kernels.py): the cars' tail and head lights and the lamps, the sun's glare
   and its disc, the rain's streaks;
 - the sky is left as the renderer drew it, and the low sun's warm light is drawn by the renderer too: the world's
