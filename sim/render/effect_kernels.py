@@ -112,47 +112,55 @@ def _extent(depth, lo, hi):
 
 @njit(cache=True, fastmath=FAST)
 def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius, lamp_rgb,
-            contact, wetness, road, tall):
+            contact, wetness, road, tall, row_view):
     """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
     (_shade), then mirrored by a wet road (_reflect; contact of one entry: a dry road), row by row, top down. A
     reflection falls on a pixel of the ground, drawn (ground) and drawn on by no object. The insets' borders have no
-    depth. Each helper is called once, not once a row: a call copies the references to its arrays."""
+    depth. row_view: per row, the one view its pixels show (-1: several). Each helper is called once, not once a
+    row: a call copies the references to its arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
         extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
     _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
-           lamp_rgb)
+           lamp_rgb, row_view)
     if contact.shape[1] > 1:
         _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall)
 
 
 @njit(cache=True, fastmath=FAST)
 def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
-           lamp_rgb):
+           lamp_rgb, row_view):
     """The object pixels of each row r between extents[r] (first, end: unsigned), from the renderer's colour and
     the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
     fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
     STEP a metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car
     frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). The colours
-    are read into locals first: the compiler cannot tell that writing `out` leaves them unchanged."""
+    are read into locals first: the compiler cannot tell that writing `out` leaves them unchanged. In a row of one
+    view (row_view) the pools are summed first for the whole row, a lamp at a time (_row_pools: a loop the compiler
+    vectorises), the same sums in the same order as a pixel's own loop over the lamps."""
     nf, nl = np.uint64(fall.shape[0] - 1), np.uint64(fog.shape[0] - 1)
     d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
     k0, k1, k2 = np.float64(gain[0]), np.float64(gain[1]), np.float64(gain[2])
     l0, l1, l2 = lamp_rgb[0], lamp_rgb[1], lamp_rgb[2]
     f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
     three = np.uint64(3)
+    pools_ = np.empty(width)
     for r in range(extents.shape[0]):
-        for p in range(extents[r, 0], extents[r, 1]):
+        lo, hi = extents[r, 0], extents[r, 1]
+        whole = nf > 0 and lamps.shape[0] > 0 and row_view[r] >= 0 and hi > lo
+        if whole:
+            _row_pools(pools_, depth[lo:hi], r, np.int64(lo) - r * width, row_view[r], cams, lamps, radius)
+        for p in range(lo, hi):
             d = depth[p]
             if d >= FINITE:
                 continue
             g0, g1, g2 = d0, d1, d2
             if nf > 0:
                 h = cone[p] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
-                pool = 0.0
+                pool = pools_[p - lo] if whole else 0.0
                 rx = ry = np.inf
                 v = view[p] if lamps.shape[0] else 0
-                for j in range(lamps.shape[0]):   # the street lamps' pools
+                for j in range(0 if whole else lamps.shape[0]):   # the street lamps' pools
                     if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
                         continue
                     if rx == np.inf:   # the ray, once for the lamps near enough
@@ -171,6 +179,24 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
             out[q] = np.uint8(min(src[q] * g0 * t + f0 * u, 255.0))
             out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + f1 * u, 255.0))
             out[q + 2] = np.uint8(min(src[q + 2] * g2 * t + f2 * u, 255.0))
+
+
+@njit(cache=True, fastmath=FAST)
+def _row_pools(pool, depth, r, c0, v, cams, lamps, radius):
+    """The street lamps' pools (lamps as _shade has them) summed into pool[:n] for the n pixels of depth, row r of
+    view v from column c0: each lamp's (1 - distance^2 / radius^2)^2 where that is positive and the pixel is within
+    `radius` of the pool's centre along the view's axis, lamp after lamp (as _shade adds them a pixel)."""
+    n = depth.shape[0]
+    for i in range(n):
+        pool[i] = 0.0
+    for j in range(lamps.shape[0]):
+        lx, ly, ld = lamps[j, 0], lamps[j, 1], lamps[j, 2 + v]
+        for i in range(n):
+            d = depth[i]
+            rx, ry, _ = ray(cams, v, r, c0 + i)
+            dx, dy = cams[v, 0] + d * rx - lx, cams[v, 1] + d * ry - ly
+            f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
+            pool[i] += f * f if abs(d - ld) <= radius else 0.0
 
 
 @njit(cache=True, fastmath=FAST)

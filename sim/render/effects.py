@@ -137,7 +137,7 @@ class Effects:
         return (g.view, g.cams, bool(c.shades),
                 (self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb),
                 (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
-                 self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13])),
+                 self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view)),
                 (np.asarray(lamps.pools, dtype=np.float64).reshape(-1, 2),
                  np.asarray(lamps.heads, dtype=np.float64).reshape(-1, 2), float(lamps.height), self._lamp_glow,
                  self._rows, self._spots),
@@ -164,6 +164,12 @@ class Effects:
              self._frames, NO_CARS if cars is None or self.car_lights is None else cars, *self._tables)
         self._frames += 1
         return out
+
+
+def row_view(view: np.ndarray) -> np.ndarray:
+    """Per row of view (h, w), the one view its pixels show (the insets' borders aside), -1 where several or none."""
+    shown = np.where(view >= 0, view, view.max(axis=1, keepdims=True)).astype(np.int64)
+    return np.where((shown == shown[:, :1]).all(axis=1) & (view.max(axis=1) >= 0), shown[:, 0], -1)
 
 
 def glare_sprite(strength: float, focal: float) -> np.ndarray:
