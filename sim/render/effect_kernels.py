@@ -23,6 +23,7 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 STEP = 4.0          # table entries per metre of the distance tables (fog, headlights)
 TOP = np.float32(255.0)
 LIT = 64.0          # the headlights' light in a byte: 64 is 1, a byte reaches 4
+FAR = np.float32(1e6)   # [m] past every table's end (its index, at most 255 x STEP x this, fits a uint64)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -124,7 +125,7 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
     _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
            lamp_rgb, row_view)
     if contact.shape[1] > 1:
-        _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall)
+        _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall, row_view)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -134,51 +135,79 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
     the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
     fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
     STEP a metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car
-    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). The colours
-    are read into locals first: the compiler cannot tell that writing `out` leaves them unchanged. In a row of one
-    view (row_view) the pools are summed first for the whole row, a lamp at a time (_row_pools: a loop the compiler
-    vectorises), the same sums in the same order as a pixel's own loop over the lamps."""
+    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). A row in
+    three loops over its pixels: the tables read (t, the headlights' light), the pools summed (in a row of one view
+    (row_view) a lamp at a time: _row_pools, a loop the compiler vectorises; the same sums in the same order as a
+    pixel's own loop over the lamps), and the colours drawn (_shade_run, vectorised too)."""
     nf, nl = np.uint64(fall.shape[0] - 1), np.uint64(fog.shape[0] - 1)
-    d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
-    k0, k1, k2 = np.float64(gain[0]), np.float64(gain[1]), np.float64(gain[2])
-    l0, l1, l2 = lamp_rgb[0], lamp_rgb[1], lamp_rgb[2]
-    f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
-    three = np.uint64(3)
-    pools_ = np.empty(width)
+    cols = np.empty((3, 4))   # per channel: dark, gain, lamp_rgb, fog_rgb
+    for c in range(3):
+        cols[c, 0], cols[c, 1], cols[c, 2], cols[c, 3] = dark[c], gain[c], lamp_rgb[c], fog_rgb[c]
+    pool, lit, t = np.zeros(width), np.zeros(width), np.ones(width)
     for r in range(extents.shape[0]):
         lo, hi = extents[r, 0], extents[r, 1]
-        whole = nf > 0 and lamps.shape[0] > 0 and row_view[r] >= 0 and hi > lo
-        if whole:
-            _row_pools(pools_, depth[lo:hi], r, np.int64(lo) - r * width, row_view[r], cams, lamps, radius)
-        for p in range(lo, hi):
-            d = depth[p]
-            if d >= FINITE:
-                continue
-            g0, g1, g2 = d0, d1, d2
-            if nf > 0:
-                h = cone[p] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
-                pool = pools_[p - lo] if whole else 0.0
-                rx = ry = np.inf
-                v = view[p] if lamps.shape[0] else 0
-                for j in range(0 if whole else lamps.shape[0]):   # the street lamps' pools
-                    if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
-                        continue
-                    if rx == np.inf:   # the ray, once for the lamps near enough
-                        rx, ry, _ = ray(cams, v, r, np.int64(p) - r * width)
-                    dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
-                    f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
-                    pool += f * f
-                g0 += k0 * h + l0 * pool
-                g1 += k1 * h + l1 * pool
-                g2 += k2 * h + l2 * pool
-            t, u = 1.0, 0.0
-            if nl > 0:
-                t = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
-                u = 1.0 - t
-            q = three * p
-            out[q] = np.uint8(min(src[q] * g0 * t + f0 * u, 255.0))
-            out[q + 1] = np.uint8(min(src[q + 1] * g1 * t + f1 * u, 255.0))
-            out[q + 2] = np.uint8(min(src[q + 2] * g2 * t + f2 * u, 255.0))
+        if hi == lo:
+            continue
+        if nf > 0:
+            _lit_run(lit, depth[lo:hi], cone[lo:hi], fall)
+        if nl > 0:
+            _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
+        if nf > 0 and lamps.shape[0] and row_view[r] >= 0:
+            _row_pools(pool, depth[lo:hi], r, np.int64(lo) - r * width, row_view[r], cams, lamps, radius)
+        elif nf > 0 and lamps.shape[0]:
+            for p in range(lo, hi):
+                d = depth[p]
+                sum_ = 0.0
+                if d < FINITE:
+                    rx = ry = np.inf
+                    v = view[p]
+                    for j in range(lamps.shape[0]):   # the street lamps' pools
+                        if abs(d - lamps[j, 2 + v]) > radius:   # farther along the view's axis than the pool reaches
+                            continue
+                        if rx == np.inf:   # the ray, once for the lamps near enough
+                            rx, ry, _ = ray(cams, v, r, np.int64(p) - r * width)
+                        dx, dy = cams[v, 0] + d * rx - lamps[j, 0], cams[v, 1] + d * ry - lamps[j, 1]
+                        f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
+                        sum_ += f * f
+                pool[p - lo] = sum_
+        _shade_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, lit, pool, cols)
+
+
+@njit(cache=True, fastmath=FAST)
+def _lit_run(lit, depth, cone, fall):
+    # the headlights' light of a row's pixels, as arrays of their own (an index from an infinite depth is not
+    # defined: the depth capped at FAR, where every index is the table's last)
+    nf = np.uint64(fall.shape[0] - 1)
+    for i in range(depth.shape[0]):
+        d = min(depth[i], FAR)
+        lit[i] = cone[i] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
+
+
+@njit(cache=True, fastmath=FAST)
+def _fog_run(t, depth, reach, fog):
+    # the fog's transmittance of a row's pixels, as _lit_run
+    nl = np.uint64(fog.shape[0] - 1)
+    for i in range(depth.shape[0]):
+        d = min(depth[i], FAR)
+        t[i] = np.float64(fog[min(np.uint64(d * np.float32(reach[i]) * np.float32(STEP / 128.0)), nl)])
+
+
+@njit(cache=True, fastmath=FAST)
+def _shade_run(out, src, depth, t, lit, pool, cols):
+    # one row's pixels between its first and last object pixel, as arrays of their own (the compiler vectorises the
+    # loop only so); the others (an infinite depth) as they are
+    d0, d1, d2, k0, k1, k2 = cols[0, 0], cols[1, 0], cols[2, 0], cols[0, 1], cols[1, 1], cols[2, 1]
+    l0, l1, l2, f0, f1, f2 = cols[0, 2], cols[1, 2], cols[2, 2], cols[0, 3], cols[1, 3], cols[2, 3]
+    for i in range(depth.shape[0]):
+        h, s, ti = lit[i], pool[i], t[i]
+        u = 1.0 - ti
+        keep = np.uint8(depth[i] >= FINITE) * np.uint8(255)   # all ones where no object: the byte kept
+        c0 = np.uint8(min(src[3 * i] * (d0 + (k0 * h + l0 * s)) * ti + f0 * u, 255.0))
+        c1 = np.uint8(min(src[3 * i + 1] * (d1 + (k1 * h + l1 * s)) * ti + f1 * u, 255.0))
+        c2 = np.uint8(min(src[3 * i + 2] * (d2 + (k2 * h + l2 * s)) * ti + f2 * u, 255.0))
+        out[3 * i] = (out[3 * i] & keep) | (c0 & ~keep)
+        out[3 * i + 1] = (out[3 * i + 1] & keep) | (c1 & ~keep)
+        out[3 * i + 2] = (out[3 * i + 2] & keep) | (c2 & ~keep)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -200,17 +229,47 @@ def _row_pools(pool, depth, r, c0, v, cams, lamps, radius):
 
 
 @njit(cache=True, fastmath=FAST)
-def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall):
+def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall, row_view):
     """A wet road mirrors the objects standing on it: an object pixel of row r (between extents[r]), at distance d,
     shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each distance along its
     axis, -1 where none), blended in by wetness[v, that row] where the renderer drew the asphalt there (colour
     `road`, within a level) and no object; tall: rows x metres above its ground row beyond which an object pixel is
     not mirrored (the height of a car x the focal length: not the crowns of trees). out holds the objects'
-    colours."""
+    colours. In a row of one view (row_view) each pixel's target row is found first, then each run of pixels with
+    the same one is mirrored by _mirror_run (a loop the compiler vectorises), the same blend a pixel."""
     nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
     r0, r1, r2 = road[0], road[1], road[2]
+    targets = np.empty(width, dtype=np.int64)
     for r in range(extents.shape[0]):
-        for p in range(extents[r, 0], extents[r, 1]):
+        lo, hi, v = extents[r, 0], extents[r, 1], row_view[r]
+        if v >= 0:
+            for p in range(lo, hi):   # each pixel's target row, -1: none
+                d = depth[p]
+                t = -1
+                if d < FINITE:
+                    g = contact[v, min(np.uint64(d * STEP), nc)]
+                    if g >= 0 and (g - r) * d <= tall and r < 2 * g - r < height:
+                        t = 2 * g - r
+                targets[p - lo] = t
+            i, n = 0, np.int64(hi - lo)
+            while i < n:
+                t, j = targets[i], i + 1
+                while j < n and targets[j] == t:
+                    j += 1
+                if t >= 0:
+                    p0, p1 = np.int64(lo) + i, np.int64(lo) + j
+                    e = (t - r) * width
+                    wt = wetness[v, t]
+                    for q in range(np.uint64(p0 + e), np.uint64(p1 + e)):
+                        ok = (abs(np.int64(src[3 * q]) - r0) <= 1) & (abs(np.int64(src[3 * q + 1]) - r1) <= 1) & \
+                            (abs(np.int64(src[3 * q + 2]) - r2) <= 1) & (depth[q] >= FINITE) & (view[q] == v)
+                        if ok:
+                            for c in range(3):
+                                x = np.float32(out[3 * q + c])
+                                out[3 * q + c] = np.uint8(x + wt * (np.float32(out[3 * (q - e) + c]) - x))
+                i = j
+            continue
+        for p in range(lo, hi):
             d = depth[p]
             if d >= FINITE:
                 continue
@@ -228,6 +287,20 @@ def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall
             for i in range(3):
                 x = np.float32(out[tq + i])
                 out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))
+
+
+@njit(cache=True, fastmath=FAST)
+def _mirror_run(dst, obj, under, depth, view, v, a, r0, r1, r2):
+    # one run of a row's object pixels (obj) mirrored onto the pixels dst of one row below, as arrays of their own
+    # (the compiler vectorises the loop only so): blended by a where the renderer drew the asphalt (under: within a
+    # level of r0, r1, r2), no object and view v; elsewhere a blend by 0 leaves dst as it is
+    for i in range(depth.shape[0]):
+        ok = (abs(np.int64(under[3 * i]) - r0) <= 1) & (abs(np.int64(under[3 * i + 1]) - r1) <= 1) & \
+            (abs(np.int64(under[3 * i + 2]) - r2) <= 1) & (depth[i] >= FINITE) & (view[i] == v)
+        w = a if ok else np.float32(0.0)
+        for c in range(3):
+            x = np.float32(dst[3 * i + c])
+            dst[3 * i + c] = np.uint8(x + w * (np.float32(obj[3 * i + c]) - x))
 
 
 @njit(cache=True, fastmath=FAST)
