@@ -91,6 +91,16 @@ def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
     copy(out, src, np.uint64(3 * done), np.uint64(src.shape[0]))
 
 
+@njit(cache=True, error_model="numpy")
+def falloff(d, last, reach):
+    """The headlights' falloff at a distance d [m] as Effects' table has it (STEP entries a metre, the last at
+    index `last`, for a beam of `reach` [m]): 1 / (1 + (x / reach)^2) at d's entry's x = k / STEP, in float32.
+    Strict maths (no fast flags): numpy's operations in numpy's order, so the table's very value."""
+    x = min(np.floor(d * STEP), last) / STEP
+    q = x / reach
+    return np.float32(1.0 / (1.0 + q * q))
+
+
 @njit(cache=True)
 def copy(out, src, lo, hi):
     """src[lo:hi] into out[lo:hi] (lo, hi unsigned: a loop the compiler turns into a block copy; numba's slice
@@ -113,24 +123,25 @@ def _extent(depth, lo, hi):
 
 @njit(cache=True, fastmath=FAST)
 def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius, lamp_rgb,
-            contact, wetness, road, tall, row_view):
+            contact, wetness, road, tall, row_view, beam_reach):
     """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
     (_shade), then mirrored by a wet road (_reflect; contact of one entry: a dry road), row by row, top down. A
     reflection falls on a pixel of the ground, drawn (ground) and drawn on by no object. The insets' borders have no
-    depth. row_view: per row, the one view its pixels show (-1: several). Each helper is called once, not once a
-    row: a call copies the references to its arrays."""
+    depth. row_view: per row, the one view its pixels show (-1: several); beam_reach: the reach [m] the falloff
+    table `fall` was built with. Each helper is called once, not once a row: a call copies the references to its
+    arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
         extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
     _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
-           lamp_rgb, row_view)
+           lamp_rgb, row_view, beam_reach)
     if contact.shape[1] > 1:
         _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall, row_view)
 
 
 @njit(cache=True, fastmath=FAST)
 def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
-           lamp_rgb, row_view):
+           lamp_rgb, row_view, beam_reach):
     """The object pixels of each row r between extents[r] (first, end: unsigned), from the renderer's colour and
     the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
     fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
@@ -149,7 +160,7 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
         if hi == lo:
             continue
         if nf > 0:
-            _lit_run(lit, depth[lo:hi], cone[lo:hi], fall)
+            _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
         if nl > 0:
             _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
         if nf > 0 and lamps.shape[0] and row_view[r] >= 0:
@@ -173,14 +184,13 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
         _shade_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, lit, pool, cols)
 
 
-@njit(cache=True, fastmath=FAST)
-def _lit_run(lit, depth, cone, fall):
-    # the headlights' light of a row's pixels, as arrays of their own (an index from an infinite depth is not
-    # defined: the depth capped at FAR, where every index is the table's last)
-    nf = np.uint64(fall.shape[0] - 1)
+@njit(cache=True, error_model="numpy")   # no test for a division by zero: the loop is vectorised only so
+def _lit_run(lit, depth, cone, last, beam_reach):
+    # the headlights' light of a row's pixels, as arrays of their own: the falloff computed (strict maths), not
+    # read from its table, so that the compiler vectorises the loop (an infinite depth: capped at FAR, where the
+    # falloff is the table's last entry's)
     for i in range(depth.shape[0]):
-        d = min(depth[i], FAR)
-        lit[i] = cone[i] * (1.0 / LIT) * fall[min(np.uint64(d * STEP), nf)]
+        lit[i] = cone[i] * (1.0 / LIT) * falloff(min(depth[i], FAR), last, beam_reach)
 
 
 @njit(cache=True, fastmath=FAST)

@@ -57,7 +57,7 @@ class Effects:
         self._streak = 1.0 if c.wetness else 0.0   # a wet road streaks the lights' reflections
         self._fog_rgb = (np.asarray(c.fog_rgb, dtype=np.float64) * 255.0).astype(np.float32)
         d = np.arange(int(400 * STEP) + 1) / STEP   # the distance tables, STEP entries a metre
-        fall = 1.0 / (1.0 + (d / max(c.headlight_reach, 1e-3)) ** 2) if c.night >= 0 else np.zeros(1)
+        fall = 1.0 / (1.0 + (d / self._beam[2]) ** 2) if c.night >= 0 else np.zeros(1)   # as falloff() has it
         self._fall = fall.astype(np.float32)
         self._fog_table = (np.exp(-c.density * d) if c.density > 0 else np.ones(1)).astype(np.float32)
         self._view = g.view.reshape(-1)
@@ -137,7 +137,8 @@ class Effects:
         return (g.view, g.cams, bool(c.shades),
                 (self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb),
                 (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
-                 self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view)),
+                 self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view),
+                 float(self._beam[2])),
                 (np.asarray(lamps.pools, dtype=np.float64).reshape(-1, 2),
                  np.asarray(lamps.heads, dtype=np.float64).reshape(-1, 2), float(lamps.height), self._lamp_glow,
                  self._rows, self._spots),

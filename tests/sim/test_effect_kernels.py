@@ -6,12 +6,18 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import numpy as np
+
 from core.conditions import CONDITIONS
+from sim.highway.conditions import draw_condition
+from sim.highway.renderer import Renderer
 from sim.render import light_kernels
+from sim.render.effect_kernels import STEP, falloff
 from sim.render.light_kernels import KERNELS, draw, drop_stale_draw
 from sim.sidewalk.config import SidewalkConfig, StereoConfig
 from sim.sidewalk.world import SidewalkWorld
-from tests.sim.test_conditions import frame
+from sim.track import load_track
+from tests.sim.test_conditions import LIT_SEED, frame, one_car
 
 SOURCE = Path(light_kernels.__file__).parent
 
@@ -43,3 +49,44 @@ def test_draws_cached_code_goes_when_either_kernel_file_changes(tmp_path):
     (tmp_path / "effect_kernels.py").write_text((tmp_path / "effect_kernels.py").read_text() + "\n# changed\n")
     drop_stale_draw(tmp_path)
     assert not compiled.exists() and own.exists()
+
+
+def test_the_headlights_falloff_computed_is_its_tables_value():
+    """The objects' headlights compute the falloff (a loop the compiler vectorises) that Effects' table holds."""
+    rng = np.random.default_rng(0)
+    d = np.arange(int(400 * STEP) + 1) / STEP
+    at = np.r_[rng.uniform(0.0, 420.0, 2000), d, np.nextafter(d, -1.0), 1e6].astype(np.float32)
+    at = np.maximum(at, 0.0)
+    for reach in (1e-3, 7.3, 35.0, 61.37, 150.0):
+        table = (1.0 / (1.0 + (d / reach) ** 2)).astype(np.float32)
+        want = table[np.minimum((at.astype(np.float64) * STEP).astype(np.uint64), len(table) - 1)]
+        got = np.array([falloff(a, float(len(table) - 1), reach) for a in at], dtype=np.float32)
+        assert np.array_equal(got, want), reach
+
+
+def test_a_rows_shading_and_reflections_at_once_are_a_pixels_own():
+    """A row of one view is shaded and mirrored a whole row at a time; drawn pixel by pixel (every row as one of
+    several views) its pixels are the same, at night on a lit road (the lamps' light on the cars) and in rain."""
+    track = load_track("oval", lanes=2)
+    d = float(track.lane_centres[1])
+    for name in ("night", "rain"):
+        r = Renderer(track, LIT_SEED, None, "numba", condition=draw_condition(name, LIT_SEED))
+        try:
+            effects = r.effects.effects
+            for s in (25.0, 140.0):
+                x, y, yaw = track.pose(s, d)
+                cars = one_car(track, s + 9.0, d)
+                frames = []
+                for rows in (None, -1):
+                    if rows is not None:
+                        tables = list(effects._tables)
+                        objects = list(tables[4])
+                        objects[10] = np.full_like(objects[10], rows)
+                        tables[4] = tuple(objects)
+                        effects._tables = tuple(tables)
+                    effects._frames = 0
+                    frames.append(r.render(x, y, yaw, cars))
+                assert np.array_equal(frames[0], frames[1]), (name, s)
+                effects._tables = effects._groups()
+        finally:
+            r.close()
