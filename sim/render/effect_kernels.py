@@ -155,6 +155,7 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
     for c in range(3):
         cols[c, 0], cols[c, 1], cols[c, 2], cols[c, 3] = dark[c], gain[c], lamp_rgb[c], fog_rgb[c]
     pool, lit, t = np.zeros(width), np.zeros(width), np.ones(width)
+    at_x, at_y = np.empty(width), np.empty(width)
     for r in range(extents.shape[0]):
         lo, hi = extents[r, 0], extents[r, 1]
         if hi == lo:
@@ -164,7 +165,7 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
         if nl > 0:
             _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
         if nf > 0 and lamps.shape[0] and row_view[r] >= 0:
-            _row_pools(pool, depth[lo:hi], r, np.int64(lo) - r * width, row_view[r], cams, lamps, radius)
+            _row_pools(pool, at_x, at_y, depth[lo:hi], r, np.int64(lo) - r * width, row_view[r], cams, lamps, radius)
         elif nf > 0 and lamps.shape[0]:
             for p in range(lo, hi):
                 d = depth[p]
@@ -221,19 +222,21 @@ def _shade_run(out, src, depth, t, lit, pool, cols):
 
 
 @njit(cache=True, fastmath=FAST)
-def _row_pools(pool, depth, r, c0, v, cams, lamps, radius):
+def _row_pools(pool, at_x, at_y, depth, r, c0, v, cams, lamps, radius):
     """The street lamps' pools (lamps as _shade has them) summed into pool[:n] for the n pixels of depth, row r of
-    view v from column c0: each lamp's (1 - distance^2 / radius^2)^2 where that is positive and the pixel is within
-    `radius` of the pool's centre along the view's axis, lamp after lamp (as _shade adds them a pixel)."""
+    view v from column c0 (at_x, at_y: room for the points they show): each lamp's (1 - distance^2 / radius^2)^2
+    where that is positive and the pixel is within `radius` of the pool's centre along the view's axis, lamp after
+    lamp (as _shade adds them a pixel)."""
     n = depth.shape[0]
-    for i in range(n):
+    for i in range(n):   # the point each pixel shows, once for all the lamps
         pool[i] = 0.0
+        rx, ry, _ = ray(cams, v, r, c0 + i)
+        at_x[i], at_y[i] = cams[v, 0] + depth[i] * rx, cams[v, 1] + depth[i] * ry
     for j in range(lamps.shape[0]):
         lx, ly, ld = lamps[j, 0], lamps[j, 1], lamps[j, 2 + v]
         for i in range(n):
             d = depth[i]
-            rx, ry, _ = ray(cams, v, r, c0 + i)
-            dx, dy = cams[v, 0] + d * rx - lx, cams[v, 1] + d * ry - ly
+            dx, dy = at_x[i] - lx, at_y[i] - ly
             f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
             pool[i] += f * f if abs(d - ld) <= radius else 0.0
 
@@ -314,14 +317,17 @@ def _mirror_run(dst, obj, under, depth, view, v, a, r0, r1, r2):
 
 
 @njit(cache=True, fastmath=FAST)
-def _pool_run(out, src, depth, ex, ey, bx, by, r2, rgb):
-    # one row's pixels inside one disc, as arrays of their own (the compiler vectorises the loop only so)
+def _pool_run(out, src, depth, ex, ey, bx, by, r2, rgb3, f3):
+    # one row's pixels inside one disc, as arrays of their own (the compiler vectorises the loops only so): the
+    # disc's light a pixel, 3 times over (f3), then the bytes in a row, the colour's channels repeated in rgb3 (a
+    # loop over the bytes runs faster than one over the pixels and their 3 channels)
     for i in range(depth.shape[0]):
         dx, dy = ex + i * bx, ey + i * by
         f = max(0.0, 1.0 - (dx * dx + dy * dy) / r2)
         f = f * f * (depth[i] == INF)
-        for c in range(3):
-            out[3 * i + c] = np.uint8(min(TOP, out[3 * i + c] + src[3 * i + c] * f * rgb[c]))
+        f3[3 * i], f3[3 * i + 1], f3[3 * i + 2] = f, f, f
+    for k in range(out.shape[0]):
+        out[k] = np.uint8(min(TOP, out[k] + src[k] * f3[k] * rgb3[k]))
 
 
 @njit(cache=True, fastmath=FAST)
@@ -332,6 +338,12 @@ def pools(out, src, depth, rows, spots, lamps, reach, rgb):
     car-frame point [m] of the first pixel's ground and its step a pixel along the row (a row's ground points lie
     on a line): only the pixels inside a disc are visited."""
     r2 = reach * reach
+    n = 0
+    for k in range(rows.shape[0]):
+        n = max(n, rows[k, 1] - rows[k, 0])
+    f3, rgb3 = np.empty(3 * n), np.empty(3 * n)
+    for i in range(n):
+        rgb3[3 * i], rgb3[3 * i + 1], rgb3[3 * i + 2] = rgb[0], rgb[1], rgb[2]
     for k in range(rows.shape[0]):
         p0, p1 = rows[k, 0], rows[k, 1]
         ax, ay, bx, by = spots[k, 0], spots[k, 1], spots[k, 2], spots[k, 3]
@@ -348,4 +360,4 @@ def pools(out, src, depth, rows, spots, lamps, reach, rgb):
             if hi > lo:
                 i = lo - p0
                 _pool_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], ex + i * bx, ey + i * by, bx, by,
-                          r2, rgb)
+                          r2, rgb3, f3)
