@@ -2,6 +2,9 @@
 import functools
 import os
 import signal
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -15,13 +18,16 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 
 
 def pytest_configure(config):
-    """The default renderer's kernels and the stereo renderer's compile once (about 20 s each on a fresh clone, then
-    numba's cache), here in the process that starts pytest's workers, before any of them renders."""
+    """The default renderer's kernels and the stereo renderer's compile once (about 30 and 15 s on a fresh clone, then
+    numba's cache), here in the process that starts pytest's workers, before any of them renders; side by side, since
+    numba compiles on one thread."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         from sim.highway.kernels import compile_numba_kernels
-        from sim.sidewalk.kernels import compile_stereo_kernels
+        stereo = subprocess.Popen([sys.executable, "-c", "from sim.sidewalk.kernels import compile_stereo_kernels as "
+                                   "c; c()"], cwd=Path(__file__).resolve().parents[1])
         compile_numba_kernels()
-        compile_stereo_kernels()
+        if stereo.wait() != 0:
+            raise pytest.UsageError("the stereo renderer's kernels did not compile (see above)")
 
 
 @pytest.fixture

@@ -1,18 +1,24 @@
 """Aggregation rounds drive what the model learned from (drivestudio/worlds/highway/aggregation.py `expert_plan`):
 the expert dataset's lane counts, its named tracks and its named conditions, so that a driver trained on a protocol's
 training split never meets the protocol's new split in its rounds, and the rounds' frames merge with the expert's."""
+import json
+
 import pytest
 
 from drivestudio.worlds.highway.aggregation import AggregationConfig, drive_options, expert_plan
+from perception.shards import MANIFEST
 
 
-@pytest.fixture(scope="module")
-def expert(tmp_path_factory):
-    from drivestudio.cli import main
-    out = tmp_path_factory.mktemp("expert") / "data"
-    assert main(["generate", "--out", str(out), "--frames", "20", "--episode-frames", "10", "--workers", "1",
-                 "--cars", "2", "--lanes", "2", "--condition", "night,rain", "--tracks",
-                 "oval,procedural:651002"]) == 0
+@pytest.fixture
+def expert(tmp_path):
+    """A dataset whose plan named its lane counts, tracks and conditions: the shared test dataset's frames with its
+    manifest's plan as `generate --lanes 2 --tracks oval,procedural:651002 --condition night,rain` records it."""
+    from tests.perception.frames import dataset
+    manifest = json.loads((dataset() / MANIFEST).read_text())
+    manifest["config"]["options"].update(lanes=[2], tracks=["oval", "procedural:651002"], condition="night,rain")
+    out = tmp_path / "expert"
+    out.mkdir()
+    (out / MANIFEST).write_text(json.dumps(manifest))
     return out
 
 

@@ -114,10 +114,12 @@ class AggregationPlugin(HighwayPlugin):
 
 
 # --- the rounds -------------------------------------------------------------------------------------------------
-def benchmark_tracks() -> set[tuple[str, int]]:
-    """(track, lanes) of every route of the shipped suites: aggregation never drives them."""
-    return {(r.track_ref or r.track, r.lanes) for path in sorted(SUITES_DIR.glob("*.json"))
-            for r in load_suite(path).routes}
+@functools.cache
+def benchmark_tracks() -> frozenset[tuple[str, int]]:
+    """(track, lanes) of every route of the shipped suites: aggregation never drives them (read once a process: the
+    suites' checks build every route's track)."""
+    return frozenset((r.track_ref or r.track, r.lanes) for path in sorted(SUITES_DIR.glob("*.json"))
+                     for r in load_suite(path).routes)
 
 
 def expert_plan(data: str) -> dict:
