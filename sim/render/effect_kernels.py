@@ -146,22 +146,39 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
     the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
     fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
     STEP a metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car
-    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). A row in
-    three loops over its pixels: the tables read (t, the headlights' light), the pools summed (in a row of one view
-    (row_view) a lamp at a time: _row_pools, a loop the compiler vectorises; the same sums in the same order as a
-    pixel's own loop over the lamps), and the colours drawn (_shade_run, vectorised too)."""
+    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). By day a
+    row's object pixels in one loop; at night a row in three loops over its pixels: the tables read (t, the
+    headlights' light), the pools summed (in a row of one view (row_view) a lamp at a time: _row_pools, a loop the
+    compiler vectorises; the same sums in the same order as a pixel's own loop over the lamps), and the colours drawn
+    (_shade_run, vectorised too)."""
     nf, nl = np.uint64(fall.shape[0] - 1), np.uint64(fog.shape[0] - 1)
     cols = np.empty((3, 4))   # per channel: dark, gain, lamp_rgb, fog_rgb
     for c in range(3):
         cols[c, 0], cols[c, 1], cols[c, 2], cols[c, 3] = dark[c], gain[c], lamp_rgb[c], fog_rgb[c]
     pool, lit, t = np.zeros(width), np.zeros(width), np.ones(width)
     at_x, at_y = np.empty(width), np.empty(width)
+    d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
+    f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
+    three = np.uint64(3)
     for r in range(extents.shape[0]):
         lo, hi = extents[r, 0], extents[r, 1]
         if hi == lo:
             continue
-        if nf > 0:
-            _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
+        if nf == 0:   # by day (the fog alone): one pass over the object pixels costs less in a frame's loop
+            for p in range(lo, hi):
+                d = depth[p]
+                if d >= FINITE:
+                    continue
+                t0, u = 1.0, 0.0
+                if nl > 0:
+                    t0 = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
+                    u = 1.0 - t0
+                q = three * p
+                out[q] = np.uint8(min(src[q] * d0 * t0 + f0 * u, 255.0))
+                out[q + 1] = np.uint8(min(src[q + 1] * d1 * t0 + f1 * u, 255.0))
+                out[q + 2] = np.uint8(min(src[q + 2] * d2 * t0 + f2 * u, 255.0))
+            continue
+        _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
         if nl > 0:
             _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
         if nf > 0 and lamps.shape[0] and row_view[r] >= 0:
