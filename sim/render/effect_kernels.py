@@ -290,13 +290,13 @@ def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall
                     p0, p1 = np.int64(lo) + i, np.int64(lo) + j
                     e = (t - r) * width
                     wt = wetness[v, t]
-                    for q in range(np.uint64(p0 + e), np.uint64(p1 + e)):
-                        ok = (abs(np.int64(src[3 * q]) - r0) <= 1) & (abs(np.int64(src[3 * q + 1]) - r1) <= 1) & \
-                            (abs(np.int64(src[3 * q + 2]) - r2) <= 1) & (depth[q] >= FINITE) & (view[q] == v)
+                    for at in range(np.uint64(p0 + e), np.uint64(p1 + e)):
+                        ok = (abs(np.int64(src[3 * at]) - r0) <= 1) & (abs(np.int64(src[3 * at + 1]) - r1) <= 1) & \
+                            (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (view[at] == v)
                         if ok:
                             for c in range(3):
-                                x = np.float32(out[3 * q + c])
-                                out[3 * q + c] = np.uint8(x + wt * (np.float32(out[3 * (q - e) + c]) - x))
+                                x = np.float32(out[3 * at + c])
+                                out[3 * at + c] = np.uint8(x + wt * (np.float32(out[3 * (at - e) + c]) - x))
                 i = j
             continue
         for p in range(lo, hi):
