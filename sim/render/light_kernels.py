@@ -7,7 +7,6 @@ where its image is in the frame.
 """
 from __future__ import annotations
 
-import hashlib
 import math
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from sim.render.effect_kernels import FAST, copy, ground, objects, pools
+from sim.render.kernel_cache import drop_stale
 
 FAR = 200.0         # [m] lights and lamps farther from the host are not drawn
 LIT_OBJECTS = 45.0  # [m] the street lamps light the objects near their pools nearer than this (farther: a few pixels)
@@ -24,20 +24,9 @@ KERNELS = ("effect_kernels.py", "light_kernels.py")   # draw's code and the code
 
 
 def drop_stale_draw(folder: Path = Path(__file__).parent) -> None:
-    """numba keeps a function's compiled code while the function's own file is unchanged, even when a function of
-    another file that it calls has changed: this file's cached code (draw holds effect_kernels.py's) is dropped when
-    either file has changed since it was compiled (a source tree being edited; an installed one never changes)."""
-    stamp = hashlib.sha1(b"".join((folder / f).read_bytes() for f in KERNELS)).hexdigest()
-    cache, mark = folder / "__pycache__", folder / "__pycache__" / "effect-kernels.sha1"
-    if mark.is_file() and mark.read_text() == stamp:
-        return
-    try:
-        for f in cache.glob("light_kernels.*.nb[ic]"):
-            f.unlink(missing_ok=True)
-        cache.mkdir(exist_ok=True)
-        mark.write_text(stamp)
-    except OSError:   # a folder this process cannot write: numba caches elsewhere, or not at all
-        pass
+    """This file's cached code (draw holds effect_kernels.py's) is dropped when either file has changed
+    (sim/render/kernel_cache.py)."""
+    drop_stale(folder, KERNELS, "light_kernels.*", "effect-kernels.sha1")
 
 
 drop_stale_draw()

@@ -8,7 +8,6 @@ for pixel but for a rare pixel at an edge, at a fraction of the time.
 """
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.camera import CameraConfig
+from sim.render.kernel_cache import drop_stale
 from sim.render.lighting import base_colour
 from sim.render.raster_view import draw_frame, draw_view
 from sim.scene import Chunk, Look
@@ -25,20 +25,8 @@ NO_DEPTH = np.zeros((0, 0), dtype=np.float32)   # draw_frame's depth when none i
 
 
 def drop_stale_kernels(folder: Path = Path(__file__).parent) -> None:
-    """numba keeps a function's compiled code while the function's own file is unchanged, even when a function of
-    another file that it calls has changed: the kernels' cached code is dropped together when any of their files has
-    changed since it was compiled (a source tree being edited; an installed one never changes)."""
-    stamp = hashlib.sha1(b"".join((folder / f).read_bytes() for f in KERNELS)).hexdigest()
-    cache, mark = folder / "__pycache__", folder / "__pycache__" / "raster-kernels.sha1"
-    if mark.is_file() and mark.read_text() == stamp:
-        return
-    try:
-        for f in cache.glob("raster_*.nb[ic]"):
-            f.unlink(missing_ok=True)
-        cache.mkdir(exist_ok=True)
-        mark.write_text(stamp)
-    except OSError:   # a folder this process cannot write: numba caches elsewhere, or not at all
-        pass
+    """The kernels' cached code is dropped together when any of their files has changed (sim/render/kernel_cache.py)."""
+    drop_stale(folder, KERNELS, "raster_*", "raster-kernels.sha1")
 
 
 drop_stale_kernels()
