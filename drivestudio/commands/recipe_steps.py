@@ -28,7 +28,7 @@ class RecipeRun:
 
 @dataclass(frozen=True)
 class RecipePlan(RecipeRun):
-    """...then what the driver learns from (docs/benchmark.md, the generalisation protocol), as --set settings."""
+    """...then what the driver learns from (docs/generalisation.md), as --set settings."""
 
     condition: str = setting(SEEDED, "the named conditions of the expert's frames: one, or a mix, each episode "
                                      "drawing one (docs/conditions.md)", choices=CONDITIONS, several=True)

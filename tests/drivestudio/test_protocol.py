@@ -1,6 +1,6 @@
-"""The generalisation protocol (docs/benchmark.md): the shipped split is the one its seed draws, every cell drives its
-split's routes in each of its conditions with its traffic, bad protocol files get one line and exit status 2 before
-any work, and a run writes one table with the oracles' rows first."""
+"""The generalisation protocol (docs/generalisation.md): the shipped split is the one its seed draws, every cell
+drives its split's routes in each of its conditions with its traffic, bad protocol files get one line and exit
+status 2 before any work, and a run writes one table with the oracles' rows first."""
 from __future__ import annotations
 
 import csv

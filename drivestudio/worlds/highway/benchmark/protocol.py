@@ -1,7 +1,7 @@
-"""The generalisation protocol (docs/benchmark.md, "The generalisation protocol"): does a driver read the road, or
-this renderer's look and these tracks? The named conditions split into training and new ones, the tracks (presets and
-procedural seeds) into training and new ones, traffic into empty, regular and dense; every combination is a cell, a
-small suite of routes driven in the cell's conditions, and each model gets a driving score, a success rate and
+"""The generalisation protocol (docs/generalisation.md): does a driver read the road, or this renderer's look and
+these tracks? The named conditions split into training and new ones, the tracks (presets and procedural seeds) into
+training and new ones, traffic into empty, regular and dense; every combination is a cell, a small suite of routes
+driven in the cell's conditions, and each model gets a driving score, a success rate and
 collisions and off-road events per km per cell (as CARLA's NoCrash reports success per weather, town and traffic).
 
 The protocol file (assets/protocols/generalisation.json is the shipped one):
