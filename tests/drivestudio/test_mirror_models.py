@@ -140,8 +140,9 @@ def test_generate_records_the_mirror_and_such_data_does_not_merge_with_data_with
     assert Dataset(tmp_path / "mirror").declaration.cameras[0].inset == "mirror"
     assert Dataset(tmp_path / "plain").declaration.cameras[0].inset == ""
     assert Dataset(tmp_path / "sides").declaration.cameras[0].inset == "mirror+sides"   # side_views: the mirror too
-    from drivestudio.worlds.highway.aggregation import expert_lanes
-    assert expert_lanes(str(tmp_path / "mirror")) == [2, 4] and expert_lanes(str(tmp_path / "plain")) == [1, 2, 3]
+    from drivestudio.worlds.highway.aggregation import expert_plan
+    assert expert_plan(str(tmp_path / "mirror"))["lanes"] == [2, 4]
+    assert expert_plan(str(tmp_path / "plain"))["lanes"] == [1, 2, 3]
     with pytest.raises(DatasetError, match="another world or camera"):
         merge(tmp_path / "merged", [Source(tmp_path / "plain"), Source(tmp_path / "mirror")], log=lambda *a: None)
     with pytest.raises(DatasetError, match="another world or camera"):
