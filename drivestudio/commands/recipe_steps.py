@@ -52,8 +52,12 @@ def training_plan(run: RecipePlan) -> list[str]:
 
 
 def load(protocol: str):
-    from drivestudio.worlds.highway.benchmark.protocol import load_protocol  # lazy: the world's benchmark
-    return load_protocol(protocol)
+    """The protocol a recipe's `protocol` setting names; its refusal names the setting, not the benchmark's flag."""
+    from drivestudio.worlds.highway.benchmark.protocol import ProtocolError, load_protocol  # lazy: the benchmark
+    try:
+        return load_protocol(protocol)
+    except ProtocolError as e:
+        raise ProtocolError(str(e).replace("--protocol ", "--set protocol=", 1)) from None
 
 
 class Steps:

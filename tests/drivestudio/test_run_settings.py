@@ -121,6 +121,12 @@ def test_a_recipes_protocol_sets_its_datasets_conditions_and_tracks(first_step, 
     assert not set(argv) & {*protocol.conditions["new"], *protocol.tracks["new"]}
 
 
+def test_a_recipes_unknown_protocol_is_refused_naming_the_setting(run_cli, tmp_path):
+    r = run_cli("recipe", "--out", tmp_path / "r", "--set", "protocol=nocrash")
+    assert r.returncode == 2 and "--set protocol='nocrash': no such protocol" in r.stderr, r.stderr
+    assert not (tmp_path / "r").exists()
+
+
 def test_a_recipes_condition_mix_reaches_its_dataset_and_the_seeded_look_adds_nothing(first_step, tmp_path):
     seen = first_step("recipe")
     _started("recipe", "--quick", "--out", tmp_path / "r", "--set", "condition=fog,night", "--set", "tracks=oval")
