@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+SLACK = 1e-6   # [m] far above the rounding of a projection (about 1e-13 m at 1 km), far below any gap that matters
+
 
 def _corners(x, y, yaw, length, width) -> np.ndarray:
     """(n, 4, 2) corners of rectangles centred at (x, y) [m], turned by yaw [rad]."""
@@ -16,6 +18,16 @@ def _corners(x, y, yaw, length, width) -> np.ndarray:
                     axis=-1)
 
 
+def _apart_along_a(a, b: np.ndarray) -> np.ndarray:
+    """Which rectangles b (m, 5) lie clear of a along one of a's own axes by more than SLACK: their bounding circles
+    already do, so the separating-axis test would find that axis too. A car in the next lane is such a case, and
+    this test costs a fraction of the full one."""
+    c, s = np.cos(a[2]), np.sin(a[2])
+    dx, dy = b[:, 0] - a[0], b[:, 1] - a[1]
+    rb = np.hypot(b[:, 3], b[:, 4]) / 2
+    return (np.abs(dx * c + dy * s) > a[3] / 2 + rb + SLACK) | (np.abs(dy * c - dx * s) > a[4] / 2 + rb + SLACK)
+
+
 def overlaps(a, others: np.ndarray) -> np.ndarray:
     """Which of `others` overlap rectangle `a`. a: (x, y, yaw, length, width); others: (n, 5), same columns."""
     others = np.asarray(others, dtype=np.float64).reshape(-1, 5)
@@ -24,6 +36,8 @@ def overlaps(a, others: np.ndarray) -> np.ndarray:
         return out
     reach = (np.hypot(a[3], a[4]) + np.hypot(others[:, 3], others[:, 4])) / 2
     near = np.hypot(others[:, 0] - a[0], others[:, 1] - a[1]) < reach
+    if near.any():
+        near[near] = ~_apart_along_a(a, others[near])
     if not near.any():
         return out
     b = others[near]
