@@ -123,60 +123,46 @@ def _extent(depth, lo, hi):
 
 @njit(cache=True, fastmath=FAST)
 def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius, lamp_rgb,
-            contact, wetness, road, tall, row_view, beam_reach):
+            wet, row_view, segments, beam_reach):
     """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
-    (_shade), then mirrored by a wet road (_reflect; contact of one entry: a dry road), row by row, top down. A
-    reflection falls on a pixel of the ground, drawn (ground) and drawn on by no object. The insets' borders have no
-    depth. row_view: per row, the one view its pixels show (-1: several); beam_reach: the reach [m] the falloff
+    (_shade at night, _by_day by day), then mirrored by a wet road (_by_day; wet: contact, wetness, road, tall,
+    near), row by row, top down. The insets' borders have no depth. row_view: per row, the one view its pixels show
+    (-1: several); segments: the runs of a row's pixels of one view (_by_day); beam_reach: the reach [m] the falloff
     table `fall` was built with. Each helper is called once, not once a row: a call copies the references to its
     arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
         extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
-    _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
-           lamp_rgb, row_view, beam_reach)
-    if contact.shape[1] > 1:
-        _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall, row_view)
+    night = fall.shape[0] > 1
+    if night:
+        _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
+               lamp_rgb, row_view, beam_reach)
+    if not night or wet[0].shape[1] > 1:
+        contact, wetness, road, tall, near = wet
+        _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
+                segments, not night)
 
 
 @njit(cache=True, fastmath=FAST)
 def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
            lamp_rgb, row_view, beam_reach):
-    """The object pixels of each row r between extents[r] (first, end: unsigned), from the renderer's colour and
-    the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x pools) x t +
-    fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a pixel; the tables
-    STEP a metre; fall of one entry: no headlights), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car
-    frame], then the distance along each view's axis of the pool's centre; `radius` [m] their radius). By day a
-    row's object pixels in one loop; at night a row in three loops over its pixels: the tables read (t, the
-    headlights' light), the pools summed (in a row of one view (row_view) a lamp at a time: _row_pools, a loop the
-    compiler vectorises; the same sums in the same order as a pixel's own loop over the lamps), and the colours drawn
-    (_shade_run, vectorised too)."""
+    """At night, the object pixels of each row r between extents[r] (first, end: unsigned), from the renderer's
+    colour and the object's distance d along the view's axis: colour x (dark + gain x cone fall[d] + lamp_rgb x
+    pools) x t + fog_rgb x (1 - t), t = fog[d x STEP x the ray's length] (reach: the length in 128ths, a byte a
+    pixel; the tables STEP a metre), pools: the street lamps' (lamps (n, 2 + views): x, y [m, car frame], then the
+    distance along each view's axis of the pool's centre; `radius` [m] their radius). A row in three loops over its
+    pixels: the tables read (t, the headlights' light), the pools summed (in a row of one view (row_view) a lamp at
+    a time: _row_pools, a loop the compiler vectorises; the same sums in the same order as a pixel's own loop over
+    the lamps), and the colours drawn (_shade_run, vectorised too). By day _by_day draws them."""
     nf, nl = np.uint64(fall.shape[0] - 1), np.uint64(fog.shape[0] - 1)
     cols = np.empty((3, 4))   # per channel: dark, gain, lamp_rgb, fog_rgb
     for c in range(3):
         cols[c, 0], cols[c, 1], cols[c, 2], cols[c, 3] = dark[c], gain[c], lamp_rgb[c], fog_rgb[c]
     pool, lit, t = np.zeros(width), np.zeros(width), np.ones(width)
     at_x, at_y = np.empty(width), np.empty(width)
-    d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
-    f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
-    three = np.uint64(3)
     for r in range(extents.shape[0]):
         lo, hi = extents[r, 0], extents[r, 1]
         if hi == lo:
-            continue
-        if nf == 0:   # by day (the fog alone): one pass over the object pixels costs less in a frame's loop
-            for p in range(lo, hi):
-                d = depth[p]
-                if d >= FINITE:
-                    continue
-                t0, u = 1.0, 0.0
-                if nl > 0:
-                    t0 = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
-                    u = 1.0 - t0
-                q = three * p
-                out[q] = np.uint8(min(src[q] * d0 * t0 + f0 * u, 255.0))
-                out[q + 1] = np.uint8(min(src[q + 1] * d1 * t0 + f1 * u, 255.0))
-                out[q + 2] = np.uint8(min(src[q + 2] * d2 * t0 + f2 * u, 255.0))
             continue
         _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
         if nl > 0:
@@ -200,6 +186,59 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
                         sum_ += f * f
                 pool[p - lo] = sum_
         _shade_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, lit, pool, cols)
+
+
+@njit(cache=True, fastmath=FAST)
+def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
+            segments, shade):
+    """By day (shade) the object pixels between extents[r] (first, end: unsigned) of each row r, as _shade draws
+    them without headlights or lamps, in one loop (it costs less than _shade's three in a frame's loop), each
+    mirrored by a wet road as soon as it is drawn; at night (not shade: _shade draws them) only mirrored. segments
+    (n, 4): the runs of a row's pixels of one view (flat index of the first, of the end; view; row), row by row,
+    left to right. A pixel of view v at distance d shows again at row 2 g - r, g = contact[v, d STEP] (the row of the
+    ground at that distance, -1: none; a contact of one entry: a dry road), blended in by wetness[v, that row] where
+    the renderer drew the asphalt (colour `road`, within a level) and no object; tall: rows x metres above its
+    ground row beyond which a pixel is not mirrored (a car's height x the focal length: not the crowns of trees);
+    near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested first. A reflection
+    falls on a pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row
+    are what they are drawn after every row."""
+    nl, three = np.uint64(fog.shape[0] - 1), np.uint64(3)
+    wetted = contact.shape[1] > 1
+    nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
+    d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
+    f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
+    r0, r1, r2 = road[0], road[1], road[2]
+    for k in range(segments.shape[0]):
+        v, r = segments[k, 2], segments[k, 3]
+        lo, hi = max(np.uint64(segments[k, 0]), extents[r, 0]), min(np.uint64(segments[k, 1]), extents[r, 1])
+        dlo, dhi = (near[v, r, 0], near[v, r, 1]) if wetted else (0.0, 0.0)   # where a pixel can be mirrored
+        for p in range(lo, hi):
+            d = depth[p]
+            if d >= FINITE:
+                continue
+            q = three * p
+            if shade:
+                t0, u = 1.0, 0.0
+                if nl > 0:
+                    t0 = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
+                    u = 1.0 - t0
+                out[q] = np.uint8(min(src[q] * d0 * t0 + f0 * u, 255.0))
+                out[q + 1] = np.uint8(min(src[q + 1] * d1 * t0 + f1 * u, 255.0))
+                out[q + 2] = np.uint8(min(src[q + 2] * d2 * t0 + f2 * u, 255.0))
+            if not dlo <= d < dhi:
+                continue
+            g = contact[v, min(np.uint64(d * STEP), nc)]
+            target = 2 * g - r
+            if g < 0 or (g - r) * d > tall or target <= r or target >= height:
+                continue
+            at = np.uint64(np.int64(p) + (target - r) * width)
+            # the asphalt drawn there, within a level, and no object (one test, not five branches)
+            if (abs(np.int64(src[3 * at]) - r0) <= 1) & (abs(np.int64(src[3 * at + 1]) - r1) <= 1) & \
+                    (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (view[at] == v):
+                a = wetness[v, target]
+                for c in range(3):
+                    x = np.float32(out[3 * at + c])
+                    out[3 * at + c] = np.uint8(x + a * (np.float32(out[q + c]) - x))
 
 
 @njit(cache=True, error_model="numpy")   # no test for a division by zero: the loop is vectorised only so
@@ -256,81 +295,6 @@ def _row_pools(pool, at_x, at_y, depth, r, c0, v, cams, lamps, radius):
             dx, dy = at_x[i] - lx, at_y[i] - ly
             f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
             pool[i] += f * f if abs(d - ld) <= radius else 0.0
-
-
-@njit(cache=True, fastmath=FAST)
-def _reflect(out, src, depth, view, width, extents, contact, wetness, road, tall, row_view):
-    """A wet road mirrors the objects standing on it: an object pixel of row r (between extents[r]), at distance d,
-    shows again at row 2 contact[v, d STEP] - r (contact: per view, the row of the ground at each distance along its
-    axis, -1 where none), blended in by wetness[v, that row] where the renderer drew the asphalt there (colour
-    `road`, within a level) and no object; tall: rows x metres above its ground row beyond which an object pixel is
-    not mirrored (the height of a car x the focal length: not the crowns of trees). out holds the objects'
-    colours. In a row of one view (row_view) each pixel's target row is found first, then each run of pixels with
-    the same one is mirrored by _mirror_run (a loop the compiler vectorises), the same blend a pixel."""
-    nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
-    r0, r1, r2 = road[0], road[1], road[2]
-    targets = np.empty(width, dtype=np.int64)
-    for r in range(extents.shape[0]):
-        lo, hi, v = extents[r, 0], extents[r, 1], row_view[r]
-        if v >= 0:
-            for p in range(lo, hi):   # each pixel's target row, -1: none
-                d = depth[p]
-                t = -1
-                if d < FINITE:
-                    g = contact[v, min(np.uint64(d * STEP), nc)]
-                    if g >= 0 and (g - r) * d <= tall and r < 2 * g - r < height:
-                        t = 2 * g - r
-                targets[p - lo] = t
-            i, n = 0, np.int64(hi - lo)
-            while i < n:
-                t, j = targets[i], i + 1
-                while j < n and targets[j] == t:
-                    j += 1
-                if t >= 0:
-                    p0, p1 = np.int64(lo) + i, np.int64(lo) + j
-                    e = (t - r) * width
-                    wt = wetness[v, t]
-                    for at in range(np.uint64(p0 + e), np.uint64(p1 + e)):
-                        ok = (abs(np.int64(src[3 * at]) - r0) <= 1) & (abs(np.int64(src[3 * at + 1]) - r1) <= 1) & \
-                            (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (view[at] == v)
-                        if ok:
-                            for c in range(3):
-                                x = np.float32(out[3 * at + c])
-                                out[3 * at + c] = np.uint8(x + wt * (np.float32(out[3 * (at - e) + c]) - x))
-                i = j
-            continue
-        for p in range(lo, hi):
-            d = depth[p]
-            if d >= FINITE:
-                continue
-            v = view[p]
-            g = contact[v, min(np.uint64(d * STEP), nc)]
-            target = 2 * g - r
-            if g < 0 or (g - r) * d > tall or target <= r or target >= height:
-                continue
-            tp = np.uint64(np.int64(p) + (target - r) * width)
-            tq, q = np.uint64(3) * tp, np.uint64(3) * p
-            if abs(np.int64(src[tq]) - r0) > 1 or abs(np.int64(src[tq + 1]) - r1) > 1 or \
-                    abs(np.int64(src[tq + 2]) - r2) > 1 or depth[tp] < FINITE or view[tp] != v:
-                continue
-            a = wetness[v, target]
-            for i in range(3):
-                x = np.float32(out[tq + i])
-                out[tq + i] = np.uint8(x + a * (np.float32(out[q + i]) - x))
-
-
-@njit(cache=True, fastmath=FAST)
-def _mirror_run(dst, obj, under, depth, view, v, a, r0, r1, r2):
-    # one run of a row's object pixels (obj) mirrored onto the pixels dst of one row below, as arrays of their own
-    # (the compiler vectorises the loop only so): blended by a where the renderer drew the asphalt (under: within a
-    # level of r0, r1, r2), no object and view v; elsewhere a blend by 0 leaves dst as it is
-    for i in range(depth.shape[0]):
-        ok = (abs(np.int64(under[3 * i]) - r0) <= 1) & (abs(np.int64(under[3 * i + 1]) - r1) <= 1) & \
-            (abs(np.int64(under[3 * i + 2]) - r2) <= 1) & (depth[i] >= FINITE) & (view[i] == v)
-        w = a if ok else np.float32(0.0)
-        for c in range(3):
-            x = np.float32(dst[3 * i + c])
-            dst[3 * i + c] = np.uint8(x + w * (np.float32(obj[3 * i + c]) - x))
 
 
 @njit(cache=True, fastmath=FAST)

@@ -65,6 +65,7 @@ class Effects:
         self._statics()
         self._rows, self._spots = self._ground_rows()
         self._contact, self._wetness = self._wet_road()
+        self._near = mirrored_depths(self._contact, g.view.shape[0], MIRRORED * g.cams[0, 13])
         self._sprite = glare_sprite(c.glare, g.cams[0, 12]) if c.glare > 0 else np.zeros((0, 0), np.float32)
         texture = rain_streaks(g.view.shape, c.rain, seed)
         rows, cols = np.nonzero(texture)   # by row
@@ -138,7 +139,7 @@ class Effects:
                 (self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb),
                 (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
                  self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view),
-                 float(self._beam[2])),
+                 float(self._beam[2]), self._near, view_segments(g.view)),
                 (np.asarray(lamps.pools, dtype=np.float64).reshape(-1, 2),
                  np.asarray(lamps.heads, dtype=np.float64).reshape(-1, 2), float(lamps.height), self._lamp_glow,
                  self._rows, self._spots),
@@ -171,6 +172,36 @@ def row_view(view: np.ndarray) -> np.ndarray:
     """Per row of view (h, w), the one view its pixels show (the insets' borders aside), -1 where several or none."""
     shown = np.where(view >= 0, view, view.max(axis=1, keepdims=True)).astype(np.int64)
     return np.where((shown == shown[:, :1]).all(axis=1) & (view.max(axis=1) >= 0), shown[:, 0], -1)
+
+
+def view_segments(view: np.ndarray) -> np.ndarray:
+    """The runs of each row's pixels of one view of view (h, w) (the insets' borders left out), row by row, left to
+    right: (n, 4) int64, the flat index of the first pixel and of the end, the view, the row."""
+    w = view.shape[1]
+    out = []
+    for r, row in enumerate(view.astype(np.int64)):
+        edges = np.flatnonzero(np.diff(np.r_[-2, row, -2]))   # where a run starts, then where the last ends
+        out += [(r * w + a, r * w + b, row[a], r) for a, b in zip(edges[:-1], edges[1:]) if row[a] >= 0]
+    return np.array(out, dtype=np.int64).reshape(-1, 4)
+
+
+def mirrored_depths(contact: np.ndarray, height: int, tall: float) -> np.ndarray:
+    """Per view and row of a frame `height` rows tall, the distances [m] (lo, hi) outside which a wet road mirrors
+    no object pixel of the row ((0, 0): none), from the ground's rows at each distance (contact, as Effects has it)
+    and `tall` (sim/render/effect_kernels.py _by_day): a pixel at d in [k, k + 1) / STEP (the last entry: all beyond)
+    is mirrored to row 2 g - r (g = contact[v, k]) only if g >= 0, r < 2 g - r < height and (g - r) k / STEP <=
+    tall, (g - r) d being at least that."""
+    out = np.zeros((contact.shape[0], height, 2))
+    if contact.shape[1] == 1:   # a dry road
+        return out
+    k = np.arange(contact.shape[1])
+    for v, g in enumerate(contact):
+        for r in range(height):
+            can = (g >= 0) & (g > r) & (2 * g - r < height) & ((g - r) * (k / STEP) <= tall)
+            if can.any():
+                lo, hi = k[can].min(), k[can].max()
+                out[v, r] = lo / STEP, np.inf if hi == len(g) - 1 else (hi + 1) / STEP
+    return out
 
 
 def glare_sprite(strength: float, focal: float) -> np.ndarray:

@@ -195,17 +195,19 @@ def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, o
     of the other cars; view (h, w) and cams (sim/render/conditions.py Geometry); shades: whether the fog, the dark
     and the wet road are drawn; the tables of each effect, grouped: ground_ (spans, fog, lit, gain, dark, fog_rgb),
     objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's pool, contact, wetness, road, tall, the rows'
-    views, the beams' reach), lamps (pool centres, heads, height, glow, the ground's rows, their spots; no centres:
-    none), lights (tails, heads, tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none),
-    rain (rows, cols, alpha, the rows' starts, rgb)."""
+    views, the beams' reach, the distances a row's pixels are mirrored within, the rows' runs of one view), lamps
+    (pool centres, heads, height, glow, the ground's rows, their spots; no centres: none), lights (tails, heads,
+    tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none), rain (rows, cols, alpha, the
+    rows' starts, rgb)."""
     flat, deep, bytes_ = out.reshape(-1), depth.reshape(-1), src.reshape(-1)
     if depth.shape[0] and shades:
         spans, fog, lit, gain, dark, fog_rgb = ground_
         ground(flat, bytes_, spans, fog, lit, gain, dark, fog_rgb)
-        reach, cone, fall, fog_table, lamp_rgb, lamp_reach, contact, wetness, road, tall, row_view, beam = objects_
+        reach, cone, fall, fog_table, lamp_rgb, lamp_reach, contact, wetness, road, tall, row_view, beam, near, \
+            segments = objects_
         objects(flat, bytes_, deep, view.reshape(-1), view.shape[1], reach, cams, cone, fall, fog_table, dark, gain,
-                fog_rgb, near_lamps(lamps[0], x, y, yaw, LIT_OBJECTS, cams), lamp_reach, lamp_rgb, contact, wetness,
-                road, tall, row_view, beam)
+                fog_rgb, near_lamps(lamps[0], x, y, yaw, LIT_OBJECTS, cams), lamp_reach, lamp_rgb,
+                (contact, wetness, road, tall, near), row_view, segments, beam)
     elif depth.shape[0]:
         copy(flat, bytes_, np.uint64(0), np.uint64(flat.shape[0]))
     if depth.shape[0]:
