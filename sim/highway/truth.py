@@ -38,17 +38,14 @@ def marking_band(lanes: int) -> float:
 
 def lane_gaps(track: Track, ego_s: float, cars_s, cars_d) -> np.ndarray:
     """Per lane (0 = leftmost): centre-to-centre gap [m] to the nearest car strictly ahead, capped at GAP_MAX."""
-    gaps = np.full(track.lanes, GAP_MAX)
+    gaps = [GAP_MAX] * track.lanes
     cars_s = np.asarray(cars_s, dtype=np.float64)
     if cars_s.size:
-        ds = track.gap(ego_s, cars_s)
-        lanes = track.lane_of(np.asarray(cars_d, dtype=np.float64))
-        ahead = ds > 0
-        for k in range(track.lanes):
-            m = ahead & (lanes == k)
-            if m.any():
-                gaps[k] = min(GAP_MAX, float(ds[m].min()))
-    return gaps
+        lanes = track.lane_of(np.asarray(cars_d, dtype=np.float64)).tolist()
+        for ds, k in zip(track.gap(ego_s, cars_s).tolist(), lanes):   # a handful of cars: a loop beats numpy's calls
+            if 0 < ds < gaps[k]:
+                gaps[k] = ds
+    return np.array(gaps)
 
 
 def rear_indicators(track: Track, ego_s: float, ego_d: float, host_length: float, host_speed: float, cars_s=(),
