@@ -15,7 +15,7 @@ import copy
 
 from perception.checkpoint import CheckpointError
 from perception.ensemble import GAP_PREFIX
-from perception.models import Regressor, declaration_of, family_title, load_model
+from perception.models import Regressor, add_renderers, declaration_of, family_title, load_model
 
 SAME_INPUT = ("channels", "height", "width", "instants", "cameras", "scaling", "inset")
 
@@ -50,6 +50,7 @@ def make(paths: list[str], combine: str = "min") -> dict:
     spec = copy.deepcopy(first)
     c = int(spec["input"]["channels"])
     spec["name"] = "ensemble"
+    add_renderers(spec, {r for n in nets for r in n.spec["input"].get("renderers", ())})
     spec["input"].update(mean=[0.0] * c, std=[1.0] * c)
     decl = declaration_of(first)
     spec["labels"] = union([n.spec["labels"] for n in nets], decl.label_names)

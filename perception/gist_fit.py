@@ -17,7 +17,7 @@ from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpo
 from perception.curves import curve_paths, write_curves
 from perception.datasets import FrameStream
 from perception.gist import GistRegressor
-from perception.models import Regressor, describe, make_spec
+from perception.models import Regressor, add_renderers, describe, make_spec
 from perception.shards import DatasetError
 from perception.trainer import Occasion, Plan
 from perception.training import TrainConfig, data_summary, load_frames, open_data
@@ -80,7 +80,8 @@ class GistTrainer:
             return Plan(done=ckpt["train"])
         if not self.data.frames("train"):
             raise DatasetError(f"dataset {cfg.data} has no frames in split 'train'")
-        self.spec = make_spec("gist", decl, self.labels, regressor=cfg.regressor, seed=cfg.seed)
+        self.spec = add_renderers(make_spec("gist", decl, self.labels, regressor=cfg.regressor, seed=cfg.seed),
+                                  self.data.renderers)
         self.model = Regressor(self.spec).eval()
         return Plan(steps=1)
 

@@ -63,6 +63,7 @@ def merge(out: Path, sources: list[Source], log=print) -> Dataset:
                                                                 "train_only": s.train_only,
                                                                 "frames": d.frames()}
                                                                for s, d in zip(sources, datasets)]},
+                "renderers": sorted({r for d in datasets for r in d.renderers}),
                 "split_rule": SPLIT_RULE + "; a train-only source's episodes: train",
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "shards": entries,
                 "frames": sum(e["frames"] for e in entries), "complete": True}

@@ -157,6 +157,15 @@ def make_spec(name: str, decl: WorldDeclaration, targets=None, mean=None, std=No
             "normalisation": decl.normalisation(outputs)}
 
 
+def add_renderers(spec: dict, renderers) -> dict:
+    """`spec` with `renderers` joined to the renderers of the frames its network learned from (a new network's data,
+    a fine-tuning's further data, an ensemble's members); absent while none is known."""
+    have = set(spec["input"].get("renderers", ())) | set(renderers)
+    if have:
+        spec["input"]["renderers"] = sorted(have)
+    return spec
+
+
 def frame_inset(spec: dict) -> str:
     """What the frames a model learned held besides the scene (core/declaration.py Camera.inset): "" or
     "mirror" or "mirror+sides". A world must render the same for the model to read it."""

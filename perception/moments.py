@@ -60,6 +60,7 @@ class Moments:
             raise DatasetError(f"the {decl.name} world has no behavioural modes: train another model family")
         self.decl, self.size = decl, size
         self.roots = [str(ds.root) for ds in datasets]
+        self.renderers = {r for ds in datasets for r in ds.renderers}
         self.spec = SampleSpec(decl, targets, normalised=False)
         self.instants = np.asarray(self.spec.moment.instants)
         self.cameras = len(decl.cameras)

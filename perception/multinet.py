@@ -47,7 +47,7 @@ from core.declaration import DeclarationError, WorldDeclaration
 from core.signals import check as check_signals
 from perception.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from perception.curves import write_curves
-from perception.models import Regressor, family, make_spec
+from perception.models import Regressor, add_renderers, family, make_spec
 from perception.moments import Moments
 from perception.optimizers import make_optimizer as optimizer
 from perception.train_outputs import state_path
@@ -232,6 +232,7 @@ def resolve(cfg, log=print) -> MultiNetRun:
     spec = make_spec(cfg.model, decl, labels, **options)
     device = resolve_device(cfg.device)
     moments = Moments(roots, (spec["input"]["height"], spec["input"]["width"]), labels, log)
+    add_renderers(spec, moments.renderers)
     train_ids, held = moments.split([decl.modes.index(m) for m in names], cfg.seed)
     amp = bool(cfg.amp) and bf16_native(device)
     if cfg.amp and not amp:
@@ -262,6 +263,7 @@ def new_network(run: MultiNetRun, trial: int) -> tuple[Regressor, torch.optim.Op
         if start["spec"]["options"].get("modal", True) != run.spec["options"]["modal"]:
             raise CheckpointError(f"{run.init} is not a network of the same kind (MultiNet / MTL)")
         model.load_state_dict(start["state_dict"])
+        add_renderers(run.spec, start["spec"]["input"].get("renderers", ()))   # it learned those frames too
     model = model.to(run.device).to(memory_format=torch.channels_last).train()
     return model, make_optimizer(run.optimizer, model, run.lr)
 

@@ -343,6 +343,14 @@ class Dataset:
     def world(self) -> str:
         return self.declaration.name
 
+    @property
+    def renderers(self) -> tuple[str, ...]:
+        """The renderers that drew the frames: one for a generated dataset, every source's for a merged one; none for
+        a dataset that does not say."""
+        m = self.manifest
+        named = m.get("renderers") or ([m["renderer"]] if m.get("renderer") else [])
+        return tuple(sorted({str(r) for r in named}))
+
     def select(self, split: str | None = None) -> list[ShardInfo]:
         if split in (None, "all"):
             return list(self.shards)

@@ -43,6 +43,7 @@ from perception.models import (
     IMAGENET_MEAN,
     IMAGENET_STD,
     Regressor,
+    add_renderers,
     check_spec,
     describe,
     family,
@@ -105,9 +106,11 @@ def plan_run(cfg: TrainConfig, data: Dataset, decl: WorldDeclaration, labels, st
     if not out.exists() and cfg.init:
         init = initial_checkpoint(cfg, decl, labels)   # fine-tuning keeps the loss the model learned under
         loss = cfg.loss or init.get("train", {}).get("config", {}).get("loss") or "euclidean"
-        return Setup(iterations, batch_size, lr, optimizer, loss, ema, init["spec"], None, init)
+        spec = add_renderers(init["spec"], data.renderers)   # it learns this data's frames too
+        return Setup(iterations, batch_size, lr, optimizer, loss, ema, spec, None, init)
     if not out.exists():
-        return Setup(iterations, batch_size, lr, optimizer, loss, ema, new_spec(cfg, decl, labels, dist, log), None)
+        spec = add_renderers(new_spec(cfg, decl, labels, dist, log), data.renderers)
+        return Setup(iterations, batch_size, lr, optimizer, loss, ema, spec, None)
     ckpt = load_checkpoint(out, model=cfg.model, labels=labels, world=decl.name)
     check_spec(ckpt["spec"], str(out))
     if "optimizer" not in ckpt:
