@@ -78,15 +78,40 @@ def _ground_run(out, src, fog, lit, gain, dark, fog_rgb):
 
 
 @njit(cache=True, fastmath=FAST)
+def _fog_only(out, src, fog, dark, fog_rgb):
+    # _ground_run without headlights (by day: their light 0, the colour x dark, 1 by day, x t exactly as there)
+    for i in range(fog.shape[0]):
+        t = np.float32(fog[i]) * np.float32(1.0 / 255.0)
+        u = np.float32(1.0) - t
+        for c in range(3):
+            out[3 * i + c] = np.uint8(min(src[3 * i + c] * dark[c] * t + fog_rgb[c] * u, TOP))
+
+
+@njit(cache=True, fastmath=FAST)
+def _lit_only(out, src, lit, gain, dark):
+    # _ground_run without fog (its byte 255: t is 1 exactly, its colour x 0)
+    for i in range(lit.shape[0]):
+        h = np.float32(lit[i]) * np.float32(1.0 / LIT)
+        for c in range(3):
+            out[3 * i + c] = np.uint8(min(src[3 * i + c] * (dark[c] + gain[c] * h), TOP))
+
+
+@njit(cache=True, fastmath=FAST)
 def ground(out, src, spans, fog, lit, gain, dark, fog_rgb):
     """Every pixel of src into out, the ground's (flat ranges `spans` (n, 2), in order) as colour x (dark + gain x
     lit) x t + fog_rgb x (1 - t), t the fog byte / 255, lit the headlights' byte / LIT; dark (3,): the night's light
-    (1 by day), gain (3,): the headlights' colour (0 by day); the others as they are."""
+    (1 by day), gain (3,): the headlights' colour (0 by day); the others as they are. No fog bytes: none (each
+    255); no lit bytes: no headlights (each 0), so that neither is read where it changes nothing."""
     done = 0
     for k in range(spans.shape[0]):
         lo, hi = spans[k, 0], spans[k, 1]
         copy(out, src, np.uint64(3 * done), np.uint64(3 * lo))
-        _ground_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], lit[lo:hi], gain, dark, fog_rgb)
+        if fog.shape[0] and lit.shape[0]:
+            _ground_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], lit[lo:hi], gain, dark, fog_rgb)
+        elif fog.shape[0]:
+            _fog_only(out[3 * lo:3 * hi], src[3 * lo:3 * hi], fog[lo:hi], dark, fog_rgb)
+        else:
+            _lit_only(out[3 * lo:3 * hi], src[3 * lo:3 * hi], lit[lo:hi], gain, dark)
         done = hi
     copy(out, src, np.uint64(3 * done), np.uint64(src.shape[0]))
 

@@ -69,8 +69,10 @@ class Effects:
         self._sprite = glare_sprite(c.glare, g.cams[0, 12]) if c.glare > 0 else np.zeros((0, 0), np.float32)
         texture = rain_streaks(g.view.shape, c.rain, seed)
         rows, cols = np.nonzero(texture)   # by row
-        self._streaks = (rows.astype(np.int64), cols.astype(np.int64), texture[rows, cols] / 255.0,
-                         np.searchsorted(rows, np.arange(max(1, texture.shape[0]) + 1)), STREAK_RGB)
+        # a streak's pixel in 5 bytes, not 24: the frame's tables leave the caches between frames
+        self._streaks = ((rows * g.view.shape[1] + cols).astype(np.uint32), texture[rows, cols],
+                         np.searchsorted(rows, np.arange(max(1, texture.shape[0]) + 1)), STREAK_RGB,
+                         np.arange(256) / 255.0, bool(len(self._border)))
         self._frames = 0
         self._tables = self._groups()
 
@@ -136,7 +138,7 @@ class Effects:
         lamps = self.lamps or Lamps(np.zeros((0, 2)), np.zeros((0, 2)), 0.0)
         lights = self.car_lights or CarLights(np.zeros((1, 2, 3)), np.zeros((1, 2, 3)), 0.0)
         return (g.view, g.cams, bool(c.shades),
-                (self._spans, self._fog, self._lit, self._gain, self._dark, self._fog_rgb),
+                (self._spans, *self._ground_bytes(), self._gain, self._dark, self._fog_rgb),
                 (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
                  self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view),
                  float(self._beam[2]), self._near, view_segments(g.view)),
@@ -146,6 +148,13 @@ class Effects:
                 (np.asarray(lights.tails, dtype=np.float64), np.asarray(lights.heads, dtype=np.float64), TAIL_RGB,
                  HEAD_RGB, float(lights.strength), float(self._density), float(self._streak)),
                 (np.asarray(self._sun, dtype=np.float64), self._sprite), self._streaks)
+
+    def _ground_bytes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ground's fog and headlights bytes as ground (sim/render/effect_kernels.py) reads them: none of one
+        that changes nothing (no fog: every byte 255; no headlights: every byte 0), the other kept."""
+        none = np.zeros(0, dtype=np.uint8)
+        fogged, lit = bool((self._fog != 255).any()), bool(self._lit.any())
+        return self._fog if fogged or not lit else none, self._lit if lit or not fogged else none
 
     @property
     def needs_depth(self) -> bool:

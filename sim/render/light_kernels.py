@@ -168,23 +168,25 @@ def glare(out, view, cams, sun, sprite):
 
 
 @njit(cache=True, fastmath=FAST)
-def streaks(out, view, rows, cols, alpha, spans, period, offset, rgb):
-    """Rain streaks: pixels (rows, cols, alpha 0-1, sorted by row) of a texture `period` rows tall, shown `offset`
-    rows further down each frame (wrapping), blended towards rgb over every view; spans (n, 2): the ranges of the
-    pixels that show this frame."""
-    flat, where, width = out.reshape(-1), view.reshape(-1), np.uint64(view.shape[1])
+def streaks(out, view, at, alpha, levels, spans, period, offset, rgb, bordered):
+    """Rain streaks: pixels (at: flat index in the texture, alpha: a byte, levels[alpha] its weight 0-1; sorted by
+    row) of a texture `period` rows tall, shown `offset` rows further down each frame (wrapping), blended towards rgb
+    over every view (bordered: the frame has pixels of no view, the insets' borders, left as they are); spans (n, 2):
+    the ranges of the pixels that show this frame."""
+    flat, where = out.reshape(-1), view.reshape(-1)
+    size, shift = np.uint64(period * view.shape[1]), np.uint64(offset * view.shape[1])
     c0, c1, c2 = rgb[0], rgb[1], rgb[2]
     for k in range(spans.shape[0]):
         for i in range(np.uint64(spans[k, 0]), np.uint64(spans[k, 1])):
-            r = rows[i] + offset
-            if r >= period:
-                r -= period
-            p = np.uint64(r) * width + np.uint64(cols[i])
-            if where[p] >= 0:
-                a, q = alpha[i], np.uint64(3) * p
-                flat[q] = np.uint8(flat[q] + a * (c0 - flat[q]))
-                flat[q + 1] = np.uint8(flat[q + 1] + a * (c1 - flat[q + 1]))
-                flat[q + 2] = np.uint8(flat[q + 2] + a * (c2 - flat[q + 2]))
+            p = np.uint64(at[i]) + shift
+            if p >= size:
+                p -= size
+            if bordered and where[p] < 0:
+                continue
+            a, q = levels[alpha[i]], np.uint64(3) * p
+            flat[q] = np.uint8(flat[q] + a * (c0 - flat[q]))
+            flat[q + 1] = np.uint8(flat[q + 1] + a * (c1 - flat[q + 1]))
+            flat[q + 2] = np.uint8(flat[q + 2] + a * (c2 - flat[q + 2]))
 
 
 @njit(cache=True, fastmath=FAST)
@@ -197,8 +199,8 @@ def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, o
     objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's pool, contact, wetness, road, tall, the rows'
     views, the beams' reach, the distances a row's pixels are mirrored within, the rows' runs of one view), lamps
     (pool centres, heads, height, glow, the ground's rows, their spots; no centres: none), lights (tails, heads,
-    tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none), rain (rows, cols, alpha, the
-    rows' starts, rgb)."""
+    tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none), rain (flat indices, alphas,
+    the rows' starts, rgb, the alphas' weights, whether the frame has borders)."""
     flat, deep, bytes_ = out.reshape(-1), depth.reshape(-1), src.reshape(-1)
     if depth.shape[0] and shades:
         spans, fog, lit, gain, dark, fog_rgb = ground_
@@ -235,7 +237,7 @@ def _lamps(flat, src, deep, out, depth, x, y, yaw, view, cams, lamp_rgb, lamp_re
 @njit(cache=True)
 def _rain(out, view, frame, rain):
     """The rain's streaks of frame number `frame`: the texture's rows from the one shown at the top, wrapping."""
-    rows, cols, alpha, at, rgb = rain
+    texture_at, alpha, at, rgb, levels, bordered = rain
     period = at.shape[0] - 1
     offset = (frame * RAIN_FALL) % period
     first = (period - offset) % period   # the texture's row shown at the top, then h more
@@ -243,4 +245,4 @@ def _rain(out, view, frame, rain):
     spans = np.empty((2, 2), dtype=np.int64)
     spans[0, 0], spans[0, 1] = at[first], at[min(last, period)]
     spans[1, 0], spans[1, 1] = at[0], at[max(last - period, 0)]
-    streaks(out, view, rows, cols, alpha, spans, period, offset, rgb)
+    streaks(out, view, texture_at, alpha, levels, spans, period, offset, rgb, bordered)
