@@ -151,10 +151,10 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
             wet, row_view, segments, beam_reach):
     """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
     (_shade at night, _by_day by day), then mirrored by a wet road (_by_day; wet: contact, wetness, road, tall,
-    near), row by row, top down. The insets' borders have no depth. row_view: per row, the one view its pixels show
-    (-1: several); segments: the runs of a row's pixels of one view (_by_day); beam_reach: the reach [m] the falloff
-    table `fall` was built with. Each helper is called once, not once a row: a call copies the references to its
-    arrays."""
+    near, one_view), row by row, top down. The insets' borders have no depth. row_view: per row, the one view its
+    pixels show (-1: several); segments: the runs of a row's pixels of one view (_by_day); beam_reach: the reach [m]
+    the falloff table `fall` was built with. Each helper is called once, not once a row: a call copies the
+    references to its arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
         extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
@@ -163,9 +163,9 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
         _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
                lamp_rgb, row_view, beam_reach)
     if not night or wet[0].shape[1] > 1:
-        contact, wetness, road, tall, near = wet
+        contact, wetness, road, tall, near, one_view = wet
         _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
-                segments, not night)
+                one_view, segments, not night)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -215,7 +215,7 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
 
 @njit(cache=True, fastmath=FAST)
 def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
-            segments, shade):
+            one_view, segments, shade):
     """By day (shade) the object pixels between extents[r] (first, end: unsigned) of each row r, as _shade draws
     them without headlights or lamps, in one loop (it costs less than _shade's three in a frame's loop), each
     mirrored by a wet road as soon as it is drawn; at night (not shade: _shade draws them) only mirrored. segments
@@ -224,7 +224,8 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
     ground at that distance, -1: none; a contact of one entry: a dry road), blended in by wetness[v, that row] where
     the renderer drew the asphalt (colour `road`, within a level) and no object; tall: rows x metres above its
     ground row beyond which a pixel is not mirrored (a car's height x the focal length: not the crowns of trees);
-    near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested first. A reflection
+    near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested first; one_view:
+    every pixel of the frame is of view 0 (no insets: the view is not read). A reflection
     falls on a pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row
     are what they are drawn after every row."""
     nl, three = np.uint64(fog.shape[0] - 1), np.uint64(3)
@@ -257,9 +258,9 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
             if g < 0 or (g - r) * d > tall or target <= r or target >= height:
                 continue
             at = np.uint64(np.int64(p) + (target - r) * width)
-            # the asphalt drawn there, within a level, and no object (one test, not five branches)
+            # the asphalt drawn there, within a level, no object and the same view (one test, not five branches)
             if (abs(np.int64(src[3 * at]) - r0) <= 1) & (abs(np.int64(src[3 * at + 1]) - r1) <= 1) & \
-                    (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (view[at] == v):
+                    (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (one_view or view[at] == v):
                 a = wetness[v, target]
                 for c in range(3):
                     x = np.float32(out[3 * at + c])

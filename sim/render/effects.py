@@ -141,7 +141,7 @@ class Effects:
                 (self._spans, *self._ground_bytes(), self._gain, self._dark, self._fog_rgb),
                 (self._reach, self._cone, self._fall, self._fog_table, self._lamp_rgb, float(self._lamp_reach),
                  self._contact, self._wetness, self._road, float(MIRRORED * g.cams[0, 13]), row_view(g.view),
-                 float(self._beam[2]), self._near, view_segments(g.view)),
+                 float(self._beam[2]), self._near, view_segments(g.view), bool((g.view == 0).all())),
                 (np.asarray(lamps.pools, dtype=np.float64).reshape(-1, 2),
                  np.asarray(lamps.heads, dtype=np.float64).reshape(-1, 2), float(lamps.height), self._lamp_glow,
                  self._rows, self._spots),

@@ -75,13 +75,14 @@ def project(cams, v, px, py, pz):
 
 
 @njit(cache=True, fastmath=FAST)
-def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, streak):
+def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, streak, across):
     """A light at a car-frame point [m] added to view v of out (h, w, 3) as a glow of `radius` [m] (at least 0.6
     px), colour rgb (0-255) at full strength, hidden where the depth shows an object more than a metre in front of
     it, dimmed by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below.
     The glow is s exp(-q) for q = dx^2 + dy^2 < 9 (in radii); a pixel gains its integer part only, so the glow
     stops where s exp(-q) x the brightest channel falls under a level, and exp(-q) is exp(-dx^2) exp(-dy^2): one
-    exp a row and one a column."""
+    exp a row and one a column, those of the columns kept in `across` (room for a row of the frame: one array for
+    every glow of a frame, not one each)."""
     col, row, d = project(cams, v, px, py, pz)
     if d < 0.0 or d > cams[v, 21]:
         return
@@ -98,7 +99,6 @@ def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, stre
     reach = int(math.ceil(rad * math.sqrt(q_max)))
     below = int(math.ceil(rad * math.sqrt(q_max) * streak))
     c0, c1 = max(left, ic - reach), min(left + vw, ic + reach + 1)
-    across = np.empty(max(c1 - c0, 0))
     for c in range(c0, c1):
         dx = (c + 0.5 - col) / rad
         across[c - c0] = math.exp(-dx * dx) if dx * dx < q_max else 0.0
@@ -121,6 +121,7 @@ def car_lights(out, depth, view, cams, x, y, yaw, car_x, car_y, car_yaw, car_mod
                head_rgb, strength, fog, streak):
     """The tail lights of the cars seen from behind and the headlights of those seen from ahead: tails, heads
     (models, 2, 3) [m] each model's pair in its car's frame."""
+    across = np.empty(out.shape[1])
     for k in range(len(car_x)):
         ax, ay = to_car(car_x[k], car_y[k], x, y, yaw)
         if ax * ax + ay * ay > FAR * FAR:
@@ -133,17 +134,18 @@ def car_lights(out, depth, view, cams, x, y, yaw, car_x, car_y, car_yaw, car_mod
             lx, ly = to_car(car_x[k] + c * pair[m, i, 0] - s * pair[m, i, 1],
                             car_y[k] + s * pair[m, i, 0] + c * pair[m, i, 1], x, y, yaw)
             for v in range(cams.shape[0]):
-                glow(out, depth, view, cams, v, lx, ly, pair[m, i, 2], radius, rgb, strength, fog, streak)
+                glow(out, depth, view, cams, v, lx, ly, pair[m, i, 2], radius, rgb, strength, fog, streak, across)
 
 
 @njit(cache=True, fastmath=FAST)
 def lamp_heads(out, depth, view, cams, x, y, yaw, heads, height, rgb):
     """The street lamps themselves: heads (n, 2) world [m], `height` [m] up."""
+    across = np.empty(out.shape[1])
     for k in range(heads.shape[0]):
         lx, ly = to_car(heads[k, 0], heads[k, 1], x, y, yaw)
         if lx * lx + ly * ly < FAR * FAR:
             for v in range(cams.shape[0]):
-                glow(out, depth, view, cams, v, lx, ly, height, 0.35, rgb, 0.9, 0.0, 0.0)
+                glow(out, depth, view, cams, v, lx, ly, height, 0.35, rgb, 0.9, 0.0, 0.0, across)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -197,19 +199,19 @@ def draw(out, src, depth, x, y, yaw, frame, cars, view, cams, shades, ground_, o
     of the other cars; view (h, w) and cams (sim/render/conditions.py Geometry); shades: whether the fog, the dark
     and the wet road are drawn; the tables of each effect, grouped: ground_ (spans, fog, lit, gain, dark, fog_rgb),
     objects_ (reach, cone, fall, fog, lamp_rgb, reach of a lamp's pool, contact, wetness, road, tall, the rows'
-    views, the beams' reach, the distances a row's pixels are mirrored within, the rows' runs of one view), lamps
-    (pool centres, heads, height, glow, the ground's rows, their spots; no centres: none), lights (tails, heads,
-    tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none), rain (flat indices, alphas,
-    the rows' starts, rgb, the alphas' weights, whether the frame has borders)."""
+    views, the beams' reach, the distances a row's pixels are mirrored within, the rows' runs of one view, whether
+    the frame has one view), lamps (pool centres, heads, height, glow, the ground's rows, their spots; no centres:
+    none), lights (tails, heads, tail_rgb, head_rgb, strength, fog, streak), sun (direction, sprite; (0, 0): none),
+    rain (flat indices, alphas, the rows' starts, rgb, the alphas' weights, whether the frame has borders)."""
     flat, deep, bytes_ = out.reshape(-1), depth.reshape(-1), src.reshape(-1)
     if depth.shape[0] and shades:
         spans, fog, lit, gain, dark, fog_rgb = ground_
         ground(flat, bytes_, spans, fog, lit, gain, dark, fog_rgb)
         reach, cone, fall, fog_table, lamp_rgb, lamp_reach, contact, wetness, road, tall, row_view, beam, near, \
-            segments = objects_
+            segments, one_view = objects_
         objects(flat, bytes_, deep, view.reshape(-1), view.shape[1], reach, cams, cone, fall, fog_table, dark, gain,
                 fog_rgb, near_lamps(lamps[0], x, y, yaw, LIT_OBJECTS, cams), lamp_reach, lamp_rgb,
-                (contact, wetness, road, tall, near), row_view, segments, beam)
+                (contact, wetness, road, tall, near, one_view), row_view, segments, beam)
     elif depth.shape[0]:
         copy(flat, bytes_, np.uint64(0), np.uint64(flat.shape[0]))
     if depth.shape[0]:
