@@ -64,9 +64,24 @@ def test_the_headlights_falloff_computed_is_its_tables_value():
         assert np.array_equal(got, want), reach
 
 
-def test_a_rows_shading_and_reflections_at_once_are_a_pixels_own():
-    """A row of one view is shaded and mirrored a whole row at a time; drawn pixel by pixel (every row as one of
-    several views) its pixels are the same, at night on a lit road (the lamps' light on the cars) and in rain."""
+# the objects' tables (sim/render/effects.py Effects._groups: objects_) that hold a shortcut, and their general case
+ROW_VIEW, NEAR, ONE_VIEW = 10, 12, 14
+
+
+def _without_shortcuts(objects: tuple) -> tuple:
+    """The tables drawn the long way: every row as one of several views (its pixels shaded one by one at night),
+    every distance mirrored (no row's range tested first), the view read at each reflection."""
+    general = list(objects)
+    general[ROW_VIEW] = np.full_like(objects[ROW_VIEW], -1)
+    general[NEAR] = np.stack([np.zeros_like(objects[NEAR][..., 0]), np.full_like(objects[NEAR][..., 1], np.inf)], -1)
+    general[ONE_VIEW] = False
+    return tuple(general)
+
+
+def test_the_objects_shortcuts_draw_the_long_ways_pixels():
+    """A row of one view is shaded a whole row at a time, the distances outside which a row's pixels cannot be
+    mirrored are tested first, and a frame of one view does not read the view at each reflection: drawn without
+    these shortcuts the pixels are the same, at night on a lit road (the lamps' light on the cars) and in rain."""
     track = load_track("oval", lanes=2)
     d = float(track.lane_centres[1])
     for name in ("night", "rain"):
@@ -77,12 +92,11 @@ def test_a_rows_shading_and_reflections_at_once_are_a_pixels_own():
                 x, y, yaw = track.pose(s, d)
                 cars = one_car(track, s + 9.0, d)
                 frames = []
-                for rows in (None, -1):
-                    if rows is not None:
+                for general in (False, True):
+                    if general:
                         tables = list(effects._tables)
-                        objects = list(tables[4])
-                        objects[10] = np.full_like(objects[10], rows)
-                        tables[4] = tuple(objects)
+                        assert tables[4][NEAR].shape[-1] == 2 and tables[4][ONE_VIEW] is True, name
+                        tables[4] = _without_shortcuts(tables[4])
                         effects._tables = tuple(tables)
                     effects._frames = 0
                     frames.append(r.render(x, y, yaw, cars))
