@@ -22,6 +22,8 @@ from sim.scene import Chunk, Look
 
 KERNELS = ("raster_ground.py", "raster_objects.py", "raster_view.py")   # the compiled functions' files
 NO_DEPTH = np.zeros((0, 0), dtype=np.float32)   # draw_frame's depth when none is wanted
+BLOCK = 32   # most triangles a culling sphere holds
+SPAN = 8.0   # [m] the most a culling sphere's box spans (about a tree), unless one triangle does
 
 
 def drop_stale_kernels(folder: Path = Path(__file__).parent) -> None:
@@ -98,6 +100,39 @@ def _triangles(meshes: list[tuple]) -> tuple[np.ndarray, ...]:
                  for a in (v, n, c, p))
 
 
+def _ranges(corners: np.ndarray, first: int, end: int) -> list[tuple[int, int]]:
+    """Triangles first..end of corners (t, 3, 3) cut in their order into runs of at most BLOCK whose bounding box
+    spans at most SPAN [m] (where one triangle alone spans more, that triangle alone)."""
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    out: list[tuple[int, int]] = []
+    if end <= first:
+        return out
+    start, box_lo, box_hi = first, lo[first], hi[first]
+    for t in range(first + 1, end):
+        new_lo, new_hi = np.minimum(box_lo, lo[t]), np.maximum(box_hi, hi[t])
+        if t - start >= BLOCK or (new_hi - new_lo).max() > SPAN:
+            out.append((start, t))
+            start, new_lo, new_hi = t, lo[t], hi[t]
+        box_lo, box_hi = new_lo, new_hi
+    out.append((start, end))
+    return out
+
+
+def _blocks(corners: np.ndarray, firsts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Bodies' triangles (body b: firsts[b], counts[b] of corners (t, 3, 3)) cut into blocks (_ranges), each in a
+    bounding sphere that each view tests before it transforms a triangle: the blocks' triangle ranges (k, 2),
+    spheres (k, 4: centre, radius [m]) and each body's first and end block."""
+    per_body = [_ranges(corners, f, f + n) for f, n in zip(firsts, counts)]
+    blocks = np.array([r for body in per_body for r in body], dtype=np.int64).reshape(-1, 2)
+    spheres = np.zeros((len(blocks), 4))
+    for k, (s, e) in enumerate(blocks):
+        p = corners[s:e].reshape(-1, 3).astype(np.float64)
+        centre = (p.min(axis=0) + p.max(axis=0)) / 2
+        spheres[k] = (*centre, np.sqrt(((p - centre) ** 2).sum(axis=1)).max())
+    ends = np.cumsum([len(body) for body in per_body]).astype(np.int64)
+    return blocks, spheres, ends - [len(body) for body in per_body], ends
+
+
 class Rasteriser:
     def __init__(self, chunks: list[Chunk], look: Look, materials: tuple[str, ...], models: list[list[Part]],
                  paints=()):
@@ -127,8 +162,7 @@ class Rasteriser:
         tris = [_triangles(b) for b in bodies]
         self._v, self._n, self._c, self._p = (np.concatenate([t[i] for t in tris]) for i in range(4))
         counts = np.array([len(t[0]) for t in tris], dtype=np.int64)
-        self._end = np.cumsum(counts)
-        self._first = self._end - counts
+        self._blocks, self._spheres, self._first, self._end = _blocks(self._v, np.cumsum(counts) - counts, counts)
         self._n_chunks = len(chunks)
         self._centres = np.array([c.centre for c in chunks], dtype=np.float64).reshape(-1, 2)
         self._radii = np.array([c.radius for c in chunks], dtype=np.float64)
@@ -156,7 +190,8 @@ class Rasteriser:
         cx, cy, cyaw, models, paints = self._cars(cars)
         draw_view(img, np.ascontiguousarray(chunks, dtype=np.bool_), self._ground, self._spans, self._by_rank,
                   self._colours, float(x), float(y), float(yaw), placement, fx, fy, self._v, self._n, self._c,
-                  self._p, self._first, self._end, self._n_chunks, projection, cx, cy, cyaw, models, paints,
+                  self._p, self._blocks, self._spheres, self._first, self._end, self._n_chunks, projection, cx, cy,
+                  cyaw, models, paints,
                   np.ones(len(cars.x), dtype=np.bool_), self._light, self._ambient, self._diffuse)
 
     def _cars(self, cars: Cars) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -192,7 +227,8 @@ class Rasteriser:
         cx, cy, cyaw, models, paints = self._cars(cars)
         draw_frame(frame, layout.insets.copy(), layout.offsets, layout.places, layout.cameras, layout.projections,
                    self._centres, self._radii, float(car_radius), layout.border, self._ground, self._spans,
-                   self._by_rank, self._colours, self._v, self._n, self._c, self._p, self._first, self._end,
+                   self._by_rank, self._colours, self._v, self._n, self._c, self._p, self._blocks, self._spheres,
+                   self._first, self._end,
                    float(x), float(y), float(yaw), cx, cy, cyaw, models, paints, self._light, self._ambient,
                    self._diffuse, NO_DEPTH if depth is None else depth)
         return frame

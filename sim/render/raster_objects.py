@@ -80,6 +80,12 @@ def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diff
     ymax = min(np.float32(h - 1), max(sy[0], max(sy[1], sy[2])))
     if xmin > xmax or ymin > ymax:
         return
+    # every pixel of the bounding box is TinyRenderer's candidate; a row's span of candidates that can be inside (the
+    # barycentric coordinates are linear in x), widened by a pixel, is tested exactly and the rest skipped
+    e = _edges(sx, sy)
+    ax, ay, cax, bax, cay, bay, uz = e
+    if abs(uz) <= DEGENERATE:
+        return
     flat = normals[0, 0] == normals[1, 0] == normals[2, 0] and normals[0, 1] == normals[1, 1] == normals[2, 1] \
         and normals[0, 2] == normals[1, 2] == normals[2, 2]
     c0, c1, c2 = base[0], base[1], base[2]
@@ -90,12 +96,6 @@ def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diff
     w0, w1, w2 = float(clip[0, 3]), float(clip[1, 3]), float(clip[2, 3])
     rw0, rw1, rw2 = 1.0 / w0, 1.0 / w1, 1.0 / w2   # depth = -(sum b z / w) / (sum b / w), perspective-correct
     zw0, zw1, zw2 = z0 * rw0, z1 * rw1, z2 * rw2
-    # every pixel of the bounding box is TinyRenderer's candidate; a row's span of candidates that can be inside (the
-    # barycentric coordinates are linear in x), widened by a pixel, is tested exactly and the rest skipped
-    e = _edges(sx, sy)
-    ax, ay, cax, bax, cay, bay, uz = e
-    if abs(uz) <= DEGENERATE:
-        return
     sign = 1.0 if uz > 0 else -1.0
     size = abs(uz)
     # ux = bay x + (bax apy - ax bay), uy = -cay x + (ax cay - cax apy), uz - ux - uy: each of sign >= 0 inside
@@ -169,13 +169,40 @@ def _shade(nx, ny, nz, light, ambient, diffuse, c0, c1, c2):
     return np.uint8(r), np.uint8(g), np.uint8(b)
 
 
+MARGIN = 0.05         # [m] slack of a block's culling sphere, far more than float32's rounding of the frame's points
+MARGIN_SHARE = 1e-3   # and a share of its distance from the eye
+
+
 @njit(cache=True)
-def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, paint, view, projection, eye, light,
-              ambient, diffuse, still):
-    """Triangles first..end of verts (n, 3, 3), normals (n, 3, 3), colours (n, 3) (base colours; a triangle with
-    `painted` true takes `paint` instead), placed by `model` (4, 4) and seen through `view` and `projection` (4, 4)
-    from `eye` (3,) [m], all float32. `still`: the model is the identity (the scenery), which leaves every point and
-    normal as it is, so they are not multiplied by it."""
+def outside(spheres, k, pose, view, p00, p11):
+    """Whether the bounding sphere spheres[k] (centre in the body's frame, radius [m]) of a body placed by `pose`
+    (cos yaw, sin yaw, x, y) lies wholly behind the eye's plane or beyond one of the side planes of a view of
+    float32 matrix `view` and projection scales p00, p11, by the margins: then none of its triangles has a pixel in
+    the view (their screen boxes lie off the image) and skipping them changes nothing."""
+    c, s = pose[0], pose[1]
+    x, y, wz, radius = spheres[k, 0], spheres[k, 1], spheres[k, 2], spheres[k, 3]
+    wx, wy = c * x - s * y + pose[2], s * x + c * y + pose[3]
+    ex = float(view[0, 0]) * wx + float(view[0, 1]) * wy + float(view[0, 2]) * wz + float(view[0, 3])
+    ey = float(view[1, 0]) * wx + float(view[1, 1]) * wy + float(view[1, 2]) * wz + float(view[1, 3])
+    ez = float(view[2, 0]) * wx + float(view[2, 1]) * wy + float(view[2, 2]) * wz + float(view[2, 3])
+    r = radius + MARGIN + MARGIN_SHARE * np.sqrt(ex * ex + ey * ey + ez * ez)
+    if ez > r:
+        return True   # behind the eye (clip w = -z < 0 throughout)
+    # clip x - w = p00 x + z: the sphere's distance from the plane x = w, and likewise for -w, y = w and y = -w
+    kx, ky = 1.0 / np.sqrt(p00 * p00 + 1.0), 1.0 / np.sqrt(p11 * p11 + 1.0)
+    return (p00 * ex + ez) * kx > r or (ez - p00 * ex) * kx > r or (p11 * ey + ez) * ky > r or (ez - p11 * ey) * ky > r
+
+
+@njit(cache=True)
+def draw_body(img, zbuf, verts, normals, colours, painted, blocks, spheres, first, end, model, pose, paint, view,
+              projection, eye, light, ambient, diffuse, still):
+    """Blocks first..end of `blocks` (triangle ranges, each in a bounding sphere `spheres` (cx, cy, cz, r)) of verts
+    (n, 3, 3), normals (n, 3, 3), colours (n, 3) (base colours; a triangle with `painted` true takes `paint`
+    instead), placed by `model` (4, 4; `pose` its cos yaw, sin yaw, x, y in double precision) and seen through
+    `view` and `projection` (4, 4) from `eye` (3,) [m], all float32; a block outside the view is skipped.
+    `still`: the model is the identity (the scenery), which leaves every point and normal as it is, so they are not
+    multiplied by it."""
+    p00, p11 = float(projection[0, 0]), float(projection[1, 1])
     pvm = matmul(projection, matmul(view, model))
     near = projection[2, 3] / (projection[2, 2] - np.float32(1.0))   # as TinyRenderer's shader finds its planes
     far = projection[2, 3] / (projection[2, 2] + np.float32(1.0))
@@ -185,50 +212,53 @@ def draw_body(img, zbuf, verts, normals, colours, painted, first, end, model, pa
     fan = np.empty((6, 4), dtype=np.float32)
     tri = np.empty((3, 4), dtype=np.float32)
     one, zero = np.float32(1.0), np.float32(0.0)
-    for t in range(first, end):
-        for k in range(3):   # world space first: a back face needs nothing more
-            x, y, z = verts[t, k, 0], verts[t, k, 1], verts[t, k, 2]
-            if still:
-                world[k, 0], world[k, 1], world[k, 2] = x, y, z
-            else:
-                world[k, 0], world[k, 1], world[k, 2], _ = _mul(model, x, y, z, one)
-        ax, ay, az = world[1, 0] - world[0, 0], world[1, 1] - world[0, 1], world[1, 2] - world[0, 2]
-        bx, by, bz = world[2, 0] - world[0, 0], world[2, 1] - world[0, 1], world[2, 2] - world[0, 2]
-        nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-        if (world[0, 0] - eye[0]) * nx + (world[0, 1] - eye[1]) * ny + (world[0, 2] - eye[2]) * nz >= zero:
-            continue   # a back face
-        for k in range(3):
-            clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3] = _mul(pvm, verts[t, k, 0], verts[t, k, 1],
-                                                                  verts[t, k, 2], one)
-            if still:
-                nrm[k, 0], nrm[k, 1], nrm[k, 2] = normals[t, k, 0], normals[t, k, 1], normals[t, k, 2]
-            else:
-                nrm[k, 0], nrm[k, 1], nrm[k, 2], _ = _mul(model, normals[t, k, 0], normals[t, k, 1],
-                                                          normals[t, k, 2], zero)
-        base = paint if painted[t] else colours[t]
-        behind = (clip[0, 3] < zero) + (clip[1, 3] < zero) + (clip[2, 3] < zero)
-        if behind == 3:
+    for block in range(first, end):
+        if outside(spheres, block, pose, view, p00, p11):
             continue
-        if behind == 0:
-            _raster(img, zbuf, clip, clip, False, nrm, base, light, ambient, diffuse, near, far)
-            continue
-        m = 0   # clip every edge at the near plane (z > -w), then draw the fan
-        for k in range(3):
-            j = (k + 1) % 3
-            a_in = clip[k, 3] > zero and clip[k, 2] > -clip[k, 3]
-            b_in = clip[j, 3] > zero and clip[j, 2] > -clip[j, 3]
-            if not a_in and not b_in:
+        for t in range(blocks[block, 0], blocks[block, 1]):
+            for k in range(3):   # world space first: a back face needs nothing more
+                x, y, z = verts[t, k, 0], verts[t, k, 1], verts[t, k, 2]
+                if still:
+                    world[k, 0], world[k, 1], world[k, 2] = x, y, z
+                else:
+                    world[k, 0], world[k, 1], world[k, 2], _ = _mul(model, x, y, z, one)
+            ax, ay, az = world[1, 0] - world[0, 0], world[1, 1] - world[0, 1], world[1, 2] - world[0, 2]
+            bx, by, bz = world[2, 0] - world[0, 0], world[2, 1] - world[0, 1], world[2, 2] - world[0, 2]
+            nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            if (world[0, 0] - eye[0]) * nx + (world[0, 1] - eye[1]) * ny + (world[0, 2] - eye[2]) * nz >= zero:
+                continue   # a back face
+            for k in range(3):
+                clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3] = _mul(pvm, verts[t, k, 0], verts[t, k, 1],
+                                                                      verts[t, k, 2], one)
+                if still:
+                    nrm[k, 0], nrm[k, 1], nrm[k, 2] = normals[t, k, 0], normals[t, k, 1], normals[t, k, 2]
+                else:
+                    nrm[k, 0], nrm[k, 1], nrm[k, 2], _ = _mul(model, normals[t, k, 0], normals[t, k, 1],
+                                                              normals[t, k, 2], zero)
+            base = paint if painted[t] else colours[t]
+            behind = (clip[0, 3] < zero) + (clip[1, 3] < zero) + (clip[2, 3] < zero)
+            if behind == 3:
                 continue
-            d0, d1 = clip[k, 2] + clip[k, 3], clip[j, 2] + clip[j, 3]
-            # both ends of every edge kept: the fan's repeated points make empty triangles, dropped
-            f = one / (d1 - d0) if not (a_in and b_in) else one
-            for i in range(4):
-                new = (clip[k, i] * d1 - clip[j, i] * d0) * f
-                fan[m, i] = clip[k, i] if a_in else new
-                fan[m + 1, i] = clip[j, i] if b_in else new
-            m += 2
-        if m < 3:
-            continue
-        for i in range(1, m - 1):
-            tri[0], tri[1], tri[2] = fan[0], fan[i], fan[i + 1]
-            _raster(img, zbuf, tri, clip, True, nrm, base, light, ambient, diffuse, near, far)
+            if behind == 0:
+                _raster(img, zbuf, clip, clip, False, nrm, base, light, ambient, diffuse, near, far)
+                continue
+            m = 0   # clip every edge at the near plane (z > -w), then draw the fan
+            for k in range(3):
+                j = (k + 1) % 3
+                a_in = clip[k, 3] > zero and clip[k, 2] > -clip[k, 3]
+                b_in = clip[j, 3] > zero and clip[j, 2] > -clip[j, 3]
+                if not a_in and not b_in:
+                    continue
+                d0, d1 = clip[k, 2] + clip[k, 3], clip[j, 2] + clip[j, 3]
+                # both ends of every edge kept: the fan's repeated points make empty triangles, dropped
+                f = one / (d1 - d0) if not (a_in and b_in) else one
+                for i in range(4):
+                    new = (clip[k, i] * d1 - clip[j, i] * d0) * f
+                    fan[m, i] = clip[k, i] if a_in else new
+                    fan[m + 1, i] = clip[j, i] if b_in else new
+                m += 2
+            if m < 3:
+                continue
+            for i in range(1, m - 1):
+                tri[0], tri[1], tri[2] = fan[0], fan[i], fan[i + 1]
+                _raster(img, zbuf, tri, clip, True, nrm, base, light, ambient, diffuse, near, far)

@@ -69,23 +69,24 @@ def in_wedge(cx, cy, radius, x, y, yaw, hfov, cull):
 
 @njit(cache=True)
 def draw_view(img, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy,
-              verts, normals, bases, painted, firsts, ends, n_chunks, projection,
+              verts, normals, bases, painted, blocks, spheres, firsts, ends, n_chunks, projection,
               car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse):
     """Into img (h, w, 3) uint8, its backdrop: the ground of the chunks `chunks` (bool), polygon p of chunk c and
-    rank r listed in by_rank[r, c] (first, end) of `spans` (paint_ground), then their objects (body c: triangles
-    firsts[c]..ends[c]) and the cars `cars` (bool; body n_chunks + model, paint car_paints (k, 3)), as the camera
+    rank r listed in by_rank[r, c] (first, end) of `spans` (paint_ground), then their objects (body c: the triangles
+    of blocks firsts[c]..ends[c] of `blocks`, culled by their `spheres`) and the cars `cars` (bool; body
+    n_chunks + model, paint car_paints (k, 3)), as the camera
     (forward, left, height [m], pitch [deg], near [m]; focal lengths fx, fy [px], `projection` float32) sees them
     from a car at (x, y) [m] with yaw [rad]; returns its z-buffer."""
     zbuf = np.empty(img.shape[:2], dtype=np.float32)
     draw_into(img, zbuf, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy, verts, normals, bases,
-              painted, firsts, ends, n_chunks, projection, car_x, car_y, car_yaw, car_models, car_paints, cars, light,
-              ambient, diffuse)
+              painted, blocks, spheres, firsts, ends, n_chunks, projection, car_x, car_y, car_yaw, car_models,
+              car_paints, cars, light, ambient, diffuse)
     return zbuf
 
 
 @njit(cache=True)
 def draw_into(img, zbuf, chunks, ground, spans, by_rank, colours, x, y, yaw, camera, fx, fy,
-              verts, normals, bases, painted, firsts, ends, n_chunks, projection,
+              verts, normals, bases, painted, blocks, spheres, firsts, ends, n_chunks, projection,
               car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse):
     """draw_view with its z-buffer zbuf (h, w) float32 given (any values: it is cleared here): minus the clip-space
     z of what each pixel shows, -inf where nothing."""
@@ -108,15 +109,19 @@ def draw_into(img, zbuf, chunks, ground, spans, by_rank, colours, x, y, yaw, cam
     eye32 = eye.astype(np.float32)
     identity = np.eye(4, dtype=np.float32)
     none = np.zeros(3, dtype=np.float32)
+    still = np.array([1.0, 0.0, 0.0, 0.0])
+    pose = np.empty(4)
     for c in range(n_chunks):
         if chunks[c] and ends[c] > firsts[c]:
-            draw_body(img, zbuf, verts, normals, bases, painted, firsts[c], ends[c], identity, none, view,
-                      projection, eye32, light, ambient, diffuse, True)
+            draw_body(img, zbuf, verts, normals, bases, painted, blocks, spheres, firsts[c], ends[c], identity, still,
+                      none, view, projection, eye32, light, ambient, diffuse, True)
     for k in range(len(car_x)):
         if cars[k]:
             b = n_chunks + car_models[k]
-            draw_body(img, zbuf, verts, normals, bases, painted, firsts[b], ends[b], car_model(car_x[k], car_y[k],
-                      car_yaw[k]), car_paints[k], view, projection, eye32, light, ambient, diffuse, False)
+            pose[0], pose[1], pose[2], pose[3] = math.cos(car_yaw[k]), math.sin(car_yaw[k]), car_x[k], car_y[k]
+            draw_body(img, zbuf, verts, normals, bases, painted, blocks, spheres, firsts[b], ends[b],
+                      car_model(car_x[k], car_y[k], car_yaw[k]), pose, car_paints[k], view, projection, eye32, light,
+                      ambient, diffuse, False)
 
 
 @njit(cache=True)
@@ -147,8 +152,8 @@ def to_distance(zbuf, projection):
 
 @njit(cache=True)
 def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, radii, car_radius, border,
-               ground, spans, by_rank, colours, verts, normals, bases, painted, firsts, ends, x, y, yaw,
-               car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse, depth):
+               ground, spans, by_rank, colours, verts, normals, bases, painted, blocks, spheres, firsts, ends, x, y,
+               yaw, car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse, depth):
     """Every view of a frame, as sim/highway/renderer.py composes them: view 0 fills the frame (its backdrop when
     called), each later one is drawn apart, onto its backdrop at insets[offsets[v]:] (height x width x 3 bytes, C
     order), and pasted into the frame (flipped left to right where it is a mirror) inside a border of colour
@@ -170,13 +175,13 @@ def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, ra
         img = frame if v == 0 else insets[offsets[v]:offsets[v] + gh * gw * 3].reshape(gh, gw, 3)
         if v == 0 and depth.shape[0]:   # the front view fills the frame: its z-buffer is the depth's array
             draw_into(img, depth, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6],
-                      verts, normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y, car_yaw,
-                      car_models, car_paints, cars, light, ambient, diffuse)
+                      verts, normals, bases, painted, blocks, spheres, firsts, ends, n_chunks, projections[v], car_x,
+                      car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse)
             to_distance(depth.reshape(-1), projections[v])
         else:
             zbuf = draw_view(img, chunks, ground, spans, by_rank, colours, x, y, heading, cam[:5], cam[5], cam[6],
-                             verts, normals, bases, painted, firsts, ends, n_chunks, projections[v], car_x, car_y,
-                             car_yaw, car_models, car_paints, cars, light, ambient, diffuse)
+                             verts, normals, bases, painted, blocks, spheres, firsts, ends, n_chunks, projections[v],
+                             car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse)
             if depth.shape[0]:
                 keep_depth(depth, zbuf, projections[v], gt, gl, layout[v, 8] != 0)
         if v:

@@ -14,9 +14,11 @@ def draw(verts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     img = np.zeros((60, 80, 3), dtype=np.uint8)
     zbuf = np.full((60, 80), -np.inf, dtype=np.float32)
     n = len(verts)
+    everywhere = np.array([[0.0, 0.0, 0.0, 1e9]])   # one block of every triangle, in a sphere no view leaves out
     draw_body(img, zbuf, verts.astype(np.float32), np.tile(np.float32([0, 0, 1]), (n, 3, 1)),
-              np.full((n, 3), 200.0, dtype=np.float32), np.zeros(n, dtype=np.bool_), 0, n,
-              np.eye(4, dtype=np.float32), np.zeros(3, dtype=np.float32), view, projection, eye.astype(np.float32),
+              np.full((n, 3), 200.0, dtype=np.float32), np.zeros(n, dtype=np.bool_), np.array([[0, n]]), everywhere,
+              0, 1, np.eye(4, dtype=np.float32), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3, dtype=np.float32),
+              view, projection, eye.astype(np.float32),
               np.float32([0, 0, 1]), np.float32(0.6), np.float32(0.4), True)
     return img, zbuf
 
