@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from sim.camera import CameraConfig
@@ -81,6 +82,19 @@ class Layout:
     cameras: np.ndarray
     projections: np.ndarray
     border: np.ndarray
+    pastes: list[tuple]   # per inset: offset in insets, glass (h, w, 3), border image, outer and glass slices, flip
+
+
+def paste(frame: np.ndarray, insets: np.ndarray, layout: Layout) -> None:
+    """Every inset's image (drawn by draw_frame into `insets`) into the frame inside its border, flipped left to right
+    by OpenCV straight into the frame where it is a mirror."""
+    for offset, shape, bordered, outer, inner, mirrored in layout.pastes:
+        image = insets[offset:offset + shape[0] * shape[1] * 3].reshape(shape)
+        frame[outer] = bordered   # an image's rows, which numpy copies whole (it broadcasts a colour by bytes)
+        if mirrored:
+            cv2.flip(image, 1, dst=frame[inner])
+        else:
+            frame[inner] = image
 
 
 def _triangles(meshes: list[tuple]) -> tuple[np.ndarray, ...]:
@@ -215,8 +229,12 @@ class Rasteriser:
             placement, fx, fy, projection = self._camera(cam)
             cameras[v] = (*placement, fx, fy, slot.yaw, cam.hfov, cam.cull_distance)
             projections[v] = projection
+        pastes = [(int(offsets[v]), (p[6], p[7], 3), np.full((p[2], p[3], 3), border, dtype=np.uint8),
+                   (slice(p[0], p[0] + p[2]), slice(p[1], p[1] + p[3])),
+                   (slice(p[4], p[4] + p[6]), slice(p[5], p[5] + p[7])), bool(p[8]))
+                  for v, p in enumerate(places.tolist()) if v]
         return Layout(np.ascontiguousarray(slots[0].backdrop, dtype=np.uint8), np.concatenate(flat), offsets, places,
-                      cameras, projections, np.asarray(border, dtype=np.uint8))
+                      cameras, projections, np.asarray(border, dtype=np.uint8), pastes)
 
     def render(self, layout: Layout, x: float, y: float, yaw: float, cars: Cars, car_radius: float,
                depth: np.ndarray | None = None) -> np.ndarray:
@@ -225,10 +243,12 @@ class Rasteriser:
         float32, when given, gets the objects' distances along each view's axis [m] (inf where none)."""
         frame = layout.front.copy()   # numpy's copies: numba's element loops copy bytes ten times slower
         cx, cy, cyaw, models, paints = self._cars(cars)
-        draw_frame(frame, layout.insets.copy(), layout.offsets, layout.places, layout.cameras, layout.projections,
-                   self._centres, self._radii, float(car_radius), layout.border, self._ground, self._spans,
+        insets = layout.insets.copy()
+        draw_frame(frame, insets, layout.offsets, layout.places, layout.cameras, layout.projections,
+                   self._centres, self._radii, float(car_radius), self._ground, self._spans,
                    self._by_rank, self._colours, self._v, self._n, self._c, self._p, self._blocks, self._spheres,
                    self._first, self._end,
                    float(x), float(y), float(yaw), cx, cy, cyaw, models, paints, self._light, self._ambient,
                    self._diffuse, NO_DEPTH if depth is None else depth)
+        paste(frame, insets, layout)
         return frame

@@ -151,16 +151,17 @@ def to_distance(zbuf, projection):
 
 
 @njit(cache=True)
-def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, radii, car_radius, border,
+def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, radii, car_radius,
                ground, spans, by_rank, colours, verts, normals, bases, painted, blocks, spheres, firsts, ends, x, y,
                yaw, car_x, car_y, car_yaw, car_models, car_paints, light, ambient, diffuse, depth):
     """Every view of a frame, as sim/highway/renderer.py composes them: view 0 fills the frame (its backdrop when
     called), each later one is drawn apart, onto its backdrop at insets[offsets[v]:] (height x width x 3 bytes, C
-    order), and pasted into the frame (flipped left to right where it is a mirror) inside a border of colour
-    `border`. Per view v: layout[v] (outer top, left, height, width; glass top, left, height, width; mirrored),
-    cameras[v] (forward, left, height, pitch, near, fx, fy, yaw offset, hfov, cull) and projections[v]. The chunks'
-    bounding circles (centres, radii) and the cars' (car_radius) choose what each view draws (in_wedge). depth: the
-    frame's (h, w) float32 objects' distances (keep_depth), or (0, 0) when none is wanted."""
+    order), for the caller to paste into the frame (sim/render/raster.py paste: numpy and OpenCV copy rows several
+    times faster than a compiled loop of bytes). Per view v: layout[v] (outer top, left, height, width; glass top,
+    left, height, width; mirrored), cameras[v] (forward, left, height, pitch, near, fx, fy, yaw offset, hfov, cull)
+    and projections[v]. The chunks' bounding circles (centres, radii) and the cars' (car_radius) choose what each
+    view draws (in_wedge). depth: the frame's (h, w) float32 objects' distances (keep_depth), or (0, 0) when none is
+    wanted."""
     n_chunks = len(radii)
     chunks = np.empty(n_chunks, dtype=np.bool_)
     cars = np.empty(len(car_x), dtype=np.bool_)
@@ -184,12 +185,3 @@ def draw_frame(frame, insets, offsets, layout, cameras, projections, centres, ra
                              car_x, car_y, car_yaw, car_models, car_paints, cars, light, ambient, diffuse)
             if depth.shape[0]:
                 keep_depth(depth, zbuf, projections[v], gt, gl, layout[v, 8] != 0)
-        if v:
-            ot, ol, oh, ow = layout[v, 0], layout[v, 1], layout[v, 2], layout[v, 3]
-            for i in range(3):
-                frame[ot:ot + oh, ol:ol + ow, i] = border[i]
-            for r in range(gh):
-                for col in range(gw):
-                    src = gw - 1 - col if layout[v, 8] else col
-                    for i in range(3):
-                        frame[gt + r, gl + col, i] = img[r, src, i]
