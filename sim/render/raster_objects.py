@@ -11,6 +11,7 @@ import numpy as np
 from numba import njit
 
 DEGENERATE = 1e-2   # TinyRenderer drops a triangle whose doubled screen area is no more than this [px^2]
+GAP = 1e-3          # [px] a candidate pixel this far outside a triangle's box is outside it whatever the rounding
 # A corner exactly in the eye's plane (clip w = 0) divides by zero: the kernels that divide by w take IEEE's infinities,
 # as TinyRenderer's C++ does (error_model="numpy"), where numba's default would raise ZeroDivisionError mid-frame.
 
@@ -66,6 +67,15 @@ def _barycentric(e, px, py):
     return 1.0 - (ux + uy) / uz, uy / uz, ux / uz
 
 
+@njit(cache=True)
+def _between(lo, hi):
+    """Whether a triangle's screen box lo..hi (lo >= 0) along x or y holds no whole pixel and starts more than GAP
+    past the one below it: its only candidate pixel, floor(lo), is outside the triangle by more than GAP, far more
+    than the rounding of the test, so no pixel is drawn (a small far triangle's common case)."""
+    first = np.floor(lo)
+    return np.floor(hi) == first and lo - first > GAP
+
+
 @njit(cache=True, error_model="numpy")
 def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diffuse, near, far):
     """One triangle of clip-space corners clip (3, 4) into img and zbuf; `whole` is the triangle it was clipped
@@ -78,7 +88,7 @@ def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diff
     xmax = min(np.float32(w - 1), max(sx[0], max(sx[1], sx[2])))
     ymin = max(zero, min(sy[0], min(sy[1], sy[2])))
     ymax = min(np.float32(h - 1), max(sy[0], max(sy[1], sy[2])))
-    if xmin > xmax or ymin > ymax:
+    if xmin > xmax or ymin > ymax or _between(xmin, xmax) or _between(ymin, ymax):
         return
     # every pixel of the bounding box is TinyRenderer's candidate; a row's span of candidates that can be inside (the
     # barycentric coordinates are linear in x), widened by a pixel, is tested exactly and the rest skipped
