@@ -53,32 +53,35 @@ def test_add_renderers_joins_and_stays_absent_while_none_is_known():
     assert add_renderers(spec, ["numba", "tiny"])["input"]["renderers"] == ["numba", "tiny"]
 
 
-@pytest.mark.parametrize("made", [frames.gist_checkpoint, frames.alexnet_checkpoint])
-def test_a_trained_network_records_its_datas_renderer(made):
+def _untrained(path: Path, renderers) -> Path:
+    """A MobileNet checkpoint as initialised, of frames drawn by `renderers`."""
+    from perception.models import Regressor
+
+    spec = add_renderers(make_spec("mobilenet", HIGHWAY), renderers)
+    save_checkpoint(path, {"spec": spec, "state_dict": Regressor(spec).state_dict()})
+    return path
+
+
+def test_a_fitted_gist_records_its_datas_renderer():
     from sim.camera import DEFAULT_RENDERER
 
-    assert load_checkpoint(made()[0])["spec"]["input"]["renderers"] == [DEFAULT_RENDERER]
+    assert load_checkpoint(frames.gist_checkpoint()[0])["spec"]["input"]["renderers"] == [DEFAULT_RENDERER]
 
 
-def test_a_fine_tuning_on_other_frames_adds_their_renderer(tmp_path):
+@pytest.mark.parametrize("init", [None, "tiny", "gl"])
+def test_a_trained_network_records_its_datas_renderer_and_its_inits(tmp_path, init):
+    """A new network names its data's renderer; a fine-tuning adds it to those of the network it started from."""
     from perception.train import train
     from sim.camera import DEFAULT_RENDERER
 
-    other = "tiny" if DEFAULT_RENDERER != "tiny" else "numba"
-    data = _redrawn(frames.dataset(), tmp_path / "other", other)
-    tuned = tmp_path / "tuned.pt"
-    train(frames.tiny_config("alexnet", tuned, data=str(data), iterations=1, val_every=1, val_frames=4,
-                             init=str(frames.alexnet_checkpoint()[0])), log=lambda *_: None)
-    assert load_checkpoint(tuned)["spec"]["input"]["renderers"] == sorted([DEFAULT_RENDERER, other])
+    start = {"init": str(_untrained(tmp_path / "init.pt", {init}))} if init else {}
+    out = tmp_path / "net.pt"
+    train(frames.tiny_config("mobilenet", out, iterations=1, val_every=1, val_frames=4, **start), log=lambda *_: None)
+    assert load_checkpoint(out)["spec"]["input"]["renderers"] == sorted({DEFAULT_RENDERER, init} - {None})
 
 
 def test_an_ensemble_names_its_members_renderers(tmp_path):
     from drivestudio.ensemble import make
-    from perception.models import Regressor
 
-    paths = []
-    for name, renderer in (("a.pt", "tiny"), ("b.pt", "numba")):
-        spec = add_renderers(make_spec("mobilenet", HIGHWAY), {renderer})
-        save_checkpoint(tmp_path / name, {"spec": spec, "state_dict": Regressor(spec).state_dict()})
-        paths.append(str(tmp_path / name))
+    paths = [str(_untrained(tmp_path / name, {renderer})) for name, renderer in (("a.pt", "tiny"), ("b.pt", "numba"))]
     assert make(paths)["spec"]["input"]["renderers"] == ["numba", "tiny"]
