@@ -91,6 +91,16 @@ def fill_polygon(img, pts, r, g, b, edges):
     h, w = img.shape[0], img.shape[1]
     k = pts.shape[0]
     delta = (1 << SHIFT) >> 1
+    # a polygon whose every corner's pixel lies on one side off the image draws nothing: each edge's ends share that
+    # side, so OpenCV's clipLine drops its line and leaves its ends as they are, and the rows between the edges lie
+    # above or below the image, or their runs wholly left or right of it
+    off = 15
+    for i in range(k):
+        tx = ((pts[i, 0] << (XY_SHIFT - SHIFT)) + (XY_ONE >> 1)) >> XY_SHIFT
+        ty = (pts[i, 1] + delta) >> SHIFT
+        off &= (tx < 0) + (tx > w - 1) * 2 + (ty < 0) * 4 + (ty > h - 1) * 8
+    if off:
+        return
     n = 0
     x0 = pts[k - 1, 0] << (XY_SHIFT - SHIFT)
     y0 = (pts[k - 1, 1] + delta) >> SHIFT
