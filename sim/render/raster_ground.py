@@ -13,9 +13,11 @@ SHIFT = 4                 # sub-pixel bits of the painter's points
 XY_SHIFT = 16             # OpenCV's fixed point for edges
 XY_ONE = 1 << XY_SHIFT
 LIMIT = 2e8               # the painter clips projected coordinates to +- this (times 16) before they are integers
+# A polygon's edges are short (four pixels on average): the calls of the line and fill functions cost more than
+# their loops, so numba inlines them into their callers (inline="always").
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _clip_line(w, h, x1, y1, x2, y2):
     """OpenCV's clipLine on a w x h image: (inside, x1, y1, x2, y2)."""
     right, bottom = w - 1, h - 1
@@ -46,7 +48,7 @@ def _clip_line(w, h, x1, y1, x2, y2):
     return (c1 | c2) == 0, x1, y1, x2, y2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _line(img, x1, y1, x2, y2, r, g, b):
     """OpenCV's 8-connected line from (x1, y1) to (x2, y2), drawn left to right, clipped to the image."""
     h, w = img.shape[0], img.shape[1]
@@ -84,7 +86,7 @@ def _line(img, x1, y1, x2, y2, r, g, b):
                 y += sy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fill_polygon(img, pts, r, g, b, edges):
     """cv2.fillPoly(img, [pts], (r, g, b), cv2.LINE_8, shift=4) for one polygon of int64 points (k, 2); `edges` is
     scratch space, (at least k, 4) int64."""
