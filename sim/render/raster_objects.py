@@ -14,6 +14,8 @@ DEGENERATE = 1e-2   # TinyRenderer drops a triangle whose doubled screen area is
 GAP = 1e-3          # [px] a candidate pixel this far outside a triangle's box is outside it whatever the rounding
 # A corner exactly in the eye's plane (clip w = 0) divides by zero: the kernels that divide by w take IEEE's infinities,
 # as TinyRenderer's C++ does (error_model="numpy"), where numba's default would raise ZeroDivisionError mid-frame.
+# _raster and outside are inlined into draw_body (inline="always"): a call a triangle or block costs more than most
+# small triangles' pixels. Inlined code takes its caller's error model, so draw_body's is numpy's too.
 
 
 @njit(cache=True)
@@ -76,7 +78,7 @@ def _between(lo, hi):
     return np.floor(hi) == first and lo - first > GAP
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _raster(img, zbuf, clip, whole, clipped, normals, base, light, ambient, diffuse, near, far):
     """One triangle of clip-space corners clip (3, 4) into img and zbuf; `whole` is the triangle it was clipped
     from (itself when not `clipped`), whose corners carry the world normals (3, 3); base: its colour (3,)."""
@@ -183,7 +185,7 @@ MARGIN = 0.05         # [m] slack of a block's culling sphere, far more than flo
 MARGIN_SHARE = 1e-3   # and a share of its distance from the eye
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def outside(spheres, k, pose, view, p00, p11):
     """Whether the bounding sphere spheres[k] (centre in the body's frame, radius [m]) of a body placed by `pose`
     (cos yaw, sin yaw, x, y) lies wholly behind the eye's plane or beyond one of the side planes of a view of
@@ -203,7 +205,7 @@ def outside(spheres, k, pose, view, p00, p11):
     return (p00 * ex + ez) * kx > r or (ez - p00 * ex) * kx > r or (p11 * ey + ez) * ky > r or (ez - p11 * ey) * ky > r
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def draw_body(img, zbuf, verts, normals, colours, painted, blocks, spheres, first, end, model, pose, paint, view,
               projection, eye, light, ambient, diffuse, still):
     """Blocks first..end of `blocks` (triangle ranges, each in a bounding sphere `spheres` (cx, cy, cz, r)) of verts
