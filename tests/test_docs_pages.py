@@ -29,3 +29,36 @@ def test_every_page_is_in_the_sites_navigation():
 
 def test_the_readme_is_a_front_page():
     assert len((REPO / "README.md").read_text().splitlines()) <= README_LINES
+
+
+def _slugs(page: Path) -> set[str]:
+    """The anchors MkDocs gives a page's headings (the toc extension with mkdocs.yml's slugify)."""
+    from pymdownx.slugs import slugify
+
+    slug = slugify(case="lower")
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+    seen: set[str] = set()
+    for heading in re.findall(r"^#{1,6} +(.+?) *#*$", text, flags=re.M):
+        plain = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).replace("`", "").replace("*", "")
+        name = base = slug(plain, "-")
+        n = 0
+        while name in seen:
+            n += 1
+            name = f"{base}_{n}"
+        seen.add(name)
+    return seen
+
+
+def test_every_anchor_a_page_links_exists():
+    """`mkdocs build --strict` refuses a link to a missing anchor; this says which, in a second."""
+    broken = []
+    for page in PAGES:
+        path = DOCS / page
+        text = re.sub(r"^```.*?^```", "", path.read_text(), flags=re.S | re.M)
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", text):
+            if target.startswith(("http:", "https:")):
+                continue
+            linked = (path.parent / target).resolve() if target else path
+            if linked.suffix == ".md" and linked.exists() and anchor not in _slugs(linked):
+                broken.append(f"docs/{page}: {target}#{anchor}")
+    assert not broken, "links to missing anchors: " + "; ".join(broken)
