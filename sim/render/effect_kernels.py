@@ -149,11 +149,11 @@ def _extent(depth, lo, hi):
 @njit(cache=True, fastmath=FAST)
 def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius, lamp_rgb,
             wet, row_view, segments, beam_reach):
-    """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn
-    (_shade at night, _by_day by day), then mirrored by a wet road (_by_day; wet: contact, wetness, road, tall,
-    near, one_view), row by row, top down. The insets' borders have no depth. row_view: per row, the one view its
-    pixels show (-1: several); segments: the runs of a row's pixels of one view (_by_day); beam_reach: the reach [m]
-    the falloff table `fall` was built with. Each helper is called once, not once a row: a call copies the
+    """The pixels where an object was drawn (depth finite), found between each row's first and last: drawn (_shade at
+    night, _by_day by day on a wet road, _dry_day on a dry one), then mirrored by a wet road (_by_day; wet: contact,
+    wetness, road, tall, near, one_view), row by row, top down. The insets' borders have no depth. row_view: per row,
+    the one view its pixels show (-1: several); segments: the runs of a row's pixels of one view (_by_day); beam_reach:
+    the reach [m] the falloff table `fall` was built with. Each helper is called once, not once a row: a call copies the
     references to its arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
@@ -162,10 +162,45 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
     if night:
         _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
                lamp_rgb, row_view, beam_reach)
-    if not night or wet[0].shape[1] > 1:
-        contact, wetness, road, tall, near, one_view = wet
+    contact, wetness, road, tall, near, one_view = wet
+    if contact.shape[1] > 1:
         _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
                 one_view, segments, not night)
+    elif not night:
+        _dry_day(out, src, depth, width, extents, reach, fog, dark, fog_rgb)
+
+
+@njit(cache=True, fastmath=FAST)
+def _dry_day(out, src, depth, width, extents, reach, fog, dark, fog_rgb):
+    """By day on a dry road, the object pixels between extents[r] (first, end: unsigned) of each row r, as _by_day
+    draws them, in two loops the compiler vectorises (the fog read, the colours drawn): without a reflection to draw
+    as each pixel is drawn they cost less than _by_day's one."""
+    t = np.ones(width)
+    cols = np.empty((3, 2))   # per channel: dark, fog_rgb
+    for c in range(3):
+        cols[c, 0], cols[c, 1] = dark[c], fog_rgb[c]
+    for r in range(extents.shape[0]):
+        lo, hi = extents[r, 0], extents[r, 1]
+        if hi > lo:
+            if fog.shape[0] > 1:
+                _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
+            _day_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, cols)
+
+
+@njit(cache=True, fastmath=FAST)
+def _day_run(out, src, depth, t, cols):
+    # one row's pixels between its first and last object pixel by day, as _shade_run without headlights or lamps
+    d0, d1, d2, f0, f1, f2 = cols[0, 0], cols[1, 0], cols[2, 0], cols[0, 1], cols[1, 1], cols[2, 1]
+    for i in range(depth.shape[0]):
+        t0 = t[i]
+        u = 1.0 - t0
+        keep = np.uint8(depth[i] >= FINITE) * np.uint8(255)   # all ones where no object: the byte kept
+        c0 = np.uint8(min(src[3 * i] * d0 * t0 + f0 * u, 255.0))
+        c1 = np.uint8(min(src[3 * i + 1] * d1 * t0 + f1 * u, 255.0))
+        c2 = np.uint8(min(src[3 * i + 2] * d2 * t0 + f2 * u, 255.0))
+        out[3 * i] = (out[3 * i] & keep) | (c0 & ~keep)
+        out[3 * i + 1] = (out[3 * i + 1] & keep) | (c1 & ~keep)
+        out[3 * i + 2] = (out[3 * i + 2] & keep) | (c2 & ~keep)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -216,18 +251,18 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
 @njit(cache=True, fastmath=FAST)
 def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
             one_view, segments, shade):
-    """By day (shade) the object pixels between extents[r] (first, end: unsigned) of each row r, as _shade draws
-    them without headlights or lamps, in one loop (it costs less than _shade's three in a frame's loop), each
-    mirrored by a wet road as soon as it is drawn; at night (not shade: _shade draws them) only mirrored. segments
-    (n, 4): the runs of a row's pixels of one view (flat index of the first, of the end; view; row), row by row,
-    left to right. A pixel of view v at distance d shows again at row 2 g - r, g = contact[v, d STEP] (the row of the
-    ground at that distance, -1: none; a contact of one entry: a dry road), blended in by wetness[v, that row] where
-    the renderer drew the asphalt (colour `road`, within a level) and no object; tall: rows x metres above its
-    ground row beyond which a pixel is not mirrored (a car's height x the focal length: not the crowns of trees);
-    near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested first; one_view:
-    every pixel of the frame is of view 0 (no insets: the view is not read). A reflection
-    falls on a pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row
-    are what they are drawn after every row."""
+    """On a wet road by day (shade) the object pixels between extents[r] (first, end: unsigned) of each row r, as _shade
+    draws them without headlights or lamps, in one loop, each mirrored as soon as it is drawn (the reflection's loads
+    overlap the drawing: it costs less than _dry_day's loops and a loop of reflections); at night (not shade: _shade
+    draws them) only mirrored. segments (n, 4): the runs of a row's pixels of one view (flat index of the first, of the
+    end; view; row), row by row, left to right. A pixel of view v at distance d shows again at row 2 g - r, g =
+    contact[v, d STEP] (the row of the ground at that distance, -1: none; a contact of one entry: a dry road), blended
+    in by wetness[v, that row] where the renderer drew the asphalt (colour `road`, within a level) and no object; tall:
+    rows x metres above its ground row beyond which a pixel is not mirrored (a car's height x the focal length: not the
+    crowns of trees); near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested
+    first; one_view: every pixel of the frame is of view 0 (no insets: the view is not read). A reflection falls on a
+    pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row are what they
+    are drawn after every row."""
     nl, three = np.uint64(fog.shape[0] - 1), np.uint64(3)
     wetted = contact.shape[1] > 1
     nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
