@@ -135,14 +135,15 @@ def copy(out, src, lo, hi):
 
 
 @njit(cache=True, fastmath=FAST)
-def _extent(depth, lo, hi):
-    # the first and the end of the finite depths of [lo, hi) (lo, hi unsigned: the compiler vectorises the loop only
-    # so); (hi, hi) where none
-    first, last = hi, lo
-    for i in range(lo, hi):
-        finite = depth[i] < FINITE
-        first = min(first, i if finite else hi)
-        last = max(last, i + np.uint64(1) if finite else lo)
+def _extent(row):
+    # the first and the end of the finite depths of a row of at most 32,767 pixels; (n, n) where none. The positions
+    # are int16: the compiler vectorises the loop 16 pixels at a time (twice as fast as with 64-bit positions)
+    n = np.int16(row.shape[0])
+    first, last = n, np.int16(0)
+    for i in range(row.shape[0]):
+        finite = row[i] < FINITE
+        first = min(first, np.int16(i) if finite else n)
+        last = max(last, np.int16(i + 1) if finite else np.int16(0))
     return first, max(first, last)
 
 
@@ -157,7 +158,8 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
     references to its arrays."""
     extents = np.empty((depth.shape[0] // width, 2), dtype=np.uint64)
     for r in range(extents.shape[0]):
-        extents[r] = _extent(depth, np.uint64(r * width), np.uint64((r + 1) * width))
+        first, end = _extent(depth[r * width:(r + 1) * width])
+        extents[r, 0], extents[r, 1] = np.uint64(r * width + first), np.uint64(r * width + end)
     night = fall.shape[0] > 1
     if night:
         _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, dark, gain, fog_rgb, lamps, radius,
@@ -263,7 +265,9 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
     first; one_view: every pixel of the frame is of view 0 (no insets: the view is not read). A reflection falls on a
     pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row are what they
     are drawn after every row."""
-    nl, three = np.uint64(fog.shape[0] - 1), np.uint64(3)
+    # unsigned indices throughout, and the view's rows of contact and wetness taken once a run: numba tests a signed
+    # index for wrapping around at each access
+    nl, one, two, three = np.uint64(fog.shape[0] - 1), np.uint64(1), np.uint64(2), np.uint64(3)
     wetted = contact.shape[1] > 1
     nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
     d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
@@ -273,6 +277,7 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
         v, r = segments[k, 2], segments[k, 3]
         lo, hi = max(np.uint64(segments[k, 0]), extents[r, 0]), min(np.uint64(segments[k, 1]), extents[r, 1])
         dlo, dhi = (near[v, r, 0], near[v, r, 1]) if wetted else (0.0, 0.0)   # where a pixel can be mirrored
+        ground_rows, wet_rows = contact[v], wetness[v]
         for p in range(lo, hi):
             d = depth[p]
             if d >= FINITE:
@@ -284,22 +289,23 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
                     t0 = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
                     u = 1.0 - t0
                 out[q] = np.uint8(min(src[q] * d0 * t0 + f0 * u, 255.0))
-                out[q + 1] = np.uint8(min(src[q + 1] * d1 * t0 + f1 * u, 255.0))
-                out[q + 2] = np.uint8(min(src[q + 2] * d2 * t0 + f2 * u, 255.0))
+                out[q + one] = np.uint8(min(src[q + one] * d1 * t0 + f1 * u, 255.0))
+                out[q + two] = np.uint8(min(src[q + two] * d2 * t0 + f2 * u, 255.0))
             if not dlo <= d < dhi:
                 continue
-            g = contact[v, min(np.uint64(d * STEP), nc)]
+            g = ground_rows[min(np.uint64(d * STEP), nc)]
             target = 2 * g - r
             if g < 0 or (g - r) * d > tall or target <= r or target >= height:
                 continue
             at = np.uint64(np.int64(p) + (target - r) * width)
+            b = three * at
             # the asphalt drawn there, within a level, no object and the same view (one test, not five branches)
-            if (abs(np.int64(src[3 * at]) - r0) <= 1) & (abs(np.int64(src[3 * at + 1]) - r1) <= 1) & \
-                    (abs(np.int64(src[3 * at + 2]) - r2) <= 1) & (depth[at] >= FINITE) & (one_view or view[at] == v):
-                a = wetness[v, target]
-                for c in range(3):
-                    x = np.float32(out[3 * at + c])
-                    out[3 * at + c] = np.uint8(x + a * (np.float32(out[q + c]) - x))
+            if (abs(np.int64(src[b]) - r0) <= 1) & (abs(np.int64(src[b + one]) - r1) <= 1) & \
+                    (abs(np.int64(src[b + two]) - r2) <= 1) & (depth[at] >= FINITE) & (one_view or view[at] == v):
+                a = wet_rows[np.uint64(target)]
+                for c in (np.uint64(0), one, two):
+                    x = np.float32(out[b + c])
+                    out[b + c] = np.uint8(x + a * (np.float32(out[q + c]) - x))
 
 
 @njit(cache=True, error_model="numpy")   # no test for a division by zero: the loop is vectorised only so
