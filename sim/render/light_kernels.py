@@ -76,13 +76,13 @@ def project(cams, v, px, py, pz):
 
 @njit(cache=True, fastmath=FAST)
 def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, streak, across):
-    """A light at a car-frame point [m] added to view v of out (h, w, 3) as a glow of `radius` [m] (at least 0.6
-    px), colour rgb (0-255) at full strength, hidden where the depth shows an object more than a metre in front of
-    it, dimmed by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below.
-    The glow is s exp(-q) for q = dx^2 + dy^2 < 9 (in radii); a pixel gains its integer part only, so the glow
-    stops where s exp(-q) x the brightest channel falls under a level, and exp(-q) is exp(-dx^2) exp(-dy^2): one
-    exp a row and one a column, those of the columns kept in `across` (room for a row of the frame: one array for
-    every glow of a frame, not one each)."""
+    """A light at a car-frame point [m] added to view v of out (h, w, 3) as a glow of `radius` [m] (at least 0.6 px),
+    colour rgb (0-255) at full strength, hidden where the depth shows an object more than a metre in front of it, dimmed
+    by the fog (density per metre, 0: none); streak > 0: a wet road's reflection that many radii below. The glow is s
+    exp(-q) for q = dx^2 + dy^2 < 9 (in radii); a pixel gains its integer part only, so the glow stops where s exp(-q) x
+    the brightest channel falls under a level (its square's rows, and in them each pixel left unread), and exp(-q) is
+    exp(-dx^2) exp(-dy^2): one exp a row and one a column, those of the columns kept in `across` (room for a row of the
+    frame: one array for every glow of a frame, not one each)."""
     col, row, d = project(cams, v, px, py, pz)
     if d < 0.0 or d > cams[v, 21]:
         return
@@ -102,6 +102,8 @@ def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, stre
     for c in range(c0, c1):
         dx = (c + 0.5 - col) / rad
         across[c - c0] = math.exp(-dx * dx) if dx * dx < q_max else 0.0
+    flat, where, width = out.reshape(-1), view.reshape(-1), np.uint64(view.shape[1])
+    lit = 0.999 / max(rgb[0], rgb[1], rgb[2])   # a pixel gains less than a level where g is under this: none
     for r in range(max(top, ir - reach), min(top + vh, ir + reach + below + 1)):
         dy = (r + 0.5 - row) / rad
         if dy > 0.0 and streak > 0.0:
@@ -109,11 +111,13 @@ def glow(out, depth, view, cams, v, px, py, pz, radius, rgb, strength, fog, stre
         if dy * dy >= q_max:
             continue
         up = s * math.exp(-dy * dy)
-        for c in range(c0, c1):
-            if view[r, c] == v and across[c - c0] > 0.0:
-                g = up * across[c - c0]
-                for i in range(3):
-                    out[r, c, i] = np.uint8(min(255.0, out[r, c, i] + g * rgb[i]))
+        first = np.uint64(r) * width + np.uint64(c0)
+        for j in range(np.uint64(c1 - c0)):   # unsigned indices: numba tests a signed one for wrapping around
+            g = up * across[j]
+            if g >= lit and where[first + j] == v:
+                q = np.uint64(3) * (first + j)
+                for i in range(np.uint64(3)):
+                    flat[q + i] = np.uint8(min(255.0, flat[q + i] + g * rgb[i]))
 
 
 @njit(cache=True, fastmath=FAST)
