@@ -247,7 +247,10 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
                         f = max(0.0, 1.0 - (dx * dx + dy * dy) / (radius * radius))
                         sum_ += f * f
                 pool[p - lo] = sum_
-        _shade_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, lit, pool, cols)
+        if nl > 0:
+            _shade_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, lit, pool, cols)
+        else:
+            _unfogged_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], lit, pool, cols)
 
 
 @njit(cache=True, fastmath=FAST)
@@ -339,6 +342,22 @@ def _shade_run(out, src, depth, t, lit, pool, cols):
         c0 = np.uint8(min(src[3 * i] * (d0 + (k0 * h + l0 * s)) * ti + f0 * u, 255.0))
         c1 = np.uint8(min(src[3 * i + 1] * (d1 + (k1 * h + l1 * s)) * ti + f1 * u, 255.0))
         c2 = np.uint8(min(src[3 * i + 2] * (d2 + (k2 * h + l2 * s)) * ti + f2 * u, 255.0))
+        out[3 * i] = (out[3 * i] & keep) | (c0 & ~keep)
+        out[3 * i + 1] = (out[3 * i + 1] & keep) | (c1 & ~keep)
+        out[3 * i + 2] = (out[3 * i + 2] & keep) | (c2 & ~keep)
+
+
+@njit(cache=True, fastmath=FAST)
+def _unfogged_run(out, src, depth, lit, pool, cols):
+    # _shade_run without fog: its transmittance 1, its colour x 0 (the same bytes, the fog's terms not read)
+    d0, d1, d2, k0, k1, k2 = cols[0, 0], cols[1, 0], cols[2, 0], cols[0, 1], cols[1, 1], cols[2, 1]
+    l0, l1, l2 = cols[0, 2], cols[1, 2], cols[2, 2]
+    for i in range(depth.shape[0]):
+        h, s = lit[i], pool[i]
+        keep = np.uint8(depth[i] >= FINITE) * np.uint8(255)   # all ones where no object: the byte kept
+        c0 = np.uint8(min(src[3 * i] * (d0 + (k0 * h + l0 * s)), 255.0))
+        c1 = np.uint8(min(src[3 * i + 1] * (d1 + (k1 * h + l1 * s)), 255.0))
+        c2 = np.uint8(min(src[3 * i + 2] * (d2 + (k2 * h + l2 * s)), 255.0))
         out[3 * i] = (out[3 * i] & keep) | (c0 & ~keep)
         out[3 * i + 1] = (out[3 * i + 1] & keep) | (c1 & ~keep)
         out[3 * i + 2] = (out[3 * i + 2] & keep) | (c2 & ~keep)
