@@ -226,7 +226,11 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
         lo, hi = extents[r, 0], extents[r, 1]
         if hi == lo:
             continue
-        _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
+        if _lit_any(cone[lo:hi]):
+            _lit_run(lit, depth[lo:hi], cone[lo:hi], np.float64(nf), beam_reach)
+        else:   # out of the beams' cone: no light (cone 0 x the falloff, which is finite)
+            for i in range(hi - lo):
+                lit[i] = 0.0
         if nl > 0:
             _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
         if nf > 0 and lamps.shape[0] and row_view[r] >= 0:
@@ -309,6 +313,15 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
                 for c in (np.uint64(0), one, two):
                     x = np.float32(out[b + c])
                     out[b + c] = np.uint8(x + a * (np.float32(out[q + c]) - x))
+
+
+@njit(cache=True)
+def _lit_any(cone):
+    # whether any pixel of a run is in the beams' cone (a loop the compiler vectorises)
+    most = np.uint8(0)
+    for i in range(cone.shape[0]):
+        most = max(most, cone[i])
+    return most > 0
 
 
 @njit(cache=True, error_model="numpy")   # no test for a division by zero: the loop is vectorised only so
