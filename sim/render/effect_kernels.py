@@ -166,40 +166,38 @@ def objects(out, src, depth, view, width, reach, cams, cone, fall, fog, dark, ga
                lamp_rgb, row_view, beam_reach)
     contact, wetness, road, tall, near, one_view = wet
     if contact.shape[1] > 1:
-        _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
+        _by_day(out, src, depth, view, width, extents, reach, fog, fog_rgb, contact, wetness, road, tall, near,
                 one_view, segments, not night)
     elif not night:
-        _dry_day(out, src, depth, width, extents, reach, fog, dark, fog_rgb)
+        _dry_day(out, src, depth, width, extents, reach, fog, fog_rgb)
 
 
 @njit(cache=True, fastmath=FAST)
-def _dry_day(out, src, depth, width, extents, reach, fog, dark, fog_rgb):
+def _dry_day(out, src, depth, width, extents, reach, fog, fog_rgb):
     """By day on a dry road, the object pixels between extents[r] (first, end: unsigned) of each row r, as _by_day
     draws them, in two loops the compiler vectorises (the fog read, the colours drawn): without a reflection to draw
     as each pixel is drawn they cost less than _by_day's one."""
     t = np.ones(width)
-    cols = np.empty((3, 2))   # per channel: dark, fog_rgb
-    for c in range(3):
-        cols[c, 0], cols[c, 1] = dark[c], fog_rgb[c]
     for r in range(extents.shape[0]):
         lo, hi = extents[r, 0], extents[r, 1]
         if hi > lo:
             if fog.shape[0] > 1:
                 _fog_run(t, depth[lo:hi], reach[lo:hi], fog)
-            _day_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, cols)
+            _day_run(out[3 * lo:3 * hi], src[3 * lo:3 * hi], depth[lo:hi], t, fog_rgb)
 
 
 @njit(cache=True, fastmath=FAST)
-def _day_run(out, src, depth, t, cols):
+def _day_run(out, src, depth, t, fog_rgb):
     # one row's pixels between its first and last object pixel by day, as _shade_run without headlights or lamps
-    d0, d1, d2, f0, f1, f2 = cols[0, 0], cols[1, 0], cols[2, 0], cols[0, 1], cols[1, 1], cols[2, 1]
+    # and with the light of day (dark 1: its product left out, exactly)
+    f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
     for i in range(depth.shape[0]):
         t0 = t[i]
         u = 1.0 - t0
         keep = np.uint8(depth[i] >= FINITE) * np.uint8(255)   # all ones where no object: the byte kept
-        c0 = np.uint8(min(src[3 * i] * d0 * t0 + f0 * u, 255.0))
-        c1 = np.uint8(min(src[3 * i + 1] * d1 * t0 + f1 * u, 255.0))
-        c2 = np.uint8(min(src[3 * i + 2] * d2 * t0 + f2 * u, 255.0))
+        c0 = np.uint8(min(src[3 * i] * t0 + f0 * u, 255.0))
+        c1 = np.uint8(min(src[3 * i + 1] * t0 + f1 * u, 255.0))
+        c2 = np.uint8(min(src[3 * i + 2] * t0 + f2 * u, 255.0))
         out[3 * i] = (out[3 * i] & keep) | (c0 & ~keep)
         out[3 * i + 1] = (out[3 * i + 1] & keep) | (c1 & ~keep)
         out[3 * i + 2] = (out[3 * i + 2] & keep) | (c2 & ~keep)
@@ -258,26 +256,25 @@ def _shade(out, src, depth, view, width, extents, reach, cams, cone, fall, fog, 
 
 
 @njit(cache=True, fastmath=FAST)
-def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, contact, wetness, road, tall, near,
-            one_view, segments, shade):
+def _by_day(out, src, depth, view, width, extents, reach, fog, fog_rgb, contact, wetness, road, tall, near, one_view,
+            segments, shade):
     """On a wet road by day (shade) the object pixels between extents[r] (first, end: unsigned) of each row r, as _shade
-    draws them without headlights or lamps, in one loop, each mirrored as soon as it is drawn (the reflection's loads
-    overlap the drawing: it costs less than _dry_day's loops and a loop of reflections); at night (not shade: _shade
-    draws them) only mirrored. segments (n, 4): the runs of a row's pixels of one view (flat index of the first, of the
-    end; view; row), row by row, left to right. A pixel of view v at distance d shows again at row 2 g - r, g =
-    contact[v, d STEP] (the row of the ground at that distance, -1: none; a contact of one entry: a dry road), blended
-    in by wetness[v, that row] where the renderer drew the asphalt (colour `road`, within a level) and no object; tall:
-    rows x metres above its ground row beyond which a pixel is not mirrored (a car's height x the focal length: not the
-    crowns of trees); near (views, rows, 2): the distances [m] outside which no pixel of a row is mirrored, tested
-    first; one_view: every pixel of the frame is of view 0 (no insets: the view is not read). A reflection falls on a
-    pixel of the ground, drawn (ground) and drawn on by no object: a row's reflections drawn with the row are what they
-    are drawn after every row."""
+    draws them in the light of day (dark 1: its product left out) without headlights or lamps, in one loop, each
+    mirrored as soon as it is drawn (the reflection's loads overlap the drawing: it costs less than _dry_day's loops and
+    a loop of reflections); at night (not shade: _shade draws them) only mirrored. segments (n, 4): the runs of a row's
+    pixels of one view (flat index of the first, of the end; view; row), row by row, left to right. A pixel of view v at
+    distance d shows again at row 2 g - r, g = contact[v, d STEP] (the row of the ground at that distance, -1: none; a
+    contact of one entry: a dry road), blended in by wetness[v, that row] where the renderer drew the asphalt (colour
+    `road`, within a level) and no object; tall: rows x metres above its ground row beyond which a pixel is not mirrored
+    (a car's height x the focal length: not the crowns of trees); near (views, rows, 2): the distances [m] outside which
+    no pixel of a row is mirrored, tested first; one_view: every pixel of the frame is of view 0 (no insets: the view is
+    not read). A reflection falls on a pixel of the ground, drawn (ground) and drawn on by no object: a row's
+    reflections drawn with the row are what they are drawn after every row."""
     # unsigned indices throughout, and the view's rows of contact and wetness taken once a run: numba tests a signed
     # index for wrapping around at each access
     nl, one, two, three = np.uint64(fog.shape[0] - 1), np.uint64(1), np.uint64(2), np.uint64(3)
     wetted = contact.shape[1] > 1
     nc, height = np.uint64(contact.shape[1] - 1), view.shape[0] // width
-    d0, d1, d2 = np.float64(dark[0]), np.float64(dark[1]), np.float64(dark[2])
     f0, f1, f2 = np.float64(fog_rgb[0]), np.float64(fog_rgb[1]), np.float64(fog_rgb[2])
     r0, r1, r2 = road[0], road[1], road[2]
     for k in range(segments.shape[0]):
@@ -295,9 +292,9 @@ def _by_day(out, src, depth, view, width, extents, reach, fog, dark, fog_rgb, co
                 if nl > 0:
                     t0 = np.float64(fog[min(np.uint64(d * np.float32(reach[p]) * np.float32(STEP / 128.0)), nl)])
                     u = 1.0 - t0
-                out[q] = np.uint8(min(src[q] * d0 * t0 + f0 * u, 255.0))
-                out[q + one] = np.uint8(min(src[q + one] * d1 * t0 + f1 * u, 255.0))
-                out[q + two] = np.uint8(min(src[q + two] * d2 * t0 + f2 * u, 255.0))
+                out[q] = np.uint8(min(src[q] * t0 + f0 * u, 255.0))
+                out[q + one] = np.uint8(min(src[q + one] * t0 + f1 * u, 255.0))
+                out[q + two] = np.uint8(min(src[q + two] * t0 + f2 * u, 255.0))
             if not dlo <= d < dhi:
                 continue
             g = ground_rows[min(np.uint64(d * STEP), nc)]
