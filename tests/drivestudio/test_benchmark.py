@@ -331,6 +331,7 @@ def test_a_route_drives_the_same_twice(tmp_path, blind):
     assert a["end"] == "host lost" and a["metrics"]["off_road_events"] == 1   # the blind model leaves the road
 
 
+@pytest.mark.long   # two routes, a model and the oracle, a clip encoded: 12 s
 def test_the_benchmark_writes_a_leaderboard_and_a_clip_that_names_an_indicator(tmp_path, blind):
     suite = write_suite(tmp_path / "s.json", [ROUTE_A, ROUTE_B])
     out = tmp_path / "out"

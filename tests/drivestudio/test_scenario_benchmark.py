@@ -57,6 +57,7 @@ def benchmark(folder, tmp_path_factory):
     return outs
 
 
+@pytest.mark.long   # both oracles over two scenarios, in process and over shared memory: 12 s
 def test_each_scenario_passes_or_fails_per_model_in_scenarios_csv_and_the_leaderboard(benchmark):
     out = benchmark["in-process"]
     got = rows(out)
@@ -74,6 +75,7 @@ def test_each_scenario_passes_or_fails_per_model_in_scenarios_csv_and_the_leader
     assert board["models"][0]["overall"]["driving_score"] < board["models"][1]["overall"]["driving_score"]
 
 
+@pytest.mark.long   # both oracles over two scenarios, in process and over shared memory: 12 s
 def test_over_shared_memory_every_trace_is_bit_identical(benchmark):
     here, there = rows(benchmark["in-process"]), rows(benchmark["shm"])
     assert here.keys() == there.keys()
@@ -82,6 +84,7 @@ def test_over_shared_memory_every_trace_is_bit_identical(benchmark):
         assert here[key]["steps"] == there[key]["steps"] == "40"
 
 
+@pytest.mark.long   # both oracles over two scenarios, in process and over shared memory: 12 s
 def test_a_collision_clip_gets_a_scenario_beside_it_that_replays_the_collision(benchmark):
     out = benchmark["in-process"]
     board = json.loads((out / "leaderboard.json").read_text())

@@ -99,6 +99,7 @@ def test_emphasis_counts_the_decisive_labels_among_the_targets_only():
         FrameStream(dataset(), "train", targets=("fast", "dist_LB", "dist_RB"), emphasis=3)
 
 
+@pytest.mark.long   # an AlexNet trained on real frames until its loss falls: 11 s
 def test_alexnet_training_lowers_the_loss_on_real_frames():
     path, record = alexnet_checkpoint()
     history = record["history"]
