@@ -31,12 +31,17 @@ def test_the_readme_is_a_front_page():
     assert len((REPO / "README.md").read_text().splitlines()) <= README_LINES
 
 
+def _prose(page: Path) -> str:
+    """A page without its fenced code blocks (a `#` there is a comment, not a heading or a link)."""
+    return re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+
+
 def _slugs(page: Path) -> set[str]:
     """The anchors MkDocs gives a page's headings (the toc extension with mkdocs.yml's slugify)."""
     from pymdownx.slugs import slugify
 
     slug = slugify(case="lower")
-    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+    text = _prose(page)
     seen: set[str] = set()
     for heading in re.findall(r"^#{1,6} +(.+?) *#*$", text, flags=re.M):
         plain = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).replace("`", "").replace("*", "")
@@ -54,7 +59,7 @@ def test_every_anchor_a_page_links_exists():
     broken = []
     for page in PAGES:
         path = DOCS / page
-        text = re.sub(r"^```.*?^```", "", path.read_text(), flags=re.S | re.M)
+        text = _prose(path)
         for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", text):
             if target.startswith(("http:", "https:")):
                 continue

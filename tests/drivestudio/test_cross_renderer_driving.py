@@ -31,7 +31,7 @@ def drives(tmp_path_factory):
     """{(trained on, driven with): the model's route row of the leaderboard}."""
     tmp = tmp_path_factory.mktemp("cross")
     suite = tmp / "suite.json"
-    suite.write_text(json.dumps({"name": "one-bend", "routes": [ROUTE]}))
+    suite.write_text(json.dumps({"name": "one-oval", "routes": [ROUTE]}))
     models = {}
     for renderer in RENDERERS:
         data = tmp / f"data-{renderer}"
