@@ -59,6 +59,8 @@ class Family:
     the training setting `history` says. settings: the other settings of TrainConfig that only this family's training
     reads (perception/train.py's settings_read).
     onnx: None when the family can be exported as ONNX (`drivestudio export`), else why not (one line).
+    drives_bf16: a predictor of the family computes under bfloat16 autocast where that is native
+    (perception/precision.py), as its trainer does.
     """
 
     name: str
@@ -73,6 +75,7 @@ class Family:
     temporal: bool = False     # reads several instants of a one-instant world (the setting history)
     settings: tuple[str, ...] = ()   # settings of TrainConfig only this family reads (VGG-16's unfreeze, ...)
     onnx: str | None = None    # None: exportable to ONNX; else why not, e.g. an operator ONNX cannot express
+    drives_bf16: bool = False
 
 
 _FAMILIES: dict[str, Family] = {}

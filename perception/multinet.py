@@ -50,9 +50,10 @@ from perception.curves import write_curves
 from perception.models import Regressor, add_renderers, family, make_spec
 from perception.moments import Moments
 from perception.optimizers import make_optimizer as optimizer
+from perception.precision import bf16_native
 from perception.train_outputs import state_path
 from perception.trainer import Occasion, Plan
-from perception.training import bf16_native, open_data, resolve_device
+from perception.training import open_data, resolve_device
 
 CLIP = 1.0                 # gradient norm (the authors' code)
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228,

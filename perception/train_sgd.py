@@ -7,7 +7,7 @@ and on Ctrl-C or SIGTERM; running the same training again continues from it (sam
 state). Loss curves go beside it as `<out>.loss.csv` and `<out>.loss.png`.
 
 Precision (`amp`, the default): the forward pass runs under autocast where its arithmetic is fast, bfloat16 on a CPU
-that computes it natively (AVX512-BF16 or AMX: perception/training.py's bf16_native) as Z2Color's trainer does, and
+that computes it natively (AVX512-BF16 or AMX: perception/precision.py's bf16_native) as Z2Color's trainer does, and
 on CUDA bfloat16 or float16; the master weights, the optimiser, the loss and its reduction stay float32, and so does
 validation (the drivers run the networks in float32). Elsewhere, and with `amp` false, float32 throughout. The
 checkpoint's train record names the precision (`precision`); a run continued in another one says so.
@@ -52,13 +52,13 @@ from perception.models import (
     make_spec,
 )
 from perception.optimizers import make_optimizer as optimizer
+from perception.precision import bf16_native
 from perception.shards import Dataset, DatasetError
 from perception.trainer import Occasion, Plan
 from perception.training import (
     LOSSES,
     TrainConfig,
     TrainingError,
-    bf16_native,
     data_summary,
     history_moment,
     input_statistics,

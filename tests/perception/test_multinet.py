@@ -213,8 +213,8 @@ def test_a_finished_multinet_is_not_handed_back_as_an_mtl_net(tmp_path):
 @pytest.mark.parametrize("avx512_bf16, amx, native", [(False, False, False), (True, False, True), (False, True, True)])
 def test_bfloat16_autocast_only_where_the_cpu_computes_it_natively(monkeypatch, avx512_bf16, amx, native):
     """Emulated bfloat16 trained Z2Color 6.8x slower than float32 on an AVX2-only CPU: the default autocast is for
-    CPUs with AVX512-BF16 or AMX only (perception/training.py's bf16_native)."""
-    from perception.training import bf16_native
+    CPUs with AVX512-BF16 or AMX only (perception/precision.py's bf16_native)."""
+    from perception.precision import bf16_native
     monkeypatch.setattr(torch.cpu, "_is_avx512_bf16_supported", lambda: avx512_bf16, raising=False)
     monkeypatch.setattr(torch.cpu, "_is_amx_tile_supported", lambda: amx, raising=False)
     assert bf16_native(torch.device("cpu")) is native

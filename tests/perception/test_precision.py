@@ -8,8 +8,8 @@ from core.worlds.highway import HIGHWAY
 from perception.checkpoint import load_checkpoint
 from perception.mobilenet import Float32Conv
 from perception.models import build
+from perception.precision import bf16_native
 from perception.train import train
-from perception.training import bf16_native
 from tests.perception.frames import tiny_config, workdir
 
 NATIVE = bf16_native(torch.device("cpu"))

@@ -83,3 +83,36 @@ def test_a_checkpoint_of_another_world_is_refused():
     from perception.checkpoint import CheckpointError
     with pytest.raises(CheckpointError, match="a model of the highway world, not of the sidewalk world"):
         load_predictor(gist_checkpoint()[0], world="sidewalk")
+
+
+@pytest.mark.parametrize("native", [True, False], ids=["bf16-native", "bf16-emulated"])
+def test_z2color_predicts_under_bfloat16_only_where_native_and_close_to_float32(monkeypatch, native):
+    """Z2Color's predictor computes under bfloat16 autocast where the CPU has it natively (as its trainer does),
+    within a few thousandths of float32's outputs; elsewhere, and for the highway's families, in float32, bit for bit
+    the model's own forward pass."""
+    import torch
+
+    from core.worlds.highway import HIGHWAY
+    from core.worlds.sidewalk import SIDEWALK
+    from perception.models import build
+    from perception.predictor import Predictor
+    monkeypatch.setattr("perception.predictor.bf16_native", lambda device: native)
+    torch.manual_seed(0)
+    net = build("z2color", SIDEWALK).eval()
+    rng = np.random.default_rng(0)
+    images = [rng.integers(0, 256, (94, 168, 3), dtype=np.uint8) for _ in range(4)]
+    driving, exact = Predictor(net, net.spec), Predictor(net, net.spec, amp=False)
+    assert driving.amp is native and exact.amp is False
+    with torch.inference_mode():
+        own = net.denormalise(net(exact._batch([images]), torch.tensor([0])))[0]
+    np.testing.assert_array_equal(exact(images, "direct"), own)
+    got = driving(images, "direct")
+    spread = np.abs(own).max()
+    assert spread > 0.01
+    if native:
+        assert not np.array_equal(got, own)                   # computed otherwise...
+        np.testing.assert_allclose(got, own, atol=0.02 * spread)      # ...to nearly the same outputs
+    else:
+        np.testing.assert_array_equal(got, own)
+    alexnet = build("alexnet", HIGHWAY)
+    assert Predictor(alexnet, alexnet.spec).amp is False
