@@ -273,7 +273,7 @@ def test_a_study_continues_only_with_the_settings_that_made_it(run_cli, tmp_path
     (out / "config.json").write_text(made)
     r = run_cli("study", "--out", out, "--set", "rounds=3", cwd=REPO)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert "epochs=12 (asked 10)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
+    assert "epochs=12 (asked 5)" in r.stderr and "rounds" not in r.stderr     # more rounds only add
     assert (out / "config.json").read_text() == made and sorted(p.name for p in out.iterdir()) == ["config.json"]
 
 

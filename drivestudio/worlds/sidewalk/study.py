@@ -67,7 +67,7 @@ class StudyConfig:
     perturbed: float = setting(0.5, "share of the data's episodes whose expert is knocked aside now and then, its "
                                     "recoveries labelled (docs/sidewalk.md)", low=0.0, high=1.0)
     # the trainings
-    epochs: int = setting(10, "epochs per trial", low=1, high=1000)
+    epochs: int = setting(5, "epochs per trial", low=1, high=1000)
     trials: int = setting(3, "trials per network", low=1, high=100)
     batch_size: int = setting(120, "moments per batch", low=3, high=65536)
     steer_share: float = setting(0.0, "share of each mode's draws from its steering moments in every training (train's "
