@@ -15,11 +15,14 @@ commit whose `train` takes the settings as `--set NAME=VALUE`.
 bfloat16 natively (`amp`, the default), both in the fastest configuration above (channels-last, the frame cache, no
 loader process, as the recipe trains): iterations a minute side by side, the median of the rounds (a shared machine
 drifts, so the rounds alternate and the median is the figure), each round's ratio. `--threads 1` measures a
-network as the recipe trains it, one thread each beside the others.
+network as the recipe trains it, one thread each beside the others; `--side-by-side N` trains N copies at once in
+each precision (the recipe trains three at once on two cores: `--threads 1 --side-by-side 3`), the figure then each
+copy's iterations a minute, their mean.
 
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
-    python bench/bench_training.py --precision [--rounds 5] [--threads N] [--families alexnet,mobilenet-h1]
+    python bench/bench_training.py --precision [--rounds 5] [--threads N] [--side-by-side N]
+                                   [--families alexnet,mobilenet-h1] [--iterations N]
 """
 from __future__ import annotations
 
@@ -52,6 +55,14 @@ def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -
     """A verb of this checkout, or of the checkout `tree` (python -m puts the working folder first on the path)."""
     subprocess.run([sys.executable, "-m", "drivestudio", *args], check=True, stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL, cwd=tree, env=None if env is None else {**os.environ, **env})
+
+
+def drivestudio_together(argvs: list[list[str]], env: dict) -> None:
+    """Verbs of this checkout run at once (trainings side by side, as the recipe runs them)."""
+    procs = [subprocess.Popen([sys.executable, "-m", "drivestudio", *a], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, env={**os.environ, **env}) for a in argvs]
+    if any(p.wait() != 0 for p in procs):
+        raise SystemExit("a training of the benchmark failed")
 
 
 def samples_per_s(ckpt: Path) -> float:
@@ -93,18 +104,21 @@ def precision(args) -> None:
             for fam in families:
                 options, iterations = FAMILIES[fam]
                 # the order flips every round: neither precision always runs first after the other family
+                iterations = args.iterations or iterations
                 for name in (list(PRECISIONS) if r % 2 == 0 else list(reversed(PRECISIONS))):
-                    ckpt = work / f"{fam}.pt"
-                    for p in work.glob(f"{fam}.pt*"):
+                    ckpts = [work / f"{fam}-{k}.pt" for k in range(args.side_by_side)]
+                    for p in work.glob(f"{fam}-*.pt*"):
                         p.unlink()
-                    drivestudio("train", "--data", str(data), "--out", str(ckpt), *options, *PRECISIONS[name],
-                                "--iterations", str(iterations), "--set", f"val_every={10 * iterations}",
-                                "--device", "cpu", env=env)
-                    per_min[(fam, name)].append(samples_per_s(ckpt) * 60 / batch_of(options))
+                    drivestudio_together([["train", "--data", str(data), "--out", str(ckpt), *options,
+                                           *PRECISIONS[name], "--iterations", str(iterations), "--set",
+                                           f"val_every={10 * iterations}", "--device", "cpu"] for ckpt in ckpts], env)
+                    per_min[(fam, name)].append(statistics.mean(samples_per_s(c) for c in ckpts) * 60
+                                                / batch_of(options))
             loads.append(os.getloadavg()[0])
             print(f"round {r + 1}/{args.rounds} done, load average {loads[-1]:.1f}", file=sys.stderr, flush=True)
         fp32, bf16 = PRECISIONS
-        print(f"{cpu_name()}, {threads} thread(s), {args.rounds} alternating rounds, load average "
+        print(f"{cpu_name()}, {threads} thread(s), {args.side_by_side} training(s) at once, {args.rounds} "
+              f"alternating rounds, load average "
               f"{min(loads):.1f}-{max(loads):.1f}, {time.strftime('%Y-%m-%d')}")
         print(f"{'family':14s} {'batch':>5s} {'float32 it/min':>15s} {'bfloat16 it/min':>16s} {'x float32':>10s}  "
               "rounds (bfloat16 / float32)")
@@ -122,7 +136,8 @@ def precision(args) -> None:
                              "round_ratios": ratios if name == bf16 else None})
         if args.json:
             args.json.write_text(json.dumps({"rows": rows, "frames": args.frames, "cores": os.cpu_count(),
-                                             "threads": threads, "cpu": cpu_name(), "load_average": loads},
+                                             "threads": threads, "side_by_side": args.side_by_side, "cpu": cpu_name(),
+                                             "load_average": loads},
                                             indent=1))
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -138,10 +153,16 @@ def main() -> None:
     ap.add_argument("--before-tree", type=Path, help="run the first configuration from this checkout")
     ap.add_argument("--precision", action="store_true", help="float32 against bfloat16 autocast instead")
     ap.add_argument("--threads", type=int, help="--precision: threads of each training (default: torch's)")
+    ap.add_argument("--side-by-side", type=int, default=1, help="--precision: trainings at once in each precision")
+    ap.add_argument("--iterations", type=int, help="--precision: iterations of each training (default: the family's)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
         ap.error(f"--before-tree: {args.before_tree} is not a checkout of this project")
+    if args.side_by_side < 1 or (args.iterations is not None and args.iterations < 2):
+        ap.error("--side-by-side must be at least 1 and --iterations at least 2")
+    if (args.side_by_side != 1 or args.iterations is not None) and not args.precision:
+        ap.error("--side-by-side and --iterations go with --precision")
     if args.precision and args.before_tree is not None:
         ap.error("--precision compares two settings of this checkout: leave out --before-tree")
     if args.families is None:
