@@ -19,9 +19,12 @@ network as the recipe trains it, one thread each beside the others; `--side-by-s
 each precision (the recipe trains three at once on two cores: `--threads 1 --side-by-side 3`), the figure then each
 copy's iterations a minute, their mean.
 
+`--allocator` compares glibc's allocator as it comes with the one every verb sets up (core/allocator.py: freed memory
+kept, no block served by mmap), both in bfloat16 where native, the same way.
+
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
-    python bench/bench_training.py --precision [--rounds 5] [--threads N] [--side-by-side N]
+    python bench/bench_training.py --precision|--allocator [--rounds 5] [--threads N] [--side-by-side N]
                                    [--families alexnet,mobilenet-h1] [--iterations N]
 """
 from __future__ import annotations
@@ -49,6 +52,12 @@ VARIANTS = {"before (contiguous, PNG every epoch)": ["--set", "channels_last=fal
             "channels-last + frame cache": ["--workers", "1"],
             "channels-last + frame cache, no loader process": ["--workers", "0"]}
 PRECISIONS = {"float32": ["--workers", "0", "--set", "amp=false"], "bfloat16 autocast": ["--workers", "0"]}
+# a verb with glibc's own allocator settings (core/allocator.py switched off before the command line is read)
+GLIBC_DEFAULT = ("import sys, core.allocator as a; a.keep_freed_memory = lambda: False; "
+                 "from drivestudio.cli import main; sys.exit(main())")
+# name: (train options, a `python -c` program in place of `python -m drivestudio`, or None)
+PAIRS = {"precision": {"float32": (PRECISIONS["float32"], None), "bfloat16": (PRECISIONS["bfloat16 autocast"], None)},
+         "allocator": {"glibc default": (["--workers", "0"], GLIBC_DEFAULT), "kept": (["--workers", "0"], None)}}
 
 
 def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -> None:
@@ -57,9 +66,11 @@ def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -
                    stderr=subprocess.DEVNULL, cwd=tree, env=None if env is None else {**os.environ, **env})
 
 
-def drivestudio_together(argvs: list[list[str]], env: dict) -> None:
-    """Verbs of this checkout run at once (trainings side by side, as the recipe runs them)."""
-    procs = [subprocess.Popen([sys.executable, "-m", "drivestudio", *a], stdout=subprocess.DEVNULL,
+def drivestudio_together(argvs: list[list[str]], env: dict, program: str | None = None) -> None:
+    """Verbs of this checkout run at once (trainings side by side, as the recipe runs them), each by `python -c
+    program` where one is given."""
+    launch = [sys.executable, "-c", program] if program else [sys.executable, "-m", "drivestudio"]
+    procs = [subprocess.Popen([*launch, *a], stdout=subprocess.DEVNULL, cwd=Path(__file__).resolve().parents[1],
                               stderr=subprocess.DEVNULL, env={**os.environ, **env}) for a in argvs]
     if any(p.wait() != 0 for p in procs):
         raise SystemExit("a training of the benchmark failed")
@@ -89,45 +100,49 @@ def cpu_name() -> str:
     return f"{name} ({', '.join(units) or 'no native bfloat16'})"
 
 
-def precision(args) -> None:
-    """float32 against bfloat16 autocast, alternating round by round: iterations a minute, medians."""
-    work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-precision-"))
+def pair(args) -> None:
+    """Two settings of one training (PAIRS: float32 against bfloat16 autocast, or glibc's allocator against freed
+    memory kept), alternating round by round: iterations a minute, medians."""
+    configs = PAIRS[args.compare]
+    work = Path(tempfile.mkdtemp(prefix=f"drivestudio-bench-{args.compare}-"))
     families = args.families.split(",")
     env = {} if args.threads is None else {"OMP_NUM_THREADS": str(args.threads), "MKL_NUM_THREADS": str(args.threads)}
     threads = args.threads or os.cpu_count()
     try:
         data = work / "data"
         drivestudio("generate", "--out", str(data), "--frames", str(args.frames))
-        per_min: dict = {(fam, p): [] for fam in families for p in PRECISIONS}
+        per_min: dict = {(fam, p): [] for fam in families for p in configs}
         loads = [os.getloadavg()[0]]
         for r in range(args.rounds):
             for fam in families:
                 options, iterations = FAMILIES[fam]
                 # the order flips every round: neither precision always runs first after the other family
                 iterations = args.iterations or iterations
-                for name in (list(PRECISIONS) if r % 2 == 0 else list(reversed(PRECISIONS))):
+                for name in (list(configs) if r % 2 == 0 else list(reversed(configs))):
+                    extra, program = configs[name]
                     ckpts = [work / f"{fam}-{k}.pt" for k in range(args.side_by_side)]
                     for p in work.glob(f"{fam}-*.pt*"):
                         p.unlink()
                     drivestudio_together([["train", "--data", str(data), "--out", str(ckpt), *options,
-                                           *PRECISIONS[name], "--iterations", str(iterations), "--set",
-                                           f"val_every={10 * iterations}", "--device", "cpu"] for ckpt in ckpts], env)
+                                           *extra, "--iterations", str(iterations), "--set",
+                                           f"val_every={10 * iterations}", "--device", "cpu"] for ckpt in ckpts], env,
+                                         program)
                     per_min[(fam, name)].append(statistics.mean(samples_per_s(c) for c in ckpts) * 60
                                                 / batch_of(options))
             loads.append(os.getloadavg()[0])
             print(f"round {r + 1}/{args.rounds} done, load average {loads[-1]:.1f}", file=sys.stderr, flush=True)
-        fp32, bf16 = PRECISIONS
+        fp32, bf16 = configs
         print(f"{cpu_name()}, {threads} thread(s), {args.side_by_side} training(s) at once, {args.rounds} "
               f"alternating rounds, load average "
               f"{min(loads):.1f}-{max(loads):.1f}, {time.strftime('%Y-%m-%d')}")
-        print(f"{'family':14s} {'batch':>5s} {'float32 it/min':>15s} {'bfloat16 it/min':>16s} {'x float32':>10s}  "
-              "rounds (bfloat16 / float32)")
+        print(f"{'family':14s} {'batch':>5s} {fp32 + ' it/min':>20s} {bf16 + ' it/min':>20s} {'x ' + fp32:>16s}  "
+              f"rounds ({bf16} / {fp32})")
         rows = []
         for fam in families:
             a, b = per_min[(fam, fp32)], per_min[(fam, bf16)]
             ratios = [y / x for x, y in zip(a, b)]
             ma, mb = statistics.median(a), statistics.median(b)
-            print(f"{fam:14s} {batch_of(FAMILIES[fam][0]):5d} {ma:15.1f} {mb:16.1f} {mb / ma:10.2f}  "
+            print(f"{fam:14s} {batch_of(FAMILIES[fam][0]):5d} {ma:20.1f} {mb:20.1f} {mb / ma:16.2f}  "
                   + " ".join(f"{x:.2f}" for x in ratios))
             for name, rates in ((fp32, a), (bf16, b)):
                 rows.append({"family": fam, "configuration": name, "iterations_per_min": statistics.median(rates),
@@ -151,24 +166,29 @@ def main() -> None:
     ap.add_argument("--families", default=None, help=f"of {', '.join(FAMILIES)} (default: all; with --precision, "
                                                      "alexnet,mobilenet-h1)")
     ap.add_argument("--before-tree", type=Path, help="run the first configuration from this checkout")
-    ap.add_argument("--precision", action="store_true", help="float32 against bfloat16 autocast instead")
-    ap.add_argument("--threads", type=int, help="--precision: threads of each training (default: torch's)")
-    ap.add_argument("--side-by-side", type=int, default=1, help="--precision: trainings at once in each precision")
-    ap.add_argument("--iterations", type=int, help="--precision: iterations of each training (default: the family's)")
+    ap.add_argument("--precision", dest="compare", action="store_const", const="precision",
+                    help="float32 against bfloat16 autocast instead")
+    ap.add_argument("--allocator", dest="compare", action="store_const", const="allocator",
+                    help="glibc's default allocator against freed memory kept (core/allocator.py) instead")
+    ap.add_argument("--threads", type=int, help="--precision, --allocator: threads of each training (default: torch's)")
+    ap.add_argument("--side-by-side", type=int, default=1, help="--precision, --allocator: trainings at once in each "
+                                                                 "setting")
+    ap.add_argument("--iterations", type=int, help="--precision, --allocator: iterations of each training (default: "
+                                                   "the family's)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
         ap.error(f"--before-tree: {args.before_tree} is not a checkout of this project")
     if args.side_by_side < 1 or (args.iterations is not None and args.iterations < 2):
         ap.error("--side-by-side must be at least 1 and --iterations at least 2")
-    if (args.side_by_side != 1 or args.iterations is not None) and not args.precision:
-        ap.error("--side-by-side and --iterations go with --precision")
-    if args.precision and args.before_tree is not None:
-        ap.error("--precision compares two settings of this checkout: leave out --before-tree")
+    if (args.side_by_side != 1 or args.iterations is not None) and not args.compare:
+        ap.error("--side-by-side and --iterations go with --precision or --allocator")
+    if args.compare and args.before_tree is not None:
+        ap.error(f"--{args.compare} compares two settings of this checkout: leave out --before-tree")
     if args.families is None:
-        args.families = "alexnet,mobilenet-h1" if args.precision else ",".join(FAMILIES)
-    if args.precision:
-        precision(args)
+        args.families = "alexnet,mobilenet-h1" if args.compare else ",".join(FAMILIES)
+    if args.compare:
+        pair(args)
         return
     before = next(iter(VARIANTS))
     work = Path(tempfile.mkdtemp(prefix="drivestudio-bench-train-"))
