@@ -56,8 +56,9 @@ PRECISIONS = {"float32": ["--workers", "0", "--set", "amp=false"], "bfloat16 aut
 GLIBC_DEFAULT = ("import sys, core.allocator as a; a.keep_freed_memory = lambda: False; "
                  "from drivestudio.cli import main; sys.exit(main())")
 # name: (train options, a `python -c` program in place of `python -m drivestudio`, or None)
-PAIRS = {"precision": {"float32": (PRECISIONS["float32"], None), "bfloat16": (PRECISIONS["bfloat16 autocast"], None)},
-         "allocator": {"glibc default": (["--workers", "0"], GLIBC_DEFAULT), "kept": (["--workers", "0"], None)}}
+PAIRS: dict[str, dict[str, tuple[list[str], str | None]]] = {
+    "precision": {"float32": (PRECISIONS["float32"], None), "bfloat16": (PRECISIONS["bfloat16 autocast"], None)},
+    "allocator": {"glibc default": (["--workers", "0"], GLIBC_DEFAULT), "kept": (["--workers", "0"], None)}}
 
 
 def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -> None:
