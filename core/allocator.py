@@ -5,7 +5,7 @@ hands the heap's free top back once it passes the trim threshold. A training ste
 activations every iteration, so each iteration the kernel maps them anew and zeroes every page on first touch:
 a minor page fault for each 4 KB. `recipe --extended` took 297 million of them (622 s of system time in 96 minutes
 of CPU). Serving every block from the heap and keeping what is freed lets the next step reuse the same pages: the
-recipe's MobileNet (two frames, batch 32, one thread) trained 14 % faster with a third of the page faults
+recipe's MobileNet, three trainings side by side on two cores, trains 1.16x as fast with a third of the page faults
 (docs/benchmarks.md). A process's memory then stays at its peak until it ends.
 """
 from __future__ import annotations
