@@ -27,6 +27,7 @@ from pathlib import Path
 
 from core.settings import setting
 from drivestudio.commands.recipe_steps import RecipePlan, Steps, benchmark, ensemble_step
+from drivestudio.worlds.highway.aggregation_config import cars_text
 from drivestudio.worlds.highway.filters import MAX_MEMORY
 
 REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what the rear network learns
@@ -51,6 +52,9 @@ class Extended(RecipePlan):
     history: int = setting(1, "earlier frames each network reads", low=0, high=2)
     emphasis: int = setting(4, "times every epoch shows the forward networks a decisive frame, in their trainings "
                                "and rounds", low=1, high=100)
+    # the shipped suites draw 12-60 cars a route: networks that saw at most 30 misread the dense ones' gaps
+    cars: str = setting("12-60", "AI cars per episode, N or A-B, of both datasets and the aggregation rounds",
+                        parse=cars_text)
     side_views: bool = setting(True, "frames with the views out of both side windows beside the rear-view mirror "
                                      "(generate --set side_views=true: the blind spot); false: the mirror alone")
 
@@ -69,7 +73,8 @@ def train_argv(size: Extended, data: Path, model: Path, seed: int, rear: bool) -
 def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int) -> list:
     return ["aggregate", "--data", data, "--model", model, "--out", out, "--rounds", size.rounds,
             "--set", f"frames={size.round_frames}", "--set", f"beta={size.beta}", "--set",
-            f"iterations={size.round_iterations}", "--set", f"emphasis={size.emphasis}", "--suite", "none",
+            f"iterations={size.round_iterations}", "--set", f"emphasis={size.emphasis}", "--set", f"cars={size.cars}",
+            "--suite", "none",
             "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
 
 
@@ -84,8 +89,8 @@ def extended_recipe(steps: Steps, size: Extended, plan: list[str]) -> Path | Non
     for data, lanes in ((forward_data, "1,2,3"), (rear_data, "1,2,3,4")):
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
-                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, *plan,
-                   "--workers", size.workers)
+                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--cars", size.cars,
+                   *plan, "--workers", size.workers)
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):
         dataset = Dataset(data)

@@ -82,8 +82,9 @@ def test_the_extended_recipe_trains_forward_and_rear_networks_and_a_round_each(t
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "generate", "train", "train", "train", "train",
                                                 "aggregate", "aggregate", "ensemble", "benchmark"]
-    assert "--set side_views=true --lanes 1,2,3 " in commands[0]
-    assert "--set side_views=true --lanes 1,2,3,4 " in commands[1]
+    assert f"--set side_views=true --lanes 1,2,3 --cars {EXTENDED.cars} " in commands[0]
+    assert f"--set side_views=true --lanes 1,2,3,4 --cars {EXTENDED.cars} " in commands[1]
+    assert EXTENDED.cars == "12-60" and all(f"--set cars={EXTENDED.cars}" in c for c in commands[6:8])
     assert ensemble["spec"]["input"]["inset"] == "mirror+sides"
     assert [c.split("--seed ")[1].split()[0] for c in commands[2:6]] == ["0", "1", "0", "2"]   # rear: seeds 0, 2
     assert all(f"--targets {REAR_TARGETS}" in c and "emphasis" not in c for c in commands[4:6])
