@@ -89,8 +89,8 @@ def extended_recipe(steps: Steps, size: Extended, plan: list[str]) -> Path | Non
     for data, lanes in ((forward_data, "1,2,3"), (rear_data, "1,2,3,4")):
         steps.verb(f"the expert's dataset with the mirror{' and the side views' if size.side_views else ''}, "
                    f"{lanes} lanes: {size.frames} frames", "generate", "--out", data, "--frames", size.frames,
-                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes, "--cars", size.cars,
-                   *plan, "--workers", size.workers)
+                   "--set", "side_views=true" if size.side_views else "mirror=true", "--lanes", lanes,
+                   "--cars", size.cars, *plan, "--workers", size.workers)
     t0 = steps.header("the frame caches, decoded once for every network", [])
     for data in (forward_data, rear_data):
         dataset = Dataset(data)

@@ -103,6 +103,8 @@ CASES = [
     ("generate", "--out", "{root}/g", "--tracks", ","),
     ("generate", "--out", "{root}/g", "--frames", "-5"),
     ("generate", "--out", "{root}/g", "--workers", "0"),
+    ("generate", "--out", "{root}/g", "--cars", "30-12"),
+    ("generate", "--out", "{root}/g", "--cars", "many"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--lr", "nan"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--batch-size", "0"),
     ("train", "--data", D, "--model", "alexnet", "--out", "{root}/a.pt", "--device", "banana"),
@@ -122,6 +124,7 @@ CASES = [
     ("recipe", "--set", "rounds=2", "--out", "{root}/recipe"),         # rounds fine-tune one network, not three
     ("recipe", "--set", "members=0", "--out", "{root}/recipe"),
     ("recipe", "--set", "members=9", "--out", "{root}/recipe"),
+    ("recipe", "--extended", "--set", "cars=12-400", "--out", "{root}/recipe"),
     ("recipe", "--suite", "{root}/deep.json", "--out", "{root}/recipe"),  # a bad suite: refused before training
     # files and their content
     ("probe", "/dev/zero"),

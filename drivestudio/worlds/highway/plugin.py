@@ -10,6 +10,7 @@ import numpy as np
 
 from controller.highway.metrics import HighwayMetrics
 from core.conditions import CONDITION_COLUMN, SEEDED
+from core.settings import SettingError
 from core.worlds.highway import HIGHWAY, INDICATORS, MAX_LANES, REAR
 from drivestudio.checkpoints import checkpoint_inset, load_predictor_for
 from drivestudio.driver_spec import DriverSpec
@@ -17,6 +18,7 @@ from drivestudio.errors import UsageError
 from drivestudio.loop import Driver, Observation, Supervisor, in_process, run_loop
 from drivestudio.worlds import base
 from drivestudio.worlds.base import Episode
+from drivestudio.worlds.highway.aggregation_config import car_range
 from drivestudio.worlds.highway.drivers import ORACLES, ChenDriver, ExpertDriver, chen_driver
 from drivestudio.worlds.highway.filters import FILTERS
 from drivestudio.worlds.highway.overlays import overlay_record
@@ -26,7 +28,7 @@ from perception.highway.overlay import mean_normalised_error
 from perception.highway.stats import HighwayCoverage
 from perception.highway.table3 import Table3Layout
 from sim.camera import CameraConfig
-from sim.highway.config import MAX_CARS, WorldConfig
+from sim.highway.config import WorldConfig
 from sim.mirror import INSET_FLAGS, inset_name, inset_options
 from sim.track import load_track, preset_names
 
@@ -183,9 +185,10 @@ class Plugin(base.Plugin):
         lanes = _int_list(plan.get("lane_counts") or "1,2,3", "--lanes")
         if not lanes or any(not 1 <= n <= MAX_LANES for n in lanes):
             raise UsageError(f"--lanes must list lane counts from 1 to {MAX_LANES}")
-        cars = _range(plan.get("car_range") or "12-30")
-        if not 0 <= cars[0] <= cars[1] <= MAX_CARS:
-            raise UsageError(f"--cars must be from 0 to {MAX_CARS} (and A <= B)")
+        try:
+            cars = car_range(plan.get("car_range") or "12-30")
+        except SettingError as e:
+            raise UsageError(f"--{e}") from None
         tracks = [t.strip() for t in (plan.get("tracks") or "").split(",") if t.strip()]
         if plan.get("tracks") is not None and not tracks:
             raise UsageError("--tracks names no track")
@@ -265,15 +268,6 @@ def _int_list(text: str, flag: str) -> tuple[int, ...]:
         return tuple(int(x) for x in text.split(",") if x.strip())
     except ValueError:
         raise UsageError(f"{flag}: expected comma-separated integers, got '{text}'") from None
-
-
-def _range(text: str) -> tuple[int, int]:
-    try:
-        lo, _, hi = text.partition("-")
-        lo_i = int(lo)
-        return (lo_i, int(hi) if hi else lo_i)
-    except ValueError:
-        raise UsageError(f"expected N or A-B for --cars, got '{text}'") from None
 
 
 def _inset_options(inset: str) -> str:
