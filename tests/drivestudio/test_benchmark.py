@@ -255,6 +255,16 @@ def test_checkpoints_of_one_name_are_told_apart_by_their_folder(tmp_path, blind)
                                        "GIST + ridge (blind.pt)"]
 
 
+def test_checkpoints_whose_folders_share_a_name_are_told_apart_by_as_many_folders_as_it_takes(tmp_path, blind):
+    a, b, c = (tmp_path / run / "runs" / x / "ensemble.pt" for run, x in (("rc", "x"), ("rx", "x"), ("rx", "y")))
+    for p in (a, b, c):
+        p.parent.mkdir(parents=True)
+        p.write_bytes(blind.read_bytes())
+    rows = check_models([str(a), str(b), str(c)])
+    assert [m.label for m in rows[1:]] == ["GIST + ridge (rc/runs/x/ensemble.pt)",
+                                           "GIST + ridge (rx/runs/x/ensemble.pt)", "GIST + ridge (y/ensemble.pt)"]
+
+
 def test_the_extended_oracle_is_a_model_of_its_own():
     with pytest.raises(UsageError, match="oracle-extended reads the exact labels"):
         check_models(["oracle-extended@gap_hold=0.5"])

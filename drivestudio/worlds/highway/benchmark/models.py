@@ -122,11 +122,20 @@ def check_models(texts: list[str] | None) -> list[ModelSpec]:
 
 def distinct_labels(models: list[ModelSpec]) -> list[ModelSpec]:
     """Rows whose labels coincide (checkpoints of one name in different folders, as the aggregation rounds'
-    round-1/model.pt, round-2/model.pt) are named by their folder too, so the leaderboard tells them apart."""
+    round-1/model.pt, round-2/model.pt, or two runs' runs/x/ensemble.pt) are named by as many of their path's last
+    folders as tell them apart, so the leaderboard tells them apart."""
     labels = [m.label for m in models]
-    return [replace(m, label=m.label.replace(f"({Path(m.path).name})", f"({Path(m.path).parent.name}/"
-                                                                        f"{Path(m.path).name})"))
-            if m.path is not None and not m.policy and labels.count(m.label) > 1 else m for m in models]
+    out = []
+    for m in models:
+        if m.path is None or m.policy or labels.count(m.label) == 1:
+            out.append(m)
+            continue
+        twins = [Path(t.path).resolve().parts for t in models if t.label == m.label and t.path is not None]
+        own = Path(m.path).resolve().parts
+        depth = next((k for k in range(2, len(own)) if sum(t[-k:] == own[-k:] for t in twins) == 1), len(own))
+        name = "/".join(own[-depth:]).lstrip("/")
+        out.append(replace(m, label=m.label.replace(f"({Path(m.path).name})", f"({name})")))
+    return out
 
 
 def slug(model: ModelSpec, taken: set[str]) -> str:
