@@ -13,6 +13,7 @@ from core.settings import setting
 from drivestudio.errors import UsageError
 from drivestudio.outputs import write_json
 from drivestudio.pool import ONE_THREAD, Job, Pool, run_verb
+from sim.camera import DEFAULT_RENDERER, RENDERERS
 
 EXACT = ("oracle", "oracle-extended")   # benchmark rows with no model file (the drivers on exact labels)
 
@@ -36,6 +37,8 @@ class RecipePlan(RecipeRun):
                               "generate's default, every preset and three procedural tracks)")
     protocol: str = setting("none", "a generalisation protocol (a name or file): the driver learns from its training "
                                     "conditions and tracks alone and drives its every cell instead of the suite")
+    renderer: str = setting(DEFAULT_RENDERER, "the renderer of every frame: the expert's, the aggregation rounds' "
+                                              "and the benchmark's (docs/rendering.md)", choices=RENDERERS)
 
 
 def training_plan(run: RecipePlan) -> list[str]:
@@ -48,7 +51,14 @@ def training_plan(run: RecipePlan) -> list[str]:
                              "condition and tracks, not both")
         protocol = load(run.protocol)
         condition, tracks = ",".join(protocol.conditions["training"]), ",".join(protocol.tracks["training"])
-    return (["--condition", condition] if condition != SEEDED else []) + (["--tracks", tracks] if tracks else [])
+    return (["--condition", condition] if condition != SEEDED else []) + (["--tracks", tracks] if tracks else []) \
+        + renderer_argv(run, "--set", "renderer=")
+
+
+def renderer_argv(run: RecipePlan, flag: str, prefix: str = "") -> list[str]:
+    """The recipe's renderer as a verb's option (generate's `--set renderer=NAME`, the benchmark's `--renderer
+    NAME`); none for the default, so that the commands read as before."""
+    return [] if run.renderer == DEFAULT_RENDERER else [flag, f"{prefix}{run.renderer}"]
 
 
 def load(protocol: str):
@@ -146,7 +156,7 @@ def benchmark(steps: Steps, models: list, run: RecipePlan) -> Path | None:
     models_argv = [a for m in models for a in ("--model", m)]
     suite = [] if run.suite == "default" else ["--suite", run.suite]
     steps.verb("the benchmark of every model beside the oracle", "benchmark", *models_argv, *suite,
-               "--workers", run.workers, "--out", bench)
+               *renderer_argv(run, "--renderer"), "--workers", run.workers, "--out", bench)
     return board
 
 
@@ -166,7 +176,7 @@ def protocol_benchmark(steps: Steps, models: list, run: RecipePlan) -> Path:
         return table
     steps.verb("every cell of the protocol, every model beside both oracles", "benchmark",
                *[a for m in models if str(m) not in EXACT for a in ("--model", m)], "--protocol", run.protocol,
-               "--workers", run.workers, "--out", bench)
+               *renderer_argv(run, "--renderer"), "--workers", run.workers, "--out", bench)
     return table
 
 

@@ -4,6 +4,7 @@ and what it promises: exact labels on the visited frames, the expert set's split
 training, images copied byte for byte, the mixture's share, the same rounds for the same seed, resuming, and bad
 input refused before any work."""
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +15,7 @@ import pytest
 from core.worlds.highway import INDICATORS
 from drivestudio.generate import GenerateConfig, generate
 from drivestudio.worlds.highway.aggregation import AggregationConfig, AggregationPlugin, drive_options
-from perception.shards import Dataset, image_column
+from perception.shards import MANIFEST, Dataset, image_column
 from perception.train import train
 from sim.highway.truth import affordances
 from sim.track import load_track
@@ -109,6 +110,17 @@ def test_the_same_seed_drives_the_same_round(model, tmp_path):
         manifest = generate(tmp_path / name, gen, workers=1, show_progress=False, plugin=AggregationPlugin())
         digests.append([s["sha256"] for s in manifest["shards"]])
     assert digests[0] == digests[1]
+
+
+def test_a_round_draws_with_the_expert_datasets_renderer(model, tmp_path):
+    expert = tmp_path / "expert"   # the shared dataset's frames, its manifest naming TinyRenderer as their renderer
+    shutil.copytree(dataset(), expert, ignore=shutil.ignore_patterns(".frames"))
+    manifest = json.loads((expert / MANIFEST).read_text())
+    manifest["renderer"] = "tiny"
+    (expert / MANIFEST).write_text(json.dumps(manifest))
+    r = ds("aggregate", "--data", expert, "--model", model, "--out", tmp_path / "run", *SMALL)
+    assert r.returncode == 0, r.stderr
+    assert Dataset(tmp_path / "run" / "round-1" / "data").renderers == ("tiny",)
 
 
 def test_running_again_continues_and_other_options_are_refused(run, model):

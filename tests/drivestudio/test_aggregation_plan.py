@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from drivestudio.worlds.highway.aggregation import AggregationConfig, drive_options, expert_plan
+from drivestudio.worlds.highway.aggregation import AggregationConfig, drive_options, expert_plan, expert_renderer
 from perception.shards import MANIFEST
 
 
@@ -40,3 +40,17 @@ def test_a_dataset_of_generates_default_plan_gives_new_procedural_tracks_each_ro
     one, two = (drive_options(cfg, r, highway_model)["tracks"] for r in (1, 2))
     assert {t for t in one if t.startswith("procedural:")} != {t for t in two if t.startswith("procedural:")}
     assert "condition" not in drive_options(cfg, 1, highway_model)
+
+
+@pytest.mark.parametrize("named, drawn", [
+    ({"renderer": "tiny"}, "tiny"),
+    ({"renderer": "numba"}, "numba"),
+    ({"renderer": None, "renderers": ["numba", "tiny"]}, "numba"),   # merged: the default when it is among them
+    ({"renderer": None, "renderers": ["egl", "tiny"]}, "egl"),
+    ({"renderer": None}, "numba"),                                   # a dataset that does not say: the default
+])
+def test_the_rounds_draw_with_the_expert_datasets_renderer(expert, named, drawn):
+    manifest = json.loads((expert / MANIFEST).read_text())
+    manifest.update(named)
+    (expert / MANIFEST).write_text(json.dumps(manifest))
+    assert expert_renderer(str(expert)) == drawn

@@ -10,6 +10,7 @@ import torch
 
 from drivestudio.commands.recipe import FULL, QUICK
 from drivestudio.commands.recipe_extended import EXTENDED, REAR_TARGETS, Extended
+from perception.shards import Dataset
 
 
 def tiny_suite(tmp_path):
@@ -54,13 +55,16 @@ def test_the_recipe_trains_members_side_by_side_and_benchmarks_their_ensemble(tm
 
 
 @pytest.mark.slow   # about 80 s
-def test_the_single_network_recipe_runs_aggregation_rounds(tmp_path):
-    out, _ = recipe(tmp_path, "--set", "members=1", "--set", "rounds=1")
+def test_the_single_network_recipe_runs_aggregation_rounds_all_in_the_renderer_it_names(tmp_path):
+    out, _ = recipe(tmp_path, "--set", "members=1", "--set", "rounds=1", "--set", "renderer=tiny")
     board = json.loads((out / "aggregation" / "benchmark" / "leaderboard.json").read_text())
     specs = [m["spec"] for m in board["models"]]
     assert specs[0] == "oracle" and specs[1].endswith("mobilenet.pt") and specs[2].endswith("round-1/model.pt")
     commands = (out / "commands.txt").read_text().splitlines()
     assert [c.split()[1] for c in commands] == ["generate", "train", "aggregate"]
+    # TinyRenderer draws the expert's frames, the round's and the benchmark's
+    assert "--set renderer=tiny" in commands[0] and board["run"]["renderer"] == "tiny"
+    assert Dataset(out / "data").renderers == Dataset(out / "aggregation" / "round-1" / "data").renderers == ("tiny",)
     assert all(f"--set emphasis={FULL.emphasis}" in c for c in commands[1:])
     state = json.loads((out / "aggregation" / "aggregation.json").read_text())
     assert state["complete"] and len(state["rounds"]) == 1 and state["benchmark"]["suite"] == "tiny"
@@ -112,6 +116,7 @@ def _sized(*argv):
 
 
 def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_recipe():
+    from core.settings import SettingError
     from drivestudio.commands.recipe import Size
     from drivestudio.errors import UsageError
     assert _sized() == FULL
@@ -125,5 +130,16 @@ def test_the_recipe_sizes_refuse_rounds_of_an_ensemble_but_not_of_the_extended_r
         _sized("--set", "rear_members=2")
     assert Extended().side_views and _sized("--extended").side_views
     assert _sized("--extended", "--set", "side_views=false") == Extended(side_views=False)
+    assert _sized("--extended", "--set", "renderer=tiny") == Extended(renderer="tiny")
+    with pytest.raises(SettingError, match="renderer"):
+        _sized("--set", "renderer=pov-ray")
     with pytest.raises(UsageError, match="side_views=false: a setting of the extended recipe"):
         _sized("--set", "side_views=false")
+
+
+def test_the_recipes_renderer_reaches_generate_and_the_benchmark_and_the_default_reads_as_before():
+    from drivestudio.commands.recipe_steps import renderer_argv, training_plan
+    tiny = Extended(renderer="tiny")
+    assert training_plan(tiny)[-2:] == ["--set", "renderer=tiny"] and renderer_argv(tiny, "--renderer") == [
+        "--renderer", "tiny"]
+    assert training_plan(EXTENDED) == [] and renderer_argv(EXTENDED, "--renderer") == []

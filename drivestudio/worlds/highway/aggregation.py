@@ -51,6 +51,7 @@ from perception.merge import Source, merge
 from perception.shards import MANIFEST, Dataset, read_manifest
 from perception.train import train
 from perception.training import TrainConfig
+from sim.camera import DEFAULT_RENDERER
 from sim.mirror import inset_options
 
 STATE = "aggregation.json"
@@ -131,6 +132,14 @@ def expert_plan(data: str) -> dict:
             **({"condition": options["condition"]} if options.get("condition") else {})}
 
 
+def expert_renderer(data: str) -> str:
+    """The renderer the rounds draw with and their benchmark drives: the expert dataset's, so that the learner
+    meets frames drawn as those it learned from (of a merged dataset's several, the default when it is one of them;
+    the default for a dataset that does not say)."""
+    named = Dataset(Path(data)).renderers
+    return DEFAULT_RENDERER if not named or DEFAULT_RENDERER in named else named[0]
+
+
 def drive_options(cfg: AggregationConfig, round_: int, learner: Path) -> dict:
     """generate's highway options for a round: the expert dataset's plan (seed cfg.seed * 100 + round, so that every
     round drives new traffic, and new procedural tracks where the expert's were generate's default), denser traffic,
@@ -201,7 +210,8 @@ class Aggregation:
         beta = cfg.beta_of(r)
         self.log(f"round {r} of {cfg.rounds}: driving {cfg.frames} frames, the expert's share {beta:.3f}")
         gen = GenerateConfig(world="highway", frames=cfg.frames, seed=cfg.seed * 100 + r,
-                             episode_frames=cfg.episode_frames, options=drive_options(cfg, r, self.model_of(r - 1)))
+                             renderer=expert_renderer(cfg.data), episode_frames=cfg.episode_frames,
+                             options=drive_options(cfg, r, self.model_of(r - 1)))
         manifest = generate(folder / "data", gen, workers=self.workers, plugin=AggregationPlugin())
         shares = learner_share(folder / "data")
         merged = folder / "merged"
@@ -238,7 +248,8 @@ class Aggregation:
                               else [])
         models = check_models(exact + rounds)
         out = make_dir(self.out / "benchmark")
-        board = run_benchmark(suite, models, RunOptions(device=self.cfg.device), out, self.workers)
+        options = RunOptions(device=self.cfg.device, renderer=expert_renderer(self.cfg.data))
+        board = run_benchmark(suite, models, options, out, self.workers)
         write_board(out, board)
         return {"suite": suite.name, "rows": [{"model": e["spec"], **{k: e["overall"][k] for k in
                                                ("driving_score", "score_vs_oracle", "collisions", "off_road_events",
