@@ -74,8 +74,7 @@ def aggregate_argv(size: Extended, data: Path, model: Path, out: Path, seed: int
     return ["aggregate", "--data", data, "--model", model, "--out", out, "--rounds", size.rounds,
             "--set", f"frames={size.round_frames}", "--set", f"beta={size.beta}", "--set",
             f"iterations={size.round_iterations}", "--set", f"emphasis={size.emphasis}", "--set", f"cars={size.cars}",
-            "--suite", "none",
-            "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
+            "--suite", "none", "--workers", 1, "--seed", 10 + seed, "--device", "cpu"]
 
 
 def extended_recipe(steps: Steps, size: Extended, plan: list[str]) -> Path | None:
