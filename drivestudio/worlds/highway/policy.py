@@ -26,7 +26,6 @@ import numpy as np
 from core.worlds.highway import HIGHWAY
 from drivestudio.errors import UsageError
 from drivestudio.loop import Percept
-from sim.highway.gym_env import AFFORDANCES
 
 CALLABLE = "policy:"
 CALLABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]*:[A-Za-z_][A-Za-z0-9_]*")
@@ -84,6 +83,7 @@ def load_policy(text: str, device: str = "cpu") -> tuple[Callable[[np.ndarray], 
         raise UsageError(f"--model {text}: a Stable-Baselines3 model needs the rl extra "
                          "(pip install 'drivestudio[rl]')") from None
     model = getattr(stable_baselines3, algo).load(path, device=device)
+    from sim.highway.gym_env import AFFORDANCES  # lazy: Gymnasium and the traffic, for policies only
     space = model.observation_space
     if getattr(space, "shape", None) != AFFORDANCES.space.shape:
         raise UsageError(f"--model {text}: the policy reads observations of shape {getattr(space, 'shape', '?')}; "
@@ -99,7 +99,9 @@ class PolicyDriver:
     """A policy on the exact affordances: the Driver of drivestudio/loop.py."""
 
     def __init__(self, text: str, device: str = "cpu"):
+        from sim.highway.gym_env import AFFORDANCES  # lazy: Gymnasium and the traffic, for policies only
         self._policy, (low, high), self._name = load_policy(text, device)
+        self._affordances = AFFORDANCES
         self._low, self._span = np.asarray(low, np.float64), np.asarray(high, np.float64) - np.asarray(low)
         self.timings = {"policy": 0.0}
         self._estimate = np.full(ESTIMATE_LEN, np.nan)
@@ -110,7 +112,7 @@ class PolicyDriver:
 
     def act(self, percept: Percept) -> tuple[np.ndarray, np.ndarray]:
         t0 = time.perf_counter()
-        out = np.asarray(self._policy(AFFORDANCES(percept.record)), dtype=np.float64).reshape(-1)
+        out = np.asarray(self._policy(self._affordances(percept.record)), dtype=np.float64).reshape(-1)
         if out.shape != LOW.shape:
             raise ValueError(f"policy {self._name} answered {out.size} values; the highway's action has "
                              f"{LOW.size} ({', '.join(HIGHWAY.action_names)})")
