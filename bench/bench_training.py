@@ -19,7 +19,7 @@ network as the recipe trains it, one thread each beside the others; `--side-by-s
 each precision (the recipe trains three at once on two cores: `--threads 1 --side-by-side 3`), the figure then each
 copy's iterations a minute, their mean.
 
-`--allocator` compares glibc's allocator as it comes with the one every verb sets up (core/allocator.py: freed memory
+`--allocator` compares glibc's allocator as it comes with the one the trainings set up (core/allocator.py: freed memory
 kept, no block served by mmap), both in bfloat16 where native, the same way.
 
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]

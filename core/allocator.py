@@ -6,7 +6,10 @@ activations every iteration, so each iteration the kernel maps them anew and zer
 a minor page fault for each 4 KB. `recipe --extended` took 297 million of them (622 s of system time in 96 minutes
 of CPU). Serving every block from the heap and keeping what is freed lets the next step reuse the same pages: the
 recipe's MobileNet, three trainings side by side on two cores, trains 1.16x as fast with a third of the page faults
-(docs/benchmarks.md). A process's memory then stays at its peak until it ends.
+(docs/benchmarks.md). A process's memory then stays at its peak until it ends, and a process that keeps small
+results between large temporaries of changing sizes (GIST's descriptors of frames, a batch at a time) can split
+freed blocks until the heap grows by a block a batch: so only trainings whose steps repeat the same allocations
+keep freed memory (perception/train.py).
 """
 from __future__ import annotations
 

@@ -6,7 +6,6 @@ import importlib
 import os
 import sys
 
-from core.allocator import keep_freed_memory
 from core.signals import Terminated
 from drivestudio.commands.parsing import Parser
 from drivestudio.errors import input_errors, runtime_errors
@@ -49,7 +48,6 @@ def listed_world(argv: list[str]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    keep_freed_memory()
     try:
         from drivestudio.worlds import load_external  # lazy: `import drivestudio.cli` loads no world
         load_external()

@@ -58,6 +58,7 @@ class GistTrainer:
     training frame and one solve per ridge strength; validation is the strength the validation split chose (or
     10% of the training frames when there is none)."""
 
+    repeats: ClassVar[bool] = False
     reads: ClassVar[frozenset[str]] = frozenset({"regressor", "val_frames"})
 
     def __init__(self, cfg: TrainConfig, log=print):

@@ -421,6 +421,7 @@ class MultiNetTrainer:
     """Z2Color's trainer (perception/trainer.py's protocol): MultiNet, or the MTL net of one mode, for `epochs`
     epochs of each of `trials` trials. A step is one epoch of one trial, validated and saved when it ends."""
 
+    repeats: ClassVar[bool] = True
     reads: ClassVar[frozenset[str]] = frozenset({
         "epochs", "batch_size", "lr", "optimizer", "amp", "modes", "mtl", "trials", "mode_moments", "steer_share",
         "init"})

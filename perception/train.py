@@ -4,6 +4,7 @@ a model family names ("sgd": perception/train_sgd.py, "closed-form": GIST's fit 
 trainers share is perception/training.py's."""
 from __future__ import annotations
 
+from core.allocator import keep_freed_memory
 from core.settings import SettingError, entries
 from core.signals import Terminated, exit_on_sigterm
 from core.signals import check as check_signals
@@ -64,10 +65,12 @@ def run(trainer: Trainer) -> dict:
     """Any trainer's run: its plan, its checkpoint continued, then its steps one after another. It validates every
     `validate_every` steps and at the last; it saves after each validation but the last (the end's save follows
     that one), between validations when the trainer's clock says so, and on Ctrl-C or SIGTERM. Returns the
-    checkpoint's train record."""
+    checkpoint's train record. A trainer whose steps repeat their allocations keeps freed memory from here on."""
     plan = trainer.plan()
     if plan.done is not None:   # the checkpoint has every step already: nothing is written
         return plan.done
+    if trainer.repeats:
+        keep_freed_memory()
     steps = trainer.restore()
     try:
         with exit_on_sigterm(poll=True):

@@ -259,6 +259,7 @@ class SGDTrainer:
     """The SGD trainer (perception/trainer.py's protocol): the model, its optimiser and schedule, the state a
     checkpoint carries. A step is one optimiser step on a batch."""
 
+    repeats: ClassVar[bool] = True
     reads: ClassVar[frozenset[str]] = frozenset({
         "iterations", "epochs", "batch_size", "lr", "lr_step", "lr_gamma", "optimizer", "loss", "ema", "momentum",
         "weight_decay", "amp", "workers", "shuffle_buffer", "val_every", "checkpoint_every", "val_frames", "log_every",

@@ -31,6 +31,10 @@ class Trainer(Protocol):
     # the settings of TrainConfig (perception/train_config.py) it reads besides those every trainer reads: the
     # command refuses any other one given, since the trainer would ignore it
     reads: ClassVar[frozenset[str]]
+    # whether its steps allocate blocks of the same sizes over and over (SGD iterations, MultiNet's epochs): then the
+    # run keeps freed memory for the next step (core/allocator.py). Not for a pass that keeps results as it goes
+    # (GIST's descriptors): kept results split the freed blocks, and the heap grows by a block a batch
+    repeats: ClassVar[bool]
 
     def plan(self) -> Plan:
         """The run's steps and validations; a checkpoint at `out` is checked against the settings first."""

@@ -1,5 +1,6 @@
 """core/allocator.py: with freed memory kept, a large block freed and allocated again reuses its pages (no minor
-page faults after the first time); without, the kernel maps and zeroes it anew each time. Every verb runs with it."""
+page faults after the first time); without, the kernel maps and zeroes it anew each time. Trainings whose steps
+repeat run with it."""
 import subprocess
 import sys
 from pathlib import Path
@@ -42,10 +43,43 @@ def test_a_freed_block_is_reused_without_page_faults():
     assert plain > 10 * max(kept, 1)  # 16,384 a step with 4 KB pages
 
 
-def test_every_verb_keeps_freed_memory(monkeypatch):
-    import drivestudio.cli as cli
-    called = []
-    monkeypatch.setattr(cli, "keep_freed_memory", lambda: called.append(True))
-    with pytest.raises(SystemExit):
-        cli.main(["--help"])
-    assert called == [True]
+class Steps:
+    """A trainer of two steps (the protocol of perception/trainer.py) that notes whether freed memory was kept when
+    its steps ran."""
+    reads: frozenset = frozenset()
+
+    def __init__(self, repeats: bool, kept: list):
+        self.repeats, self.kept, self.seen = repeats, kept, []
+
+    def plan(self):
+        from perception.trainer import Plan
+        return Plan(steps=2, validate_every=2)
+
+    def restore(self):
+        return iter([(1, None), (2, None)])
+
+    def step(self, work) -> bool:
+        self.seen.append(bool(self.kept))
+        return False
+
+    def validate(self) -> None:
+        pass
+
+    def save(self, occasion) -> dict:
+        return {}
+
+
+@pytest.mark.parametrize("repeats", [True, False])
+def test_a_training_keeps_freed_memory_only_when_its_steps_repeat_their_allocations(monkeypatch, repeats):
+    """SGD iterations and MultiNet's epochs allocate the same blocks again and again and keep freed memory; GIST's
+    one pass keeps its descriptors as it goes and does not (kept results split freed blocks, the heap grows)."""
+    import perception.train as train
+    from perception.gist_fit import GistTrainer
+    from perception.multinet import MultiNetTrainer
+    from perception.train_sgd import SGDTrainer
+    assert SGDTrainer.repeats and MultiNetTrainer.repeats and not GistTrainer.repeats
+    kept: list = []
+    monkeypatch.setattr(train, "keep_freed_memory", lambda: kept.append(True))
+    trainer = Steps(repeats, kept)
+    train.run(trainer)
+    assert trainer.seen == [repeats, repeats]

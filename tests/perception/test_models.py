@@ -90,6 +90,19 @@ def test_gist_descriptor_is_deterministic_and_depends_on_the_frame(frames):
     assert not torch.allclose(a[0], a[1])
 
 
+def test_gist_energies_are_the_cell_means_of_each_filters_response_magnitude(frames):
+    """LMgist's energies written out: |ifft2(fft2(prefiltered frame) x filter)|, the padding cut off, averaged over
+    the 4x4 cells, filter by filter; the same whichever frames are computed together."""
+    d = GistDescriptor()
+    x = torch.cat([frames, frames.flip(3)]).float() / 255
+    grey, b = d.grey(x), d.boundary
+    response = torch.fft.ifft2(torch.fft.fft2(d.prefilter(grey))[:, None] * d.gabor[None]).abs()[..., b:-b, b:-b]
+    h, w = response.shape[-2] // 4, response.shape[-1] // 4
+    cells = response.reshape(len(x), 32, 4, h, 4, w).mean((3, 5)).flatten(1)
+    for chunk in (1, 2, 16):
+        torch.testing.assert_close(d(x, chunk=chunk), cells, rtol=1e-5, atol=1e-7)
+
+
 def test_gabor_filters_peak_at_their_scale_frequency():
     bank = gabor_bank(64, 64)
     assert bank.shape == (32, 64, 64)
