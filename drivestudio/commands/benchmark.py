@@ -69,7 +69,9 @@ def register(sub) -> None:
                    help="'oracle' or a highway checkpoint, optionally CKPT@smoothing=A,gap_hold=B,pass_memory=S,"
                         "rear_memory=S, or a policy (a saved Stable-Baselines3 .zip, or policy:MODULE:NAME); repeat "
                         "for more rows (default: the oracle alone; the oracle row is always added as the upper bound)")
-    p.add_argument("--suite", help="suite file (default: the shipped held-out suite, assets/suites/default.json)")
+    p.add_argument("--suite", metavar="NAME_OR_FILE",
+                   help="a shipped suite by name (default, random, design, design2, controller-hard: assets/suites/) "
+                        "or a suite file (default: the shipped held-out suite, default)")
     p.add_argument("--scenarios", metavar="FILE_OR_FOLDER",
                    help="scripted scenarios to drive instead of a suite: a scenario file, or a folder of them "
                         "(assets/scenarios/ ships one); pass or fail per scenario beside the driving score")

@@ -56,7 +56,7 @@ def register(sub) -> None:
     p.add_argument("--extended", action="store_true",
                    help="the extended label set's driver instead: two networks of the paper's 13 (members) and one "
                         "of the cars behind, all with the rear-view mirror and the side views, an aggregation round "
-                        "(rounds) for each forward network, their ensemble with the lookout controller; 42-79 "
+                        "(rounds) for each forward network, their ensemble with the lookout controller; 27-79 "
                         "minutes by the CPU")
     add_flags(p, Size, FLAGS, config=True)
     add_set(p, Size, FLAGS, "the recipe", listing=f"{defaults_text(Size, FLAGS)}; with --extended "

@@ -23,7 +23,8 @@ class RecipeRun:
     """What every recipe's settings begin with: where it writes, what it benchmarks, how many workers."""
 
     out: str = setting("out/recipe", "output folder")
-    suite: str = setting("default", "the benchmark suite: a suite file, the held-out default suite or none")
+    suite: str = setting("default", "the benchmark suite: a shipped suite's name (default, the held-out one; "
+                                    "random, ...), a suite file, or none")
     workers: int = setting(2, "worker processes", low=1, high=256)
 
 

@@ -167,6 +167,19 @@ def test_a_bad_suite_is_refused_in_one_line(tmp_path, text, message):
     assert isinstance(e.value, UsageError)   # exit status 2 in the CLI
 
 
+def test_a_shipped_suite_is_named_and_a_file_of_that_name_wins(tmp_path, monkeypatch):
+    for name in ("random", "design", "default"):
+        assert load_suite(name).sha256 == load_suite(SUITES_DIR / f"{name}.json").sha256, name
+    assert load_suite("random").name == "random" and load_suite("random").sha256 != load_suite().sha256
+    with pytest.raises(SuiteError) as e:
+        load_suite("randmo")
+    assert str(e.value) == ("--suite 'randmo': no such suite (shipped: controller-hard, default, design, design2, "
+                            "random; or a suite file)")
+    monkeypatch.chdir(tmp_path)   # a file in the working folder named like a shipped suite is that file
+    write_suite(tmp_path / "random", [ROUTE_B])
+    assert [r.name for r in load_suite("random").routes] == ["b"]
+
+
 def test_a_track_file_is_found_beside_its_suite(tmp_path):
     spec = json.loads((Path(__file__).resolve().parents[2] / "assets" / "tracks" / "ring.json").read_text())
     (tmp_path / "tracks").mkdir()

@@ -48,7 +48,8 @@ class AggregationConfig:
                                "or a neighbouring lane) this many times an epoch (1: as recorded; train's emphasis)",
                             low=1, high=100)
     # the benchmark at the end, and how the run is spread
-    suite: str = setting("default", "the benchmark suite every round's model drives at the end ('none': none)")
+    suite: str = setting("default", "the benchmark suite every round's model drives at the end: a shipped "
+                                    "suite's name (default, random, ...) or a suite file; 'none': none")
     seed: int = setting(0, "seed of the rounds' traffic and mixing", low=0, high=MAX_SEED)
     workers: int | None = setting(None, "worker processes driving episodes and routes (none: one per core)",
                                   low=1, high=256)

@@ -186,9 +186,23 @@ def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: st
     return Suite(name, description, parsed, source, sha256, gen)
 
 
-def load_suite(path=None) -> Suite:
-    """The suite in the file `path` (default: the shipped held-out suite), checked whole."""
-    path = Path(path) if path is not None else DEFAULT_SUITE
+def suite_path(ref=None) -> Path:
+    """The file of a suite given as a shipped suite's name (assets/suites/NAME.json: default, random, the design
+    suites) or as a path; a path that exists wins over a name. None: the shipped held-out suite."""
+    if ref is None:
+        return DEFAULT_SUITE
+    ref = str(ref)
+    path = SUITES_DIR / f"{ref}.json" if NAME.fullmatch(ref) and not Path(ref).exists() else Path(ref)
+    if not path.exists() and path.parent == SUITES_DIR:
+        shipped = ", ".join(sorted(p.stem for p in SUITES_DIR.glob("*.json")))
+        raise SuiteError(f"--suite {show(ref)}: no such suite (shipped: {shipped}; or a suite file)")
+    return path
+
+
+def load_suite(ref=None) -> Suite:
+    """The suite named `ref` (a shipped suite's name or a suite file; default: the shipped held-out suite), checked
+    whole."""
+    path = suite_path(ref)
     obj = read_json(path, "suite", error=SuiteError)   # the bounded, strict reader of every JSON input
     sha256 = hashlib.sha256(read_bytes(path, "suite", error=SuiteError)).hexdigest()
     source = show_path(path)
