@@ -31,7 +31,15 @@ import numpy as np
 from assets import ASSETS_DIR
 from core.conditions import CONDITIONS, SEEDED
 from core.inputs import check_keys, number, read_bytes, read_json, show, show_path
-from drivestudio.worlds.highway.benchmark.suite import MAX_SECONDS, MIN_SECONDS, NAME, Suite, SuiteError, parse_suite
+from drivestudio.worlds.highway.benchmark.suite import (
+    MAX_SECONDS,
+    MIN_SECONDS,
+    NAME,
+    Suite,
+    SuiteError,
+    parse_suite,
+    shipped_or_file,
+)
 from sim.track import MAX_LANES, TrackError, load_track
 from sim.track.library import preset_names
 
@@ -253,10 +261,7 @@ def parse_protocol(obj, source: str, sha256: str = "") -> Protocol:
 
 def load_protocol(ref: str) -> Protocol:
     """A shipped protocol by name (assets/protocols/NAME.json) or a protocol file, checked whole."""
-    path = PROTOCOLS_DIR / f"{ref}.json" if NAME.fullmatch(ref) and not Path(ref).exists() else Path(ref)
-    if not path.exists() and path.parent == PROTOCOLS_DIR:
-        shipped = ", ".join(sorted(p.stem for p in PROTOCOLS_DIR.glob("*.json")))
-        raise ProtocolError(f"--protocol {show(ref)}: no such protocol (shipped: {shipped}; or a protocol file)")
+    path = shipped_or_file(ref, PROTOCOLS_DIR, "--protocol", "protocol", ProtocolError)
     obj = read_json(path, "protocol", error=ProtocolError)
     sha256 = hashlib.sha256(read_bytes(path, "protocol", error=ProtocolError)).hexdigest()
     return parse_protocol(obj, show_path(path), sha256)

@@ -186,17 +186,20 @@ def parse_suite(obj, source: str, base: Path, sha256: str = "", default_name: st
     return Suite(name, description, parsed, source, sha256, gen)
 
 
+def shipped_or_file(ref: str, folder: Path, flag: str, kind: str, error: type[Exception]) -> Path:
+    """The file `ref` names: a shipped file's name (folder/NAME.json) or a path; a path that exists wins over a
+    name, and an unknown name is refused with the shipped names."""
+    path = folder / f"{ref}.json" if NAME.fullmatch(ref) and not Path(ref).exists() else Path(ref)
+    if not path.exists() and path.parent == folder:
+        names = ", ".join(sorted(p.stem for p in folder.glob("*.json")))
+        raise error(f"{flag} {show(ref)}: no such {kind} (shipped: {names}; or a {kind} file)")
+    return path
+
+
 def suite_path(ref=None) -> Path:
     """The file of a suite given as a shipped suite's name (assets/suites/NAME.json: default, random, the design
-    suites) or as a path; a path that exists wins over a name. None: the shipped held-out suite."""
-    if ref is None:
-        return DEFAULT_SUITE
-    ref = str(ref)
-    path = SUITES_DIR / f"{ref}.json" if NAME.fullmatch(ref) and not Path(ref).exists() else Path(ref)
-    if not path.exists() and path.parent == SUITES_DIR:
-        shipped = ", ".join(sorted(p.stem for p in SUITES_DIR.glob("*.json")))
-        raise SuiteError(f"--suite {show(ref)}: no such suite (shipped: {shipped}; or a suite file)")
-    return path
+    suites) or as a path. None: the shipped held-out suite."""
+    return DEFAULT_SUITE if ref is None else shipped_or_file(str(ref), SUITES_DIR, "--suite", "suite", SuiteError)
 
 
 def load_suite(ref=None) -> Suite:
