@@ -20,11 +20,13 @@ each precision (the recipe trains three at once on two cores: `--threads 1 --sid
 copy's iterations a minute, their mean.
 
 `--allocator` compares glibc's allocator as it comes with the one the trainings set up (core/allocator.py: freed memory
-kept, no block served by mmap), both in bfloat16 where native, the same way.
+kept, no block served by mmap), both in bfloat16 where native, the same way. `--input` compares the input path in
+tensor code (a sample's frames concatenated by numpy, the batch averaged and scaled by tensor operations) with the
+compiled one (perception/input_kernels.py), the same way.
 
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
-    python bench/bench_training.py --precision|--allocator [--rounds 5] [--threads N] [--side-by-side N]
+    python bench/bench_training.py --precision|--allocator|--input [--rounds 5] [--threads N] [--side-by-side N]
                                    [--families alexnet,mobilenet-h1] [--iterations N]
 """
 from __future__ import annotations
@@ -55,10 +57,16 @@ PRECISIONS = {"float32": ["--workers", "0", "--set", "amp=false"], "bfloat16 aut
 # a verb with glibc's own allocator settings (core/allocator.py switched off before the command line is read)
 GLIBC_DEFAULT = ("import sys, core.allocator as a; a.keep_freed_memory = lambda: False; "
                  "from drivestudio.cli import main; sys.exit(main())")
+# a verb whose frames are stacked and scaled by the tensor code alone (perception/input_kernels.py not used)
+TENSOR_INPUT = ("import sys, numpy as np, perception.input_kernels as k, perception.models as m; "
+                "k.interleave = lambda images: np.concatenate(images, axis=2); "
+                "m.Regressor._compiled_path = lambda self, images, block=1: False; "
+                "from drivestudio.cli import main; sys.exit(main())")
 # name: (train options, a `python -c` program in place of `python -m drivestudio`, or None)
 PAIRS: dict[str, dict[str, tuple[list[str], str | None]]] = {
     "precision": {"float32": (PRECISIONS["float32"], None), "bfloat16": (PRECISIONS["bfloat16 autocast"], None)},
-    "allocator": {"glibc default": (["--workers", "0"], GLIBC_DEFAULT), "kept": (["--workers", "0"], None)}}
+    "allocator": {"glibc default": (["--workers", "0"], GLIBC_DEFAULT), "kept": (["--workers", "0"], None)},
+    "input": {"tensor code": (["--workers", "0"], TENSOR_INPUT), "compiled": (["--workers", "0"], None)}}
 
 
 def drivestudio(*args: str, tree: Path | None = None, env: dict | None = None) -> None:
@@ -171,11 +179,13 @@ def main() -> None:
                     help="float32 against bfloat16 autocast instead")
     ap.add_argument("--allocator", dest="compare", action="store_const", const="allocator",
                     help="glibc's default allocator against freed memory kept (core/allocator.py) instead")
-    ap.add_argument("--threads", type=int, help="--precision, --allocator: threads of each training (default: torch's)")
-    ap.add_argument("--side-by-side", type=int, default=1, help="--precision, --allocator: trainings at once in each "
-                                                                 "setting")
-    ap.add_argument("--iterations", type=int, help="--precision, --allocator: iterations of each training (default: "
-                                                   "the family's)")
+    ap.add_argument("--input", dest="compare", action="store_const", const="input",
+                    help="the input path in tensor code against the compiled one (perception/input_kernels.py) "
+                         "instead")
+    both = "--precision, --allocator, --input"
+    ap.add_argument("--threads", type=int, help=f"{both}: threads of each training (default: torch's)")
+    ap.add_argument("--side-by-side", type=int, default=1, help=f"{both}: trainings at once in each setting")
+    ap.add_argument("--iterations", type=int, help=f"{both}: iterations of each training (default: the family's)")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
@@ -183,7 +193,7 @@ def main() -> None:
     if args.side_by_side < 1 or (args.iterations is not None and args.iterations < 2):
         ap.error("--side-by-side must be at least 1 and --iterations at least 2")
     if (args.side_by_side != 1 or args.iterations is not None) and not args.compare:
-        ap.error("--side-by-side and --iterations go with --precision or --allocator")
+        ap.error("--side-by-side and --iterations go with --precision, --allocator or --input")
     if args.compare and args.before_tree is not None:
         ap.error(f"--{args.compare} compares two settings of this checkout: leave out --before-tree")
     if args.families is None:

@@ -77,7 +77,13 @@ def _stack(images, channels_last: bool = False) -> torch.Tensor:
     if not channels_last:
         hwc = np.concatenate(images, axis=2) if len(images) > 1 else images[0]
         return torch.from_numpy(np.ascontiguousarray(hwc.transpose(2, 0, 1)))
-    hwc = np.concatenate(images, axis=2) if len(images) > 1 else np.array(images[0])   # the cache's is read-only
+    if len(images) == 1:
+        hwc = np.array(images[0])   # the cache's is read-only
+    elif all(image.dtype == np.uint8 and image.shape == images[0].shape for image in images):
+        from perception.input_kernels import interleave  # numba: only once samples are stacked
+        hwc = interleave(images)
+    else:
+        hwc = np.concatenate(images, axis=2)
     return torch.from_numpy(hwc).permute(2, 0, 1)
 
 
