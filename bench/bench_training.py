@@ -27,7 +27,7 @@ compiled one (perception/input_kernels.py), the same way.
     python bench/bench_training.py [--frames 600] [--rounds 2] [--families alexnet,mobilenet,mobilenet-h1]
                                    [--before-tree DIR] [--json F]
     python bench/bench_training.py --precision|--allocator|--input [--rounds 5] [--threads N] [--side-by-side N]
-                                   [--families alexnet,mobilenet-h1] [--iterations N]
+                                   [--families alexnet,mobilenet-h1] [--iterations N] [--data DIR]
 """
 from __future__ import annotations
 
@@ -118,8 +118,9 @@ def pair(args) -> None:
     env = {} if args.threads is None else {"OMP_NUM_THREADS": str(args.threads), "MKL_NUM_THREADS": str(args.threads)}
     threads = args.threads or os.cpu_count()
     try:
-        data = work / "data"
-        drivestudio("generate", "--out", str(data), "--frames", str(args.frames))
+        data = args.data or work / "data"
+        if args.data is None:
+            drivestudio("generate", "--out", str(data), "--frames", str(args.frames))
         per_min: dict = {(fam, p): [] for fam in families for p in configs}
         loads = [os.getloadavg()[0]]
         for r in range(args.rounds):
@@ -186,6 +187,8 @@ def main() -> None:
     ap.add_argument("--threads", type=int, help=f"{both}: threads of each training (default: torch's)")
     ap.add_argument("--side-by-side", type=int, default=1, help=f"{both}: trainings at once in each setting")
     ap.add_argument("--iterations", type=int, help=f"{both}: iterations of each training (default: the family's)")
+    ap.add_argument("--data", type=Path, help=f"{both}: train on this dataset (say, a recipe's, with its frame cache) "
+                                               "instead of generating --frames")
     ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
     args = ap.parse_args()
     if args.before_tree is not None and not (args.before_tree / "drivestudio" / "__main__.py").is_file():
@@ -194,6 +197,8 @@ def main() -> None:
         ap.error("--side-by-side must be at least 1 and --iterations at least 2")
     if (args.side_by_side != 1 or args.iterations is not None) and not args.compare:
         ap.error("--side-by-side and --iterations go with --precision, --allocator or --input")
+    if args.data is not None and not (args.compare and (args.data / "manifest.json").is_file()):
+        ap.error("--data goes with --precision, --allocator or --input, and names a dataset folder")
     if args.compare and args.before_tree is not None:
         ap.error(f"--{args.compare} compares two settings of this checkout: leave out --before-tree")
     if args.families is None:
