@@ -293,14 +293,22 @@ class Regressor(nn.Module):
         scale_input's four (conversion, division, subtraction, cast), which with the batch's assembly took a
         quarter of Z2Color's training step beside it on one core. None where the table does not apply (a scaling
         that differs per channel, pixels to be resized)."""
-        if self.scaling != "centre" or pixels.dtype != np.uint8 or tuple(pixels.shape[1:3]) != self.size:
+        table = self.pixel_table(dtype)
+        if table is None or pixels.dtype != np.uint8 or tuple(pixels.shape[1:3]) != self.size:
+            return None
+        scaled = table[np.ascontiguousarray(pixels)]        # the result takes the index array's layout
+        return torch.from_numpy(scaled).view(dtype).permute(0, 3, 1, 2)
+
+    def pixel_table(self, dtype: torch.dtype = torch.float32) -> np.ndarray | None:
+        """What scale_input makes of each of the 256 pixel values, cast to `dtype`, as a numpy array (bfloat16's
+        bits as int16: numpy has no bfloat16); None where one table does not apply (a scaling that differs per
+        channel)."""
+        if self.scaling != "centre":
             return None
         table = self._value_table(dtype)
         if table is None:
             return None
-        bits = table.view(torch.int16) if dtype == torch.bfloat16 else table     # numpy has no bfloat16
-        scaled = bits.numpy()[np.ascontiguousarray(pixels)]        # the result takes the index array's layout
-        return torch.from_numpy(scaled).view(dtype).permute(0, 3, 1, 2)
+        return (table.view(torch.int16) if dtype == torch.bfloat16 else table).numpy()
 
     def _value_table(self, dtype: torch.dtype) -> torch.Tensor | None:
         """The 256 scaled values in `dtype`, computed by the arithmetic scale_input uses, with every value at many

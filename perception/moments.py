@@ -110,22 +110,37 @@ class Moments:
     def __len__(self) -> int:
         return len(self.index)
 
+    def _sources(self, ids):
+        """(sample, instant, camera, its (h, w, 3) image) of every image of the moments `ids`."""
+        steps = self.index[np.asarray(ids)][:, None] + self.instants[None, :]        # (B, instants)
+        shard = np.searchsorted(self._offsets, steps, side="right") - 1
+        for b, i in np.ndindex(*steps.shape):
+            k = int(shard[b, i])
+            step = int(steps[b, i]) - self.offsets[k]
+            for c, camera in enumerate(self.arrays[k]):
+                yield b, i, c, camera[step]
+
     def images(self, ids) -> np.ndarray:
         """uint8 (B, h, w, instants * cameras * 3): the moments' images, channels oldest instant first, cameras in
         declaration order, RGB (the channel order of perception/datasets.py), channels last in memory."""
         # the cached images are copied whole first, then interleaved in one reordering copy that moves whole pixels
         # (3-byte elements): 45 % faster than writing each image into its interleaved place byte by byte
-        steps = self.index[np.asarray(ids)][:, None] + self.instants[None, :]        # (B, instants)
-        shard = np.searchsorted(self._offsets, steps, side="right") - 1
         h, w = self.size
-        out = np.empty((len(steps), len(self.instants), self.cameras, h, w, 3), dtype=np.uint8)
-        for b, i in np.ndindex(*steps.shape):
-            k = int(shard[b, i])
-            step = int(steps[b, i]) - self.offsets[k]
-            for c, camera in enumerate(self.arrays[k]):
-                out[b, i, c] = camera[step]                                        # (h, w, 3)
+        out = np.empty((len(ids), len(self.instants), self.cameras, h, w, 3), dtype=np.uint8)
+        for b, i, c, image in self._sources(ids):
+            out[b, i, c] = image
         pixels = out.view(np.dtype("V3"))[..., 0]                                  # (B, instants, cameras, h, w)
-        return np.ascontiguousarray(pixels.transpose(0, 3, 4, 1, 2)).view(np.uint8).reshape(len(steps), h, w, -1)
+        return np.ascontiguousarray(pixels.transpose(0, 3, 4, 1, 2)).view(np.uint8).reshape(len(ids), h, w, -1)
+
+    def looked_up(self, ids, table: np.ndarray) -> np.ndarray:
+        """table[images(ids)], of table's type (a network's 256 scaled values: Regressor.pixel_table), written as
+        the images are gathered: one pass instead of images' two and the lookup's one."""
+        from perception.input_kernels import place_looked_up  # numba: only where moments are trained on
+        h, w = self.size
+        out = np.empty((len(ids), h, w, len(self.instants) * self.cameras * 3), dtype=table.dtype)
+        for b, i, c, image in self._sources(ids):
+            place_looked_up(image, table, out[b], 3 * (i * self.cameras + c))
+        return out
 
     def batch(self, ids) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(uint8 images (B, instants * cameras * 3, h, w) in channels-last memory, modes (B,), raw targets)."""

@@ -22,7 +22,8 @@ forward and backward passes run under bfloat16 autocast where the processor comp
 default: AVX512-BF16 or AMX, or a CUDA device that supports it; float32 master weights, the losses and the optimiser
 in float32; validation's forward pass under the same autocast); elsewhere, and with `amp` false, float32 throughout
 (emulated bfloat16 trains several times slower); a second thread assembles the next batch while the present one
-trains, its pixels scaled through a table of the 256 values (Regressor.scale_pixels, bit for bit scale_input's).
+trains, its pixels scaled through a table of the 256 values as they are gathered (Regressor.pixel_table,
+Moments.looked_up: bit for bit scale_input's).
 
 A run is resumable at epoch granularity: its state is saved beside the model (`<out>.state`) after every epoch and
 on Ctrl-C or SIGTERM; the same command continues it.
@@ -303,13 +304,13 @@ def prefetch(items: Iterable, fn, depth: int = 2) -> Iterator:
 
 def scaled_images(model: Regressor, moments: Moments, ids: np.ndarray, device: torch.device,
                   dtype: torch.dtype) -> torch.Tensor:
-    """The moments' images as the network reads them, in `dtype` on `device`: through the pixel table on the CPU
-    (one pass), else scale_input then the cast (the same values)."""
-    pixels = moments.images(ids)
-    x = model.scale_pixels(pixels, dtype) if device.type == "cpu" else None
-    if x is None:
-        x = model.scale_input(torch.from_numpy(pixels).permute(0, 3, 1, 2).to(device, non_blocking=True)).to(dtype)
-    return x
+    """The moments' images as the network reads them, in `dtype` on `device`: on the CPU looked up in the pixel
+    table as they are gathered (one pass), else scale_input then the cast (the same values)."""
+    table = model.pixel_table(dtype) if device.type == "cpu" and tuple(moments.size) == model.size else None
+    if table is not None:
+        return torch.from_numpy(moments.looked_up(ids, table)).view(dtype).permute(0, 3, 1, 2)
+    pixels = torch.from_numpy(moments.images(ids)).permute(0, 3, 1, 2)
+    return model.scale_input(pixels.to(device, non_blocking=True)).to(dtype)
 
 
 def inputs(run: MultiNetRun, model: Regressor, ids: np.ndarray):

@@ -114,3 +114,23 @@ def test_validation_under_autocast_runs_in_bfloat16_within_a_percent_of_float32(
     assert set(fast) == set(exact) and "val_loss_furtive" in fast
     assert fast["val_loss"] != exact["val_loss"]
     assert abs(fast["val_loss"] - exact["val_loss"]) <= 0.01 * exact["val_loss"]
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16], ids=str)
+def test_moments_looked_up_as_gathered_are_the_scaled_images_bit_for_bit(data, dtype):
+    """The training's batches (images looked up in the pixel table as they are gathered) hold exactly what
+    scale_input then the cast make of the assembled images, channel for channel: instants and cameras in order."""
+    from perception.multinet import scaled_images
+    model = Regressor(make_spec("z2color", worlds.get("sidewalk")))
+    moments = Moments([data], SIZE, log=lambda *a: None)
+    ids = np.array([0, 28, 29, 57, len(moments) - 1, 5])
+    table = model.pixel_table(dtype)
+    got = moments.looked_up(ids, table)
+    images = moments.images(ids)
+    assert got.shape == images.shape and got.dtype == table.dtype
+    np.testing.assert_array_equal(got, table[images])
+    x = scaled_images(model, moments, ids, torch.device("cpu"), dtype)
+    want = model.scale_input(torch.from_numpy(images).permute(0, 3, 1, 2).contiguous()).to(dtype)
+    assert x.dtype == dtype and x.is_contiguous(memory_format=torch.channels_last)
+    assert torch.equal(x.float(), want.float())
+    assert not torch.equal(x[:, :3], x[:, 3:6])            # an instant's or a camera's image is not another's
