@@ -8,7 +8,7 @@ sample's frames along their 3 channels took 12 ms and the block mean and scaling
 tensor code passes over the batch several times (a slice, a conversion, a sum, a division, a subtraction, a
 division). The scaling here is a lookup in a table scale_input's own arithmetic computed, of every block sum.
 Assembling a batch of 120 MultiNet moments (four 94x168 images each) by gathering the images, interleaving them and
-looking every byte up with numpy took 50 ms; gathered and looked up in one pass, 8.
+looking every byte up with numpy took 44 ms in the trainer; gathered and looked up in one pass, 15.
 """
 from __future__ import annotations
 
@@ -29,25 +29,14 @@ def _interleave(a, b, out):
         out[r + 5] = b[q + 2]
 
 
-@njit(cache=True, nogil=True)
-def _place(src, out, first):
-    h, w, c = src.shape
-    for i in range(h):
-        for j in range(w):
-            for k in range(c):
-                out[i, j, first + k] = src[i, j, k]
-
-
 def interleave(images: list) -> np.ndarray:
     """(h, w, c) uint8 frames -> one (h, w, c x len) array, the frames' channels one after another (what
-    np.concatenate(images, axis=2) makes)."""
-    h, w, c = images[0].shape
-    out = np.empty((h, w, c * len(images)), dtype=np.uint8)
-    if len(images) == 2 and c == 3 and images[0].flags.c_contiguous and images[1].flags.c_contiguous:
-        _interleave(images[0].reshape(-1), images[1].reshape(-1), out.reshape(-1))
-        return out
-    for n, image in enumerate(images):
-        _place(image, out, n * c)
+    np.concatenate(images, axis=2) makes, which other numbers of frames and channels get)."""
+    a = images[0]
+    if len(images) != 2 or a.shape[2] != 3 or not all(image.flags.c_contiguous for image in images):
+        return np.concatenate(images, axis=2)
+    out = np.empty((*a.shape[:2], 6), dtype=np.uint8)
+    _interleave(a.reshape(-1), images[1].reshape(-1), out.reshape(-1))
     return out
 
 
