@@ -36,7 +36,10 @@ REAR_TARGETS = "fast,lanes_left,dist_LB,dist_RB,closing_LB,closing_RB"   # what 
 @dataclass(frozen=True)
 class Extended(RecipePlan):
     frames: int = setting(20000, "expert frames of each of the two datasets", low=200, high=10**7)
-    iterations: int = setting(6000, "iterations of each network's training", low=1, high=10**7)
+    iterations: int = setting(6000, "iterations of each forward network's training", low=1, high=10**7)
+    rear_iterations: int = setting(6000, "iterations of each rear network's training (its six labels are learned "
+                                         "sooner; the forward trainings run faster once it is done)",
+                                   low=1, high=10**7)
     members: int = setting(2, "forward networks of the paper's 13 (seeds 0, 1, ...)", low=1, high=8)
     # the pair measured was 0 and 2
     rear_members: int = setting(1, "networks of the cars behind (seeds 0, 2, ...), the nearer rear gap of theirs "
@@ -60,13 +63,14 @@ class Extended(RecipePlan):
 
 
 EXTENDED = Extended()
-EXTENDED_QUICK = Extended(frames=400, iterations=20, round_frames=60, round_iterations=4)
+EXTENDED_QUICK = Extended(frames=400, iterations=20, rear_iterations=20, round_frames=60, round_iterations=4)
 
 
 def train_argv(size: Extended, data: Path, model: Path, seed: int, rear: bool) -> list:
     targets = ["--targets", REAR_TARGETS] if rear else ["--set", f"emphasis={size.emphasis}"]
+    iterations = size.rear_iterations if rear else size.iterations
     return ["train", "--data", data, "--model", "mobilenet", "--set", f"history={size.history}", "--out", model,
-            "--iterations", size.iterations, "--set", f"val_every={max(10, size.iterations // 6)}", "--workers", 0,
+            "--iterations", iterations, "--set", f"val_every={max(10, iterations // 6)}", "--workers", 0,
             "--device", "cpu", "--seed", seed, *targets]
 
 
@@ -100,8 +104,9 @@ def extended_recipe(steps: Steps, size: Extended, plan: list[str]) -> Path | Non
     rounds = [out / f"aggregation-{k}" for k in range(size.members)]
     trainings = [train_argv(size, forward_data, m, k, rear=False) for k, m in enumerate(forward)] \
         + [train_argv(size, rear_data, r, 2 * k, rear=True) for k, r in enumerate(rears)]
-    steps.side_by_side(f"{size.members} networks of the paper's 13 and {size.rear_members} of the cars behind, "
-                       f"{size.iterations} iterations each; as each forward network is done, its {size.rounds} "
+    steps.side_by_side(f"{size.members} networks of the paper's 13 ({size.iterations} iterations each) and "
+                       f"{size.rear_members} of the cars behind ({size.rear_iterations}); as each forward network is "
+                       f"done, its {size.rounds} "
                        f"aggregation round(s) of {size.round_frames} frames",
                        trainings + [aggregate_argv(size, forward_data, m, agg, k)
                                     for k, (m, agg) in enumerate(zip(forward, rounds))],
