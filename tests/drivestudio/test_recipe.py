@@ -143,3 +143,15 @@ def test_the_recipes_renderer_reaches_generate_and_the_benchmark_and_the_default
     assert training_plan(tiny)[-2:] == ["--set", "renderer=tiny"] and renderer_argv(tiny, "--renderer") == [
         "--renderer", "tiny"]
     assert training_plan(EXTENDED) == [] and renderer_argv(EXTENDED, "--renderer") == []
+
+
+def test_the_extended_recipes_rear_network_trains_its_own_iterations_and_the_forward_ones_theirs():
+    from pathlib import Path
+
+    from drivestudio.commands.recipe_extended import train_argv
+    size = Extended(iterations=600, rear_iterations=120)
+    forward = [str(a) for a in train_argv(size, Path("d"), Path("f.pt"), 0, rear=False)]
+    rear = [str(a) for a in train_argv(size, Path("d"), Path("r.pt"), 0, rear=True)]
+    assert forward[forward.index("--iterations") + 1] == "600" and "val_every=100" in forward
+    assert rear[rear.index("--iterations") + 1] == "120" and "val_every=20" in rear
+    assert "--targets" in rear and "--targets" not in forward
