@@ -1,5 +1,5 @@
-"""The benchmark suite: every benchmark of bench/ at sizes that finish in about 10-15 minutes on a 2-core machine,
-their figures in one table with the machine, the date and the versions.
+"""The benchmark suite: every benchmark of bench/ at sizes that finish in about 15-20 minutes on a 2-core machine (the
+demo from a fresh clone among them), their figures in one table with the machine, the date and the versions.
 
     python -m bench                         # everything; writes docs/benchmarks.md (between its markers) and
                                             # bench/results.json
@@ -33,13 +33,14 @@ DOC = REPO / "docs" / "benchmarks.md"
 RESULTS = BENCH / "results.json"
 BEGIN, END = "<!-- BEGIN GENERATED bench-suite -->", "<!-- END GENERATED bench-suite -->"
 SECTION = """## The suite
-`python -m bench` runs every benchmark of `bench/` at sizes that finish in about 10-15 minutes on this machine and
-writes the table below (and `bench/results.json`) with the machine, the date and the versions; `--only NAME,...`
-reruns some of them (their rows replace those of the last run), `--quick --no-write` is a smoke test (seconds per
-bench, MultiNet's about a minute). highway-env is installed on first use into its own environment
-(`.venv-highway-env/`), never into the project's. The load average is recorded because this machine is shared:
-while other work runs, the figures that depend on threads waiting for each other (the bridge's round trip, batch-1
-inference with 2 torch threads) fall far more than the others; compare them with the quiet figures above.
+`python -m bench` runs every benchmark of `bench/` at sizes that finish in about 15-20 minutes on this machine (the
+demo from a fresh clone among them) and writes the table below (and `bench/results.json`) with the machine, the date
+and the versions; `--only NAME,...` reruns some of them (their rows replace those of the last run), `--quick
+--no-write` is a smoke test (seconds per bench, MultiNet's and the demo's about a minute). highway-env is installed on
+first use into its own environment (`.venv-highway-env/`), never into the project's. The load average is recorded
+because this machine is shared: while other work runs, the figures that depend on threads waiting for each other (the
+bridge's round trip, batch-1 inference with 2 torch threads) fall far more than the others; compare them with the
+quiet figures above.
 
 """
 
@@ -221,6 +222,22 @@ def rows_highway_env(j: dict) -> list[tuple]:
              f"x real time: ours {j['ours_realtime_factor']:.1f}, highway-env {j['theirs_realtime_factor']:.1f}", "")]
 
 
+def rows_commands(j: dict) -> list[tuple]:
+    out = []
+    for r in j["commands"]:
+        argv = r["argv"][:r["argv"].index("--out")]
+        figure = f"**{r['minutes']:.1f} minutes** ({r['cpu_minutes']:.0f} CPU minutes)" if r["status"] == 0 else \
+            f"failed (exit {r['status']})"
+        random = r.get("random_suite", {}).get("drivers")
+        if random:
+            figure += f"; its driver {random[0]['percent_of_oracle-extended']:.1f} % of the extended oracle on the " \
+                      f"random suite, {random[0]['collisions']} collisions in {random[0]['km']:.1f} km"
+        target = f"<= {r['target_minutes']:g} minutes (issue 48)" if r["target_minutes"] else ""
+        out.append((f"`drivestudio {' '.join(argv)}` from a fresh clone, {j['machine']['cores']} cores", figure,
+                    target))
+    return out
+
+
 def _slowdown(x: float) -> str:
     return f"{x:.1%} slower" if x >= 0 else f"no slowdown: {-x:.1%} faster"
 
@@ -296,6 +313,7 @@ BENCHES = [
           rows_highway_env, group="highway-env"),
     Bench("highway-env-15hz", "bench_highway_env.py", ["--steps", "200", "--rounds", "5", "--policy-frequency", "15"],
           ["--steps", "20", "--rounds", "2", "--policy-frequency", "15"], rows_highway_env, group="highway-env"),
+    Bench("commands", "bench_commands.py", ["--commands", "demo"], ["--commands", "demo", "--quick"], rows_commands),
 ]
 
 

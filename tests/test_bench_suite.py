@@ -74,3 +74,19 @@ def test_every_benchmark_of_bench_is_in_the_suite():
 
     assert uncovered() == []
     assert all((REPO / "bench" / b.script).exists() for b in BENCHES)
+
+
+def test_the_whole_commands_rows_give_minutes_the_target_and_the_recipes_driver():
+    sys.path.insert(0, str(REPO))
+    from bench.run_all import rows_commands
+
+    recipe = {"argv": ["recipe", "--extended", "--out", "out/recipe"], "status": 0, "minutes": 41.26,
+              "cpu_minutes": 80.4, "target_minutes": 40.0,
+              "random_suite": {"drivers": [{"percent_of_oracle-extended": 96.7, "collisions": 1, "km": 51.1}]}}
+    demo = {"argv": ["demo", "--out", "out/demo"], "status": 3, "minutes": 0.5, "cpu_minutes": 1.0,
+            "target_minutes": None}
+    rows = rows_commands({"machine": {"cores": 2}, "commands": [recipe, demo]})
+    assert rows[0] == ("`drivestudio recipe --extended` from a fresh clone, 2 cores",
+                       "**41.3 minutes** (80 CPU minutes); its driver 96.7 % of the extended oracle on the random "
+                       "suite, 1 collisions in 51.1 km", "<= 40 minutes (issue 48)")
+    assert rows[1] == ("`drivestudio demo` from a fresh clone, 2 cores", "failed (exit 3)", "")
