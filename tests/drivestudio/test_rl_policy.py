@@ -1,6 +1,8 @@
 """Reinforcement learning on the highway (docs/gymnasium.md): the training script's smoke run, and a policy as a
 row of the benchmark's leaderboard, a saved Stable-Baselines3 model or a callable."""
 import json
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -25,8 +27,13 @@ def trained(tmp_path_factory):
     pytest.importorskip("stable_baselines3")
     from drivestudio.worlds.highway.rl_train import train
     model = tmp_path_factory.mktemp("rl") / "ppo.zip"
-    result = train(minutes=1.0, steps=300, out=model, log=lambda line: None)
+    temp, tempfile.tempdir = tempfile.tempdir, str(tmp_path_factory.mktemp("tmp"))
+    try:
+        result = train(minutes=1.0, steps=300, out=model, log=lambda line: None)
+    finally:
+        temp, tempfile.tempdir = tempfile.tempdir, temp
     assert model.is_file() and result["steps"] >= 300
+    assert not list(Path(temp).glob("SB3-*"))   # no log folder of Stable-Baselines3's left in /tmp
     assert sumo_children() == []
     return model
 

@@ -98,6 +98,7 @@ def train(minutes: float, steps: int, out: Path, seed: int = 0, log=print) -> di
     import torch  # lazy: torch and Stable-Baselines3 (an optional extra) only when training
     from stable_baselines3 import PPO  # lazy: as torch
     from stable_baselines3.common.callbacks import BaseCallback  # lazy: as torch
+    from stable_baselines3.common.logger import Logger  # lazy: as torch
 
     from drivestudio.worlds.highway.policy_features import ScaledBox  # lazy: it imports torch
 
@@ -109,6 +110,8 @@ def train(minutes: float, steps: int, out: Path, seed: int = 0, log=print) -> di
                 # log_std -1: a first policy that steers within about a third of full lock, not across it, stays
                 # on the road long enough to find out that driving on earns more than leaving
                 policy_kwargs={"features_extractor_class": ScaledBox, "net_arch": [64, 64], "log_std_init": -1.0})
+    # a logger with no outputs: Stable-Baselines3's own, even silent, makes an empty folder in /tmp every run
+    model.set_logger(Logger(folder=None, output_formats=[]))
     t0 = time.perf_counter()
     returns: list[float] = []
 
