@@ -91,9 +91,10 @@ def demo_quality(out: Path) -> dict:
 
 def board_quality(board: Path) -> dict:
     """Each learned driver's score as a percentage of each exact driver's on a leaderboard, its collisions and km."""
-    entries = json.loads(board.read_text())["models"]
+    table = json.loads(board.read_text())
+    entries = table["models"]
     exact = {e["spec"]: e["overall"]["driving_score"] for e in entries if e["spec"] in EXACT}
-    return {"suite": json.loads(board.read_text())["suite"].get("name"),
+    return {"suite": table["suite"].get("name"),
             "drivers": [{"spec": e["spec"], "collisions": e["overall"]["collisions"],
                          "km": e["overall"]["distance_km"],
                          **{f"percent_of_{k}": round(100 * e["overall"]["driving_score"] / v, 1) if v else None
@@ -164,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--commands: one or more of {', '.join(COMMANDS)}")
     if args.keep and args.keep.exists() and any(args.keep.iterdir()):
         ap.error(f"--keep {args.keep}: not empty")
+    if args.json and not os.access(args.json.resolve().parent, os.W_OK):   # refused before an hour of work
+        ap.error(f"--json {args.json}: its folder is not writable")
     dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no"],
                            capture_output=True, text=True).stdout.strip()
     if dirty:
