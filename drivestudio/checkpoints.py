@@ -32,19 +32,21 @@ def check_device(name: str) -> str:
     return name
 
 
-def check_checkpoint_path(model: str, drivers: tuple[str, ...] = ("oracle", "expert")) -> Path:
-    """The checkpoint file `model` names; `drivers` are the world's own drivers, named in the message."""
+def check_checkpoint_path(model: str, drivers: tuple[str, ...] = ()) -> Path:
+    """The checkpoint file `model` names; `drivers` are the other drivers the option takes (a world's own), named in
+    the message: none where only a checkpoint will do (aggregate, export, autonomy)."""
     path = Path(model)
     if not path.is_file():
-        raise UsageError(f"--model must be a world's driver ({', '.join(drivers)}) or a checkpoint file; no such "
-                         f"file: {model}")
+        what = f"a world's driver ({', '.join(drivers)}) or a checkpoint file" if drivers else "a checkpoint file"
+        raise UsageError(f"--model must be {what}; no such file: {model}")
     return path
 
 
-def check_checkpoint(model: str, world: str | None) -> dict:
+def check_checkpoint(model: str, world: str | None, drivers: tuple[str, ...] = ()) -> dict:
     """Open a checkpoint and check it before any work starts: a model (of `world`, when given) whose weights are
-    intact, finite and fit it; else one line and exit status 2 (CheckpointError). Returns its spec."""
-    path = check_checkpoint_path(model)
+    intact, finite and fit it; else one line and exit status 2 (CheckpointError). Returns its spec. `drivers`: as
+    check_checkpoint_path's."""
+    path = check_checkpoint_path(model, drivers)
     from perception.models import load_model  # lazy: torch
     return load_model(path, world=world)[1]["spec"]
 

@@ -33,7 +33,17 @@ def build_parser() -> argparse.ArgumentParser:
             sub.choices[verb].world = plugin.name   # type: ignore[attr-defined]
             action = next(a for a in sub._choices_actions if a.dest == verb)
             action.help = f"({plugin.name}) {action.help}"
+    parser.verbs = sub.choices   # type: ignore[attr-defined]
     return parser
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    """The command line; an option its verb does not know is refused by that verb's parser (its name in the line)."""
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        parser.verbs[args.verb].error(f"unrecognized arguments: {' '.join(extra)}")   # type: ignore[attr-defined]
+    return args
 
 
 def listed_world(argv: list[str]) -> None:
@@ -55,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"drivestudio: error: {e}", file=sys.stderr)
         return 2
     listed_world(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    args = parse(argv)
     try:
         return int(args.func(args) or 0)
     except input_errors() as e:

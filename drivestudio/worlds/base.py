@@ -97,7 +97,7 @@ class Plugin:
         """Check a driver before any world starts: one of expert_names, a driver of own_model, or a checkpoint of
         this world; else one line and exit status 2."""
         if spec.source not in self.expert_names:
-            check_checkpoint(spec.source, self.name)
+            check_checkpoint(spec.source, self.name, self.expert_names)
 
     def fit_driver(self, config, spec: DriverSpec):
         """Before any work: the configuration a driver needs (the highway's mirror for a model that learned it),

@@ -173,6 +173,25 @@ def test_bad_input_gets_one_line_and_status_2(fixture, run_cli, case):
     _refused_with_one_line(fixture, before, r)
 
 
+
+# the line names what the option takes there, and the verb that refused it
+MESSAGES = [
+    (("aggregate", "--data", D, "--model", "oracle", "--out", "{root}/agg"),
+     "drivestudio aggregate: error: --model must be a checkpoint file; no such file: oracle"),
+    (("drive", "--model", "{root}/missing.pt"), "a world's driver (oracle, oracle-extended, expert) or a checkpoint"),
+    (("drive", "--world", "sidewalk", "--model", "{root}/missing.pt"), "a world's driver (expert, poor, oracle) or"),
+    (("ppo", "--timesteps", "0"), "drivestudio ppo: error: unrecognized arguments: --timesteps 0"),
+    (("render", "-o", "{root}/f.png", "--frobnicate"), "drivestudio render: error: unrecognized arguments: --frob"),
+]
+
+
+@pytest.mark.parametrize("case,says", MESSAGES, ids=[_ids(c) for c, _ in MESSAGES])
+def test_the_line_names_what_the_option_takes(fixture, run_cli, case, says):
+    before = snapshot(fixture)
+    r = run_cli(*[a.format(root=fixture) for a in case], cwd=fixture)
+    _refused_with_one_line(fixture, before, r)
+    assert says in r.stderr, r.stderr
+
 # and from a real interpreter, as a shell sees it: an option's number (argparse) and a file's content (the verb)
 @pytest.mark.parametrize("case", [("drive", "--seconds", "nan"), ("probe", "{root}/deep.json")], ids=_ids)
 def test_bad_input_from_a_real_process_gets_one_line_and_status_2(fixture, case):
