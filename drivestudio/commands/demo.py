@@ -3,6 +3,8 @@ same verbs a user would run, everything in one folder, ending with REPORT.md (ab
 --quick: about 3)."""
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -66,13 +68,28 @@ def run(args) -> int:
     out = make_dir(Path(args.out))
     hw, sw = make_dir(out / "highway"), make_dir(out / "sidewalk")
     step = _Steps()
-    _highway(step, size, hw)
+    stereo = _compile_stereo_kernels()
+    try:
+        _highway(step, size, hw)
+        stereo.wait()
+    finally:
+        stereo.kill()
     _sidewalk(step, size, sw)
     write_text(out / "commands.txt", "\n".join(step.log) + "\n")
     report = write_report(out, time.perf_counter() - step.t_start, args.quick)
     print(f"\ndemo done in {time.perf_counter() - step.t_start:.0f} s; the report is {report} and everything is in "
           f"{out}/ (the commands it ran: {out / 'commands.txt'})")
     return 0
+
+
+def _compile_stereo_kernels() -> subprocess.Popen:
+    """A child that compiles the stereo renderer's kernels (or loads them from numba's cache) while the highway's
+    steps run: in a fresh clone numba compiles them on one thread for about 20 s, and the highway's first frame
+    compiles its own on the other core meanwhile. Should it fail, the sidewalk's first frame compiles them itself,
+    and says why if that fails too."""
+    code = "from sim.sidewalk.kernels import compile_stereo_kernels as c; c()"
+    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            cwd=Path(__file__).resolve().parents[2])
 
 
 class _Steps:
