@@ -1,6 +1,6 @@
 """drivestudio demo: the whole mission for both worlds at small scale on built-in defaults, every step through the
-same verbs a user would run, everything in one folder, ending with REPORT.md (about 8 minutes on a 2-core machine;
---quick: about 3)."""
+same verbs a user would run, everything in one folder, ending with REPORT.md (4-10 minutes on a 2-core machine,
+by its CPU; --quick: about 3)."""
 from __future__ import annotations
 
 import subprocess
