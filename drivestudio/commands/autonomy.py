@@ -25,7 +25,8 @@ def register(sub) -> None:
                                    "as in Chowdhuri, Pankaj and Zipser's MultiNet. Writes autonomy.md/.json (with the "
                                    "take-overs by the rule's clause that caused them), a video "
                                    "per round marking the corrections, and every round's steps as a dataset that "
-                                   "`train` merges (--data A,B); --rounds K repeats drive, merge and retrain.")
+                                   "`train` merges (--data A,B; --set record=false for a run only measured); "
+                                   "--rounds K repeats drive, merge and retrain.")
     add_flags(p, Autonomy, FLAGS)
     add_set(p, Autonomy, FLAGS, "the autonomy run")
     p.set_defaults(func=run)
@@ -33,6 +34,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     cfg = resolve(Autonomy(), args, FLAGS)
+    autonomy.check_rounds(cfg, cfg.rounds)
     check_device(cfg.device)
     check_checkpoint_path(cfg.model)
     load_predictor_for(cfg.model, "sidewalk", cfg.device)   # a model of another world: one line, before driving

@@ -60,6 +60,20 @@ def test_a_run_records_its_corrections_and_its_autonomy_agrees(checkpoint, tmp_p
     assert (tmp_path / "autonomy-0.mp4").stat().st_size > 10_000 and "| 0 | multinet.pt | safety |" in r.stdout
 
 
+def test_a_run_not_recorded_writes_no_dataset_and_drives_as_a_recorded_one(checkpoint, tmp_path, run_cli):
+    """record=false (the study's measuring runs): the same run, its report the same, no corrections-0 written."""
+    for name, record in (("recorded", "true"), ("measured", "false")):
+        r = run_cli("autonomy", "--model", checkpoint, "--mode", "direct", "--seconds", "2", "--set", "video=false",
+                    "--set", f"record={record}", "--out", tmp_path / name)
+        assert r.returncode == 0, r.stderr
+    recorded, measured = (json.loads((tmp_path / n / "autonomy.json").read_text())["rounds"][0]
+                          for n in ("recorded", "measured"))
+    assert recorded["dataset"] == str(tmp_path / "recorded" / "corrections-0") and measured["dataset"] is None
+    assert (tmp_path / "recorded" / "corrections-0").is_dir() and not (tmp_path / "measured" / "corrections-0").exists()
+    del recorded["dataset"], measured["dataset"], recorded["model"], measured["model"]
+    assert recorded == measured and recorded["corrections"] > 0
+
+
 def test_a_highway_model_is_refused_in_one_line(run_cli, tmp_path):
     from core.worlds.highway import HIGHWAY
     model = Regressor(make_spec("gist", HIGHWAY))
@@ -95,6 +109,7 @@ def test_rounds_merge_the_corrections_and_retrain(tmp_path):
     (["--rounds", "0"], "--rounds must be an integer from 1 to 20, got 0"),
     (["--set", "obstacles=13"], "--set obstacles must be a number from 0 to 12, got 13.0"),
     (["--set", "video=maybe"], "--set video must be true or false, got 'maybe'"),
+    (["--rounds", "2", "--set", "record=false"], "--set record=false leaves a retraining nothing to merge"),
 ])
 def test_a_rule_that_does_not_exist_or_no_rounds_is_refused_in_one_line(checkpoint, run_cli, tmp_path, argv, says):
     r = run_cli("autonomy", "--model", checkpoint, *argv, "--out", tmp_path / "a", cwd=REPO)

@@ -147,6 +147,16 @@ def test_each_networks_rounds_wait_for_its_own_previous_round_only(tmp_path):
     assert {job.after for *_, job in study.autonomy_plan("baseline", final, ("safety",), 1, 0)} == {()}
 
 
+def test_only_the_correction_rounds_record_their_steps(tmp_path):
+    """The rounds' recordings are what their retrainings merge; the measuring runs' would be read by nothing."""
+    study = Study(StudyConfig(out=str(tmp_path), rounds=1))
+    final, jobs = study.correction_rounds(("multinet", "mtl-direct", "mtl-furtive"))
+    drives = [j for j in jobs if j.argv[0] == "autonomy"]
+    assert drives and all(_set(j.argv, "record") is None for j in drives)       # the verb's default: recorded
+    runs = [job for *_, job in study.autonomy_plan("autonomy", final, ("safety",), 1, 1)]
+    assert runs and all(_set(j.argv, "record") == "false" for j in runs)
+
+
 def test_the_studys_data_and_draws_reach_every_verb(tmp_path):
     """perturbed goes to generate, steer_share to the first trainings and every round's fine-tuning."""
     calls: list = []

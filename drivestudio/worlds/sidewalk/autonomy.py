@@ -54,7 +54,7 @@ class RoundResult:
     collisions: int
     off_path_s: float
     distance_m: float
-    dataset: str
+    dataset: str | None   # the recording of the run's steps (None: not recorded)
     video: str | None
     mode: str = "direct"
     path: str = HELD_OUT_PATH
@@ -86,6 +86,8 @@ class Drive:
                                      "seed's own time of day)", choices=CONDITIONS, several=True)
     device: str = setting("cpu", "torch device: cpu, cuda, cuda:N or auto")
     video: bool = setting(True, "write a video per round, marking the corrections")
+    record: bool = setting(True, "record each round's steps as a dataset (corrections-K: what a retraining merges, "
+                                 "about 19 MB a minute); false for a run that is only measured")
 
 
 @dataclass
@@ -99,7 +101,8 @@ class Autonomy(Drive):
 
 
 def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
-    """The model drives, the expert corrects under the rule; the run's steps become the dataset out/corrections-k."""
+    """The model drives, the expert corrects under the rule; the run's steps become the dataset out/corrections-k
+    (unless run.record is false)."""
     from drivestudio.bridge_loop import supervised  # lazy: the bridge, only when it runs (not for --help)
 
     plugin: Any = worlds.get("sidewalk")   # the sidewalk's own world, driver and metrics are used as such below
@@ -117,11 +120,12 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
         video_path = out / f"autonomy-{k}.mp4" if run.video else None
         named = f", {world.condition}" if run.condition != SEEDED else ""
         recorder = plugin.recorder(world, video_path, f"{Path(run.model).stem} ({run.mode}, {run.rule} rule{named})")
-        writer = Recording(data_dir, decl, run, world.condition)
+        writer = Recording(data_dir, decl, run, world.condition) if run.record else None
 
         def on_step(rec) -> None:
             recorder(rec)
-            writer.add(rec)
+            if writer is not None:
+                writer.add(rec)
 
         ok = False
         try:
@@ -132,11 +136,13 @@ def drive_round(run: Drive, out: Path, k: int, log=print) -> RoundResult:
             recorder.close(ok)
         report = metrics.report()
         steps, corrected = metrics.steps, metrics.correction_steps
-        writer.close()
+        if writer is not None:
+            writer.close()
     elapsed, correction = steps * world.dt, corrected * world.dt   # exact: the report rounds for reading
     result = RoundResult(k, str(run.model), round(percentage_autonomy(correction, elapsed), 2), round(correction, 3),
                          round(elapsed, 3), int(report["corrections"]), int(report["collisions"]),
-                         float(report["off_path_time_s"]), float(report["distance_m"]), str(data_dir),
+                         float(report["off_path_time_s"]), float(report["distance_m"]),
+                         str(data_dir) if writer is not None else None,
                          str(video_path) if video_path else None, run.mode, run.path, run.seed, run.rule,
                          int(report["collisions_while_correcting"]), report.get("take_overs_by_clause") or {},
                          world.condition)
@@ -244,6 +250,12 @@ def earlier_run(folder: Path) -> list[str]:
     return sorted(p.name for p in (folder / "autonomy.json", *folder.glob("model-round*.pt")) if p.exists())
 
 
+def check_rounds(drive: Drive, rounds: int) -> None:
+    """A run of several rounds merges each round's recording: refused without one, before round 0."""
+    if rounds > 1 and not drive.record:
+        raise UsageError("--set record=false leaves a retraining nothing to merge: it goes with --rounds 1")
+
+
 def check_outputs(out: Path, rounds: int, video: bool) -> None:
     """Every file the run's rounds write, checked before round 0."""
     for name in ("autonomy.md", "autonomy.json"):
@@ -269,7 +281,7 @@ def run(drive: Drive, out: Path, rounds: int = 1, epochs: int = 3, roots: list[s
         write_summary(out, results, drive.mode, complete=k + 1 == rounds)
         if k + 1 == rounds:
             break
-        merged = list(roots or []) + [r.dataset for r in results]
+        merged = list(roots or []) + [str(r.dataset) for r in results]   # recorded: check_rounds
         log(f"round {k + 1}: retraining on {len(merged)} dataset(s) (the original and {len(results)} correction "
             f"set(s)) for {epochs} epochs, starting from {drive.model}")
         drive = replace(drive, model=retrain(drive.model, merged, out / f"model-round{k + 1}.pt", epochs, drive.seed,

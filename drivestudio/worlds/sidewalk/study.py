@@ -269,7 +269,7 @@ class Study:
                 planned = [self.drive_job(f"round{k}-{name}-{mode}", current[name], mode,
                                           ROUND_LOOPS[(k - 1 + i) % len(ROUND_LOOPS)], c.seed + k, c.round_seconds,
                                           c.rule, self.round_dir(k, name, mode), after=before,
-                                          condition=c.condition)
+                                          condition=c.condition, record=True)
                            for i, mode in enumerate(self.net_modes(name))]
                 drives = [j for j in planned if j is not None]   # a drive whose result exists is done
                 jobs += drives
@@ -289,13 +289,15 @@ class Study:
 
     # --- 5. autonomy ---------------------------------------------------------------------------------------------
     def drive_job(self, name: str, model: str, mode: str, loop: str, seed: int, seconds: float, rule: str,
-                  where: Path, video: bool = False, after: tuple = (), condition: str = SEEDED) -> Job | None:
-        """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`."""
+                  where: Path, video: bool = False, after: tuple = (), condition: str = SEEDED,
+                  record: bool = False) -> Job | None:
+        """An autonomy run as a job (None when its result exists): the round-0 result of `drivestudio autonomy`;
+        `record`: its steps kept as a dataset (a correction round's, which its retraining merges)."""
         if (where / "autonomy.json").exists():
             return None
         return Job(name, ["autonomy", "--model", model, "--mode", mode, "--path", loop, "--set", f"seed={seed}",
                           "--seconds", seconds, "--rule", rule, "--device", self.cfg.device, "--out", where,
-                          *([] if video else ["--set", "video=false"]),
+                          *([] if video else ["--set", "video=false"]), *([] if record else ["--set", "record=false"]),
                           *(["--set", f"condition={condition}"] if condition != SEEDED else [])], after)
 
     def autonomy_plan(self, stage: str, nets: dict[str, str], rules, runs: int, last_round: int,
