@@ -5,6 +5,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -227,7 +228,13 @@ def test_stats_reports_coverage_and_writes_histograms(reference, run_cli, tmp_pa
 def test_ray_backend_produces_the_same_shards(reference, run_cli, tmp_path):
     pytest.importorskip("ray", reason="the Ray backend is optional: pip install 'drivestudio[cluster]'")
     out = tmp_path / "ray"
-    r = generate(run_cli, out, "--backend", "ray", check=False)
+    # the local Ray instance's session folder in a temporary of the test's own, not left in /tmp/ray (short: Ray's
+    # socket paths must stay under 108 bytes)
+    temp = tempfile.mkdtemp(prefix="ray-", dir="/tmp")
+    try:
+        r = run_cli("generate", "--out", out, *SMALL, "--workers", 1, "--backend", "ray", env={"RAY_TMPDIR": temp})
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
     assert r.returncode == 0, r.stderr
     assert content(out) == content(reference)
 
