@@ -173,7 +173,6 @@ def test_bad_input_gets_one_line_and_status_2(fixture, run_cli, case):
     _refused_with_one_line(fixture, before, r)
 
 
-
 # the line names what the option takes there, and the verb that refused it
 MESSAGES = [
     (("aggregate", "--data", D, "--model", "oracle", "--out", "{root}/agg"),
