@@ -24,6 +24,8 @@ from drivestudio.errors import UsageError
 LOCALHOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 VIEW_FPS = 10.0           # frames a second a watched run publishes at most (docs/benchmarks.md: its cost)
+STUDIO_FPS = 60.0         # frames a second the studio publishes at most: a display shows no more, and drawing more
+                          # takes the cores from a loop running as fast as it can
 
 
 def register(sub) -> None:
@@ -99,7 +101,7 @@ def run(args) -> int:
     server = None
     try:
         out = run_dir(args.out, "studio")
-        publisher = Publisher()
+        publisher = Publisher(STUDIO_FPS)
         controls = Controls(realtime=not args.fast)
         session = Session(plugin, world_config(plugin, args), out, checkpoints, Watch(publisher, None), controls,
                           shard_steps=args.shard_steps, model=args.model, device=args.device)

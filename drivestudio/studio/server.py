@@ -19,6 +19,7 @@ import hmac
 import ipaddress
 import secrets
 import socket
+import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -36,6 +37,11 @@ COOKIE = "drivestudio-token"
 WS_LIMIT = 64 * 1024          # [bytes] a larger WebSocket message closes the socket (protocol.MAX_MESSAGE is refused)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 GOING_AWAY = 1001             # the WebSocket close code of a server that stops
+# [s] the GIL's switch interval while a page is connected. The loop's thread lets the GIL go only for an instant in
+# its C calls and takes it back at once, so a thread waiting for it gets it when the interval runs out; the server's
+# and the encoder's threads take it dozens of times a frame, and at Python's 5 ms a page of a loop running as fast as
+# it can got 6-10 frames a second (docs/benchmarks.md). Without a page the interval is Python's own.
+PAGE_SWITCH_INTERVAL = 1e-4
 
 
 def is_loopback(host: str) -> bool:
@@ -109,6 +115,7 @@ class Server:
         self._started = threading.Event()
         self._error: BaseException | None = None
         self._reason = "the studio stopped"
+        self._switch_interval: float | None = None     # Python's own, while a page is connected
 
     # --- lifecycle -------------------------------------------------------------------------------------------
     def url(self, host: str) -> str:
@@ -217,6 +224,7 @@ class Server:
         if self._wheel_free():
             client.wheel = True
         self.clients.append(client)
+        self._pages_changed()
         try:
             await ws.send_str(protocol.text("hello", **self.hello(client), role=client.role,
                                             wheel_free=self._wheel_free()))
@@ -231,10 +239,20 @@ class Server:
                     break
         finally:
             self.clients.remove(client)
+            self._pages_changed()
             if client.wheel:
                 self.leave(client)
                 await self._roles()
         return ws
+
+    def _pages_changed(self) -> None:
+        """The GIL's switch interval: PAGE_SWITCH_INTERVAL while a page is connected, Python's own otherwise."""
+        if self.clients and self._switch_interval is None:
+            self._switch_interval = sys.getswitchinterval()
+            sys.setswitchinterval(min(self._switch_interval, PAGE_SWITCH_INTERVAL))
+        elif not self.clients and self._switch_interval is not None:
+            sys.setswitchinterval(self._switch_interval)
+            self._switch_interval = None
 
     def _wheel_free(self) -> bool:
         return (self.drives or self.controls) and not any(c.wheel for c in self.clients)

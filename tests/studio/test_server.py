@@ -15,6 +15,7 @@ import urllib.request
 import aiohttp
 import pytest
 
+from drivestudio.commands.studio import STUDIO_FPS
 from perception.shards import Dataset, read_manifest
 from tests.studio.helpers import REPO, Studio, connect, run
 
@@ -335,3 +336,19 @@ def test_the_model_is_read_as_the_one_driver_spec_with_its_filters(tmp_path):
     assert args.model == "net.pt"
     with pytest.raises(UsageError, match="wobble"):
         _checkpoints(argparse.Namespace(checkpoint=[], model=f"{ckpt}@wobble=1"), worlds.get("highway"))
+
+
+def test_a_studio_running_as_fast_as_it_can_publishes_at_most_its_frame_rate(sidewalk):
+    """The sidewalk studio's loop runs hundreds of steps a second; a page that acknowledges every frame at once gets
+    no more than STUDIO_FPS of them a second, and the loop does not wait for it."""
+    async def frames() -> tuple[list[dict], float]:
+        async with aiohttp.ClientSession() as session:
+            c = await connect(session, sidewalk)
+            await c.receive(lambda c: len(c.states) >= 5)
+            first, t0 = len(c.states), time.monotonic()
+            await c.receive(lambda c: time.monotonic() - t0 >= 2.0)
+            return c.states[first - 1:], time.monotonic() - t0
+    states, seconds = run(frames())
+    assert len(states) - 1 <= STUDIO_FPS * seconds + 2
+    steps = states[-1]["step"] - states[0]["step"]
+    assert steps > 2 * (len(states) - 1)            # the loop ran on between the frames
