@@ -1,4 +1,4 @@
-"""The benchmark suite: every benchmark of bench/ at sizes that finish in about 15-20 minutes on a 2-core machine (the
+"""The benchmark suite: every benchmark of bench/ at sizes that finish in about 30 minutes on a 2-core machine (the
 demo from a fresh clone among them), their figures in one table with the machine, the date and the versions.
 
     python -m bench                         # everything; writes docs/benchmarks.md (between its markers) and
@@ -33,7 +33,7 @@ DOC = REPO / "docs" / "benchmarks.md"
 RESULTS = BENCH / "results.json"
 BEGIN, END = "<!-- BEGIN GENERATED bench-suite -->", "<!-- END GENERATED bench-suite -->"
 SECTION = """## The suite
-`python -m bench` runs every benchmark of `bench/` at sizes that finish in about 15-20 minutes on this machine (the
+`python -m bench` runs every benchmark of `bench/` at sizes that finish in about 30 minutes on this machine (the
 demo from a fresh clone among them) and writes the table below (and `bench/results.json`) with the machine, the date
 and the versions; `--only NAME,...` reruns some of them (their rows replace those of the last run), `--quick
 --no-write` is a smoke test (seconds per bench, MultiNet's and the demo's about a minute). highway-env is installed on
@@ -390,7 +390,7 @@ def run_bench(b: Bench, quick: bool, tmp: Path, timeout: float, echo: bool) -> d
     seconds = time.perf_counter() - t0
     if not echo and out:
         print(out, end="", flush=True)
-    entry = {"name": b.name, "command": shown, "seconds": round(seconds, 1), "date": time.strftime("%Y-%m-%d"),
+    entry = {"name": b.name, "command": shown, "seconds": round(seconds, 1), "date": time.strftime("%Y-%m-%d %H:%M"),
              "quick": quick, "load_average": load}
     if rc != 0 or not out_json.exists():
         lines = [ln for ln in err.strip().splitlines() if ln.strip()]
@@ -421,7 +421,7 @@ def table(results: dict) -> str:
     for name, e in results["benches"].items():
         run = f"`{e['command']}` ({e['seconds']:.0f} s" + (f", load {e['load_average']:.1f})" if "load_average" in e
                                                             else ")")
-        if e.get("date") != results["date"][:10]:
+        if e.get("date", "") < results["date"][:16]:   # "YYYY-MM-DD HH:MM": before this run started
             older.append(f"{name} ({e.get('date')})")
         if e["status"] == "failed":
             lines.append(f"| {name} | | **failed**: {e['error'].replace('|', '/')} | | {run} |")
